@@ -1,0 +1,29 @@
+"""clothgrid: structured quad grids inside four boundary curves, for cloth simulation.
+
+The public API::
+
+    import clothgrid
+    b = clothgrid.load_boundary("piece.json")          # or Boundary.from_sides / from_outline
+    grid = clothgrid.generate(b, (256, 256))           # exact to tol=2**-12 of the piece's size
+    print(clothgrid.quality(grid).table())
+    grid.save("piece.obj")
+"""
+
+from __future__ import annotations
+
+from .boundary import Boundary
+from .errors import (BackendUnavailableError, BoundaryError, ClothgridError, InputError, NotConvergedError,
+                     SizeError)
+from .generate import generate
+from .grid import Grid
+from .quality import Quality, quality
+from .readers import load_boundary
+from .weights import Weights, make_weights
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Boundary", "Grid", "Quality", "Weights", "generate", "load_boundary", "make_weights", "quality",
+    "ClothgridError", "InputError", "BoundaryError", "SizeError", "BackendUnavailableError", "NotConvergedError",
+    "__version__",
+]

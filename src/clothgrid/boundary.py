@@ -1,0 +1,488 @@
+"""Four boundary curves of a piece: :class:`Boundary`.
+
+Conventions (MATH.md): bottom and top run left to right, left and right run
+bottom to top, and the four corners are shared: ``bottom[0] == left[0]``,
+``bottom[-1] == right[0]``, ``top[0] == left[-1]``, ``top[-1] == right[-1]``.
+Points are 2D or 3D; 2D points get ``z = 0``.
+
+Build a boundary with :meth:`Boundary.from_sides` (four point lists) or
+:meth:`Boundary.from_outline` (a closed outline and four corner indices); both
+validate the input and raise :class:`~clothgrid.errors.BoundaryError` with a
+message that says what is wrong and where.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import BoundaryError, InputError
+
+__all__ = ["Boundary", "resample_polyline"]
+
+SIDES = ("bottom", "right", "top", "left")
+#: corner name -> ((side, index), (side, index)); the first is kept on snapping
+CORNERS = {
+    "bottom-left": (("bottom", 0), ("left", 0)),
+    "bottom-right": (("bottom", -1), ("right", 0)),
+    "top-left": (("top", 0), ("left", -1)),
+    "top-right": (("top", -1), ("right", -1)),
+}
+CORNER_TOL = 1e-9    # corners, planarity, touching: relative to the piece's size
+LENGTH_TOL = 1e-12   # a side shorter than this (relative) has zero length
+_TINY = np.finfo(np.float64).tiny
+
+
+def _fmt(p: np.ndarray) -> str:
+    return "(" + ", ".join(f"{x:.6g}" for x in p) + ")"
+
+
+def _as_points(data: Any, what: str) -> np.ndarray:
+    """``data`` as an ``(n, 2)`` or ``(n, 3)`` finite float64 array, or BoundaryError."""
+    try:
+        pts = np.array(data, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z] "
+                            f"({exc})") from None
+    if pts.size == 0:
+        raise BoundaryError(f"{what} has no points")
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z], "
+                            f"got an array of shape {pts.shape}")
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if bad.size:
+        raise BoundaryError(f"{what} has a non-finite coordinate (NaN or inf) at point "
+                            f"{bad[0]}: {pts[bad[0]].tolist()}"
+                            + (f" ({bad.size} such points)" if bad.size > 1 else ""))
+    return pts
+
+
+def _to3d(pts: np.ndarray) -> np.ndarray:
+    if pts.shape[1] == 3:
+        return np.ascontiguousarray(pts)
+    return np.ascontiguousarray(np.column_stack([pts, np.zeros(len(pts))]))
+
+
+def _bbox_diagonal(pts: np.ndarray) -> float:
+    return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+
+
+def _arc_length(pts: np.ndarray) -> np.ndarray:
+    """Cumulative arc length, starting at 0."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+
+
+def _check_count(n: Any, what: str) -> int:
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise InputError(f"{what} must be an integer >= 2, not {n!r}")
+    return int(n)
+
+
+def resample_polyline(points: Any, n: int) -> np.ndarray:
+    """Resample a polyline to ``n`` points uniformly spaced in arc length.
+
+    Parameters
+    ----------
+    points : array_like
+        ``(m, 2)`` or ``(m, 3)`` points, ``m >= 2``; consecutive duplicates are
+        allowed.
+    n : int
+        Number of points wanted, ``n >= 2``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 3)`` float64 points on the polyline, equally spaced in its arc
+        length; the first and last points are exactly ``points[0]`` and
+        ``points[-1]``.
+    """
+    n = _check_count(n, "the number of points")
+    pts = _to3d(_as_points(points, "the polyline"))
+    if len(pts) < 2:
+        raise BoundaryError(f"a polyline needs at least 2 points, got {len(pts)}")
+    s = _arc_length(pts)
+    if s[-1] <= 0.0:
+        raise BoundaryError("cannot resample a polyline of zero length")
+    keep = np.concatenate([[True], np.diff(s) > 0.0])   # strictly increasing for interp
+    s, q = s[keep], pts[keep]
+    t = np.linspace(0.0, s[-1], n)
+    out = np.column_stack([np.interp(t, s, q[:, k]) for k in range(3)])
+    out[0], out[-1] = pts[0], pts[-1]
+    return out
+
+
+def _segments_intersect(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
+                        tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Do 2D segments ``a-b`` and ``c-d`` cross or touch (within ``tol``)?
+
+    Returns the boolean mask and an approximate meeting point per pair.
+    """
+    r, s = b - a, d - c
+    lr = np.maximum(np.hypot(r[:, 0], r[:, 1]), _TINY)
+    ls = np.maximum(np.hypot(s[:, 0], s[:, 1]), _TINY)
+
+    def side(u, lu, p):   # signed distance of p from the line along u, 0 if within tol
+        dist = (u[:, 0] * p[:, 1] - u[:, 1] * p[:, 0]) / lu
+        return dist, np.where(np.abs(dist) <= tol, 0.0, np.sign(dist))
+
+    d1, s1 = side(r, lr, c - a)
+    d2, s2 = side(r, lr, d - a)
+    _, s3 = side(s, ls, a - c)
+    _, s4 = side(s, ls, b - c)
+    hit = (s1 * s2 <= 0) & (s3 * s4 <= 0)
+    collinear = (s1 == 0) & (s2 == 0) & (s3 == 0) & (s4 == 0)
+    if collinear.any():   # overlap of the projections on a-b
+        t1 = ((c - a) * r).sum(axis=1) / lr
+        t2 = ((d - a) * r).sum(axis=1) / lr
+        overlap = (np.maximum(t1, t2) >= -tol) & (np.minimum(t1, t2) <= lr + tol)
+        hit &= ~collinear | overlap
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where(d1 != d2, d1 / (d1 - d2), 0.0)
+    where = c + np.clip(f, 0.0, 1.0)[:, None] * s
+    return hit, where
+
+
+def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.ndarray] | None:
+    """First pair of non-adjacent segments of the closed 2D polygon ``p`` that meet.
+
+    Segment ``k`` runs from ``p[k]`` to ``p[k+1]`` (cyclically). Adjacent segments
+    count only when they fold back onto each other. Returns ``(k, m, point)``
+    with ``k < m`` (``k == m`` for a fold-back at the end of ``k``), or None.
+    """
+    n = len(p)
+    a, b = p, np.roll(p, -1, axis=0)
+    # adjacent segments: fold back when the turn is a reversal
+    u, w = b - a, np.roll(b - a, -1, axis=0)
+    lu = np.maximum(np.hypot(u[:, 0], u[:, 1]), _TINY)
+    back = (np.abs(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]) / lu <= tol) & ((u * w).sum(axis=1) < 0)
+    if back.any():
+        k = int(np.flatnonzero(back)[0])
+        return k, k, b[k]
+    lo, hi = np.minimum(a, b) - tol, np.maximum(a, b) + tol
+    chunk = max(1, 2_000_000 // max(n, 1))
+    for start in range(0, n - 2, chunk):
+        rows = np.arange(start, min(start + chunk, n - 2))
+        cols = np.arange(start + 2, n)
+        boxes = ((lo[rows, None, 0] <= hi[None, cols, 0]) & (lo[None, cols, 0] <= hi[rows, None, 0])
+                 & (lo[rows, None, 1] <= hi[None, cols, 1])
+                 & (lo[None, cols, 1] <= hi[rows, None, 1]))
+        boxes &= cols[None, :] >= rows[:, None] + 2               # non-adjacent, each pair once
+        if start == 0:
+            boxes[0, -1] = False                                  # first and last are adjacent
+        i, j = np.nonzero(boxes)
+        if i.size == 0:
+            continue
+        i, j = rows[i], cols[j]
+        hit, where = _segments_intersect(a[i], b[i], a[j], b[j], tol)
+        if hit.any():
+            h = int(np.flatnonzero(hit)[0])
+            return int(i[h]), int(j[h]), where[h]
+    return None
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Boundary:
+    """The four boundary curves of a piece.
+
+    Build it with :meth:`from_sides` or :meth:`from_outline`, which validate
+    the input; the plain constructor does not.
+
+    Attributes
+    ----------
+    bottom, right, top : numpy.ndarray
+        ``(n, 3)`` C-contiguous float64 points. Bottom and top run left to
+        right, right runs bottom to top.
+    left : numpy.ndarray
+        ``(n, 3)`` points, bottom to top. The four corners are shared exactly
+        (bitwise identical values at both ends).
+    dim : int
+        2 if the points were given in 2D (with ``z = 0`` added), else 3.
+    name : str or None
+        A name for messages and output files.
+    """
+
+    bottom: np.ndarray
+    right: np.ndarray
+    top: np.ndarray
+    left: np.ndarray
+    dim: int = 3
+    name: str | None = None
+
+    # ------------------------------------------------------------------ build
+    @classmethod
+    def from_sides(cls, bottom: Any, right: Any, top: Any, left: Any, *,
+                   name: str | None = None) -> Boundary:
+        """Validate four sides and build a boundary.
+
+        Parameters
+        ----------
+        bottom, right, top, left : array_like
+            ``(n, 2)`` or ``(n, 3)`` points each, ``n >= 2``, all sides of the
+            same dimension. Bottom and top run left to right, left and right
+            bottom to top; the corners must meet within ``1e-9`` times the
+            bounding-box diagonal and are then made bitwise identical (the
+            bottom's and top's values are kept). Opposite sides may have
+            different numbers of points (see :attr:`shape`).
+        name : str, optional
+            Name of the piece.
+
+        Raises
+        ------
+        BoundaryError
+            Points that are not a list of 2D/3D points, fewer than 2 points on a
+            side, NaN or inf, corners that do not meet, a side of zero length,
+            or an outline that crosses or touches itself (checked for 2D and
+            planar 3D pieces).
+        """
+        raw = {s: _as_points(p, f"the {s} side") for s, p in zip(SIDES, (bottom, right, top, left))}
+        dims = {s: p.shape[1] for s, p in raw.items()}
+        if len(set(dims.values())) > 1:
+            raise BoundaryError("all sides must have points of the same dimension, got "
+                                + ", ".join(f"{s} {d}D" for s, d in dims.items()))
+        for s, p in raw.items():
+            if len(p) < 2:
+                raise BoundaryError(f"the {s} side needs at least 2 points, got {len(p)}")
+        side = {s: _to3d(p) for s, p in raw.items()}
+        size = _bbox_diagonal(np.concatenate(list(side.values())))
+        tol = max(CORNER_TOL * size, _TINY)
+
+        def gaps(sd: dict[str, np.ndarray]) -> dict[str, float]:
+            return {c: float(np.linalg.norm(sd[s1][i1] - sd[s2][i2]))
+                    for c, ((s1, i1), (s2, i2)) in CORNERS.items()}
+
+        gap = gaps(side)
+        d = dims["bottom"]
+        open_ = [c for c, g in gap.items() if g > tol]
+        if open_:
+            c = open_[0]
+            (s1, i1), (s2, i2) = CORNERS[c]
+            msg = (f"the {c} corner does not meet: {s1}[{i1}] = {_fmt(side[s1][i1][:d])} but "
+                   f"{s2}[{i2}] = {_fmt(side[s2][i2][:d])}, {gap[c]:.6g} apart "
+                   f"({100 * gap[c] / size:.3g}% of the piece's size {size:.6g})")
+            if len(open_) > 1:
+                msg += "; also open: " + ", ".join(open_[1:])
+            for s in SIDES:   # would reversing one side close every corner?
+                if max(gaps({**side, s: side[s][::-1]}).values()) <= tol:
+                    direction = "left to right" if s in ("bottom", "top") else "bottom to top"
+                    msg += f". The {s} side seems reversed: it must run {direction}"
+                    break
+            else:
+                msg += (". Bottom and top must run left to right, left and right bottom to top, "
+                        "sharing the four corners")
+            raise BoundaryError(msg)
+        side = {s: p.copy() for s, p in side.items()}
+        for (s1, i1), (s2, i2) in CORNERS.values():
+            side[s2][i2] = side[s1][i1]
+
+        for s, p in side.items():
+            length = _arc_length(p)[-1]
+            if length <= LENGTH_TOL * size:
+                raise BoundaryError(f"the {s} side has zero length ({len(p)} points, total "
+                                    f"length {length:.3g}, piece size {size:.3g})")
+        b = cls(**side, dim=d, name=name)
+        b._check_simple(tol)
+        return b
+
+    @classmethod
+    def from_outline(cls, points: Any, corners: Any, *, name: str | None = None) -> Boundary:
+        """Build a boundary from a closed outline and four corner indices.
+
+        Parameters
+        ----------
+        points : array_like
+            ``(N, 2)`` or ``(N, 3)`` points of the closed outline, the first
+            point not repeated (a last point equal to the first is dropped).
+        corners : sequence of 4 int
+            Indices into ``points`` of the bottom-left, bottom-right, top-right
+            and top-left corners, in the outline's order: going forward from
+            ``corners[0]`` (wrapping around the end) one meets ``corners[1]``,
+            ``corners[2]``, ``corners[3]``. The bottom side is
+            ``corners[0] -> corners[1]``, the right ``corners[1] -> corners[2]``,
+            the top ``corners[2] -> corners[3]`` and the left
+            ``corners[3] -> corners[0]``; top and left are reversed to run left
+            to right and bottom to top. A counter-clockwise outline gives
+            :attr:`orientation` ``+1``, a clockwise one ``-1``.
+        name : str, optional
+            Name of the piece.
+
+        Raises
+        ------
+        BoundaryError
+            Invalid points, corners that are not 4 distinct in-range integer
+            indices in cyclic order, or any error of :meth:`from_sides`.
+        """
+        pts = _as_points(points, "the outline")
+        if len(pts) >= 2 and np.linalg.norm(pts[-1] - pts[0]) <= max(
+                CORNER_TOL * _bbox_diagonal(pts), _TINY):
+            pts = pts[:-1]
+        n = len(pts)
+        if n < 4:
+            raise BoundaryError(f"the outline needs at least 4 points (one per corner), got {n}")
+        if isinstance(corners, (str, bytes)) or not hasattr(corners, "__len__") \
+                or len(corners) != 4:
+            raise BoundaryError("corners must be 4 indices into the outline (bottom-left, "
+                                f"bottom-right, top-right, top-left), got {corners!r}")
+        for c in corners:
+            if isinstance(c, (bool, np.bool_)) or not isinstance(c, (int, np.integer)):
+                raise BoundaryError(f"corners must be integer indices into the outline, got {c!r} "
+                                    f"in {list(corners)!r}")
+        c = [int(x) for x in corners]
+        if any(not 0 <= x < n for x in c):
+            raise BoundaryError(f"corner indices must be in 0..{n - 1} (the outline has {n} "
+                                f"points), got {c}")
+        if len(set(c)) != 4:
+            raise BoundaryError(f"the 4 corner indices must be distinct, got {c}")
+        offsets = [(x - c[0]) % n for x in c]
+        if not offsets[1] < offsets[2] < offsets[3]:
+            raise BoundaryError(f"corners {c} are not in the outline's order: going forward from "
+                                f"corners[0] = {c[0]} one must meet corners[1], corners[2] and "
+                                "corners[3] in that order (bottom-left, bottom-right, top-right, "
+                                "top-left)")
+
+        def run(i: int, j: int) -> np.ndarray:
+            return pts[np.arange(i, i + (j - i) % n + 1) % n]
+
+        return cls.from_sides(run(c[0], c[1]), run(c[1], c[2]), run(c[2], c[3])[::-1],
+                              run(c[3], c[0])[::-1], name=name)
+
+    # ------------------------------------------------------------- geometry
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(nu, nv)``: points on the bottom and on the left side.
+
+        Raises
+        ------
+        BoundaryError
+            If the top has not as many points as the bottom, or the right not
+            as many as the left.
+        """
+        nb, nr, nt, nl = (len(p) for p in (self.bottom, self.right, self.top, self.left))
+        if nb != nt or nl != nr:
+            raise BoundaryError(
+                f"opposite sides have different numbers of points: bottom {nb} and top {nt}, "
+                f"left {nl} and right {nr}; request the number of nodes to resample the sides, "
+                f"e.g. --nodes {max(nb, nt)}x{max(nl, nr)} (Boundary.resampled(nu, nv))")
+        return nb, nl
+
+    @property
+    def size(self) -> float:
+        """Bounding-box diagonal of all points (> 0 for a valid boundary)."""
+        return _bbox_diagonal(self.outline())
+
+    @property
+    def side_lengths(self) -> tuple[float, float, float, float]:
+        """Arc lengths of the bottom, right, top and left sides."""
+        sides = (self.bottom, self.right, self.top, self.left)
+        return tuple(float(_arc_length(p)[-1]) for p in sides)
+
+    def outline(self) -> np.ndarray:
+        """The closed outline without repetition, ``(N, 3)``.
+
+        bottom, right, top reversed, left reversed, each without its last point:
+        counter-clockwise for a counter-clockwise piece.
+        """
+        return np.concatenate([self.bottom[:-1], self.right[:-1],
+                               self.top[::-1][:-1], self.left[::-1][:-1]])
+
+    def _plane(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """``(origin, axes, normal, planar)`` of the best-fit plane.
+
+        ``axes`` is ``(2, 3)``: two orthonormal in-plane directions forming a
+        right-handed frame with ``normal``; for 2D input the plane is the
+        xy-plane with normal ``+z``. For 3D the normal's sign is fixed by its
+        first non-zero component among z, y, x being positive, so a 3D piece
+        in the xy-plane gets the same orientation as its 2D version.
+        """
+        p = self.outline()
+        if self.dim == 2:
+            return np.zeros(3), np.eye(3)[:2], np.array([0.0, 0.0, 1.0]), True
+        origin = p.mean(axis=0)
+        _, _, vt = np.linalg.svd(p - origin, full_matrices=False)
+        normal = vt[2]
+        for k in (2, 1, 0):
+            if abs(normal[k]) > 1e-9:
+                normal = normal if normal[k] > 0 else -normal
+                break
+        e1 = vt[0]
+        axes = np.stack([e1, np.cross(normal, e1)])
+        planar = float(np.abs((p - origin) @ normal).max()) <= CORNER_TOL * _bbox_diagonal(p)
+        return origin, axes, normal, planar
+
+    @property
+    def orientation(self) -> float:
+        """``+1.0`` if the outline is counter-clockwise in its best-fit plane, else ``-1.0``.
+
+        The plane is the xy-plane for 2D pieces; for 3D pieces its reference
+        normal has a positive z (or, if it lies in a vertical plane, positive y,
+        then x) component.
+        """
+        origin, _, normal, _ = self._plane()
+        p = self.outline() - origin
+        area = 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
+        return -1.0 if float(area @ normal) < 0 else 1.0
+
+    @property
+    def normal(self) -> np.ndarray:
+        """``(3,)`` unit normal of the best-fit plane; the outline is counter-clockwise about it."""
+        return self._plane()[2] * self.orientation
+
+    def _check_simple(self, tol: float) -> None:
+        """Raise BoundaryError if the (planar) outline crosses or touches itself."""
+        origin, axes, _, planar = self._plane()
+        if not planar:
+            return
+        p3 = self.outline()
+        p = (p3 - origin) @ axes.T
+        # drop (near-)duplicate consecutive points: zero-length segments
+        keep = np.flatnonzero(np.linalg.norm(p - np.roll(p, 1, axis=0), axis=1) > tol)
+        if len(keep) < 2:
+            return
+        found = _find_self_intersection(p[keep], tol)
+        if found is None:
+            return
+        k, m, where = found
+        n = len(p)
+        # a kept segment ends at keep[k+1]; the non-degenerate original one is just before it
+        seg = [int((keep[(x + 1) % len(keep)] - 1) % n) for x in (k, m)]
+        place = _fmt((origin + where @ axes)[:self.dim])
+        if k == m:
+            raise BoundaryError(f"the outline folds back onto itself at the end of "
+                                f"{self._segment_name(seg[0])}, near {place}")
+        raise BoundaryError(f"the outline crosses or touches itself: {self._segment_name(seg[0])} "
+                            f"meets {self._segment_name(seg[1])} near {place}")
+
+    def _segment_name(self, k: int) -> str:
+        """Describe segment ``k`` of :meth:`outline` (from point ``k`` to ``k+1``)."""
+        for s in SIDES:
+            m = len(getattr(self, s)) - 1
+            if k < m:
+                i = k if s in ("bottom", "right") else m - 1 - k
+                return f"{s} segment {i} ({s}[{i}] to {s}[{i + 1}])"
+            k -= m
+        raise IndexError(k)
+
+    # ------------------------------------------------------------ derived
+    def resampled(self, nu: int, nv: int) -> Boundary:
+        """The boundary with ``nu`` points on bottom and top, ``nv`` on left and right.
+
+        Sides with a different count are resampled uniformly by arc length
+        (:func:`resample_polyline`), keeping the corners exactly; sides that
+        already have the requested count are kept as they are.
+
+        Raises
+        ------
+        InputError
+            If ``nu`` or ``nv`` is not an integer >= 2.
+        """
+        nu, nv = _check_count(nu, "nu"), _check_count(nv, "nv")
+        want = {"bottom": nu, "top": nu, "left": nv, "right": nv}
+        new = {s: (getattr(self, s) if len(getattr(self, s)) == n
+                   else resample_polyline(getattr(self, s), n)) for s, n in want.items()}
+        return Boundary(**new, dim=self.dim, name=self.name)
+
+    def __repr__(self) -> str:
+        counts = " ".join(f"{s}={len(getattr(self, s))}" for s in SIDES)
+        name = f"{self.name!r}, " if self.name else ""
+        return f"Boundary({name}{self.dim}D, {counts}, size={self.size:.6g})"

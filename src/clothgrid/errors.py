@@ -1,0 +1,48 @@
+"""Exceptions raised by clothgrid.
+
+Every error a user can cause derives from :class:`ClothgridError`; the CLI maps
+:class:`InputError` (and its subclasses) to exit code 2 and
+:class:`NotConvergedError` to exit code 3.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ClothgridError",
+    "InputError",
+    "BoundaryError",
+    "SizeError",
+    "NotConvergedError",
+    "BackendUnavailableError",
+]
+
+
+class ClothgridError(Exception):
+    """Base class of every clothgrid error."""
+
+
+class InputError(ClothgridError, ValueError):
+    """Bad input or bad options: the user must change what they asked for."""
+
+
+class BoundaryError(InputError):
+    """The four boundary curves are not a valid piece (open corners, NaN, ...)."""
+
+
+class SizeError(InputError):
+    """The requested grid does not fit (memory, texture size, ...)."""
+
+
+class BackendUnavailableError(InputError):
+    """The requested backend cannot run on this machine."""
+
+
+class NotConvergedError(ClothgridError):
+    """An iterative solve reached ``max_iter`` before meeting the tolerance.
+
+    The unconverged grid is attached as ``grid`` so callers may still use it.
+    """
+
+    def __init__(self, message: str, grid=None):
+        super().__init__(message)
+        self.grid = grid

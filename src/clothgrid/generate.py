@@ -1,0 +1,155 @@
+"""The pipeline: boundary -> initial grid -> weights -> solver -> :class:`Grid`."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable
+
+import numpy as np
+
+from .backends import get_backend
+from .boundary import Boundary
+from .errors import InputError, NotConvergedError
+from .grid import Grid
+from .initial import INITS, initial_grid
+from .memory import check_memory, estimate_bytes, format_bytes
+from .solvers import SOLVERS, Problem, solve
+from .weights import Weights, make_weights
+
+__all__ = ["generate", "parse_nodes"]
+
+STOPS = ("error", "paper")
+
+
+def parse_nodes(nodes) -> tuple[int, int]:
+    """``(nu, nv)`` from an int ``n``, a pair, or text ``"NUxNV"`` / ``"N"``; each at least 2."""
+    if isinstance(nodes, str):
+        parts = nodes.lower().replace("*", "x").split("x")
+        try:
+            vals = [int(p) for p in parts]
+        except ValueError:
+            raise InputError(f"nodes must look like NUxNV (e.g. 64x48) or N, not {nodes!r}") from None
+    elif isinstance(nodes, (int, np.integer)):
+        vals = [int(nodes)]
+    else:
+        try:
+            vals = list(nodes)
+        except TypeError:
+            raise InputError(f"nodes must be an int or a pair (nu, nv), not {nodes!r}") from None
+    if len(vals) == 1:
+        vals = vals * 2
+    if len(vals) != 2 or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in vals):
+        raise InputError(f"nodes must be two integers (nu, nv), not {nodes!r}")
+    nu, nv = (int(v) for v in vals)
+    if nu < 2 or nv < 2:
+        raise InputError(f"a grid needs at least 2 nodes along each side, not {nu}x{nv}")
+    return nu, nv
+
+
+def _check_options(init: str, solver: str, stop: str, tol: float, max_iter) -> None:
+    if init not in INITS:
+        raise InputError(f"unknown init {init!r}: use one of {', '.join(INITS)}")
+    if solver != "auto" and solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r}: use one of auto, {', '.join(SOLVERS)}")
+    if stop not in STOPS:
+        raise InputError(f"unknown stop rule {stop!r}: use one of {', '.join(STOPS)}")
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and 0 < tol < 1):
+        raise InputError(f"tol must be a number between 0 and 1 (relative to the piece's size), not {tol!r}")
+    if max_iter is not None and (not isinstance(max_iter, (int, np.integer)) or max_iter < 1):
+        raise InputError(f"max_iter must be a positive integer, not {max_iter!r}")
+
+
+def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
+             weights: str | tuple[np.ndarray, np.ndarray] | Weights = "paper", k: float = 1.0,
+             solver: str = "auto", backend: str = "auto", tol: float = 2.0**-12, stop: str = "error",
+             max_iter: int | None = None, allow_unconverged: bool = False,
+             progress: Callable[[str], None] | None = None) -> Grid:
+    """Generate the structured grid inside ``boundary``.
+
+    Parameters
+    ----------
+    boundary : Boundary
+        The four sides.
+    nodes : int or (int, int) or str, optional
+        Grid size ``(nu, nv)``; sides with other point counts are resampled
+        uniformly by arc length. Default: the sides' own points.
+    init : {"tfi", "average", "zero"}
+        Initial grid (eq. 4, the contour mean, or zeros). Only iterative
+        solvers start from it.
+    weights : {"paper", "uniform"} or (wu, wv) or Weights
+        Edge weights (:func:`clothgrid.weights.make_weights`).
+    k : float
+        The paper's ``k`` for ``weights="paper"``.
+    solver : {"auto", "direct", "fdm", "jacobi"}
+        ``auto`` picks the fastest solver that meets ``tol`` for the weights.
+    backend : {"auto", "cpu"}
+        Where the array operations run.
+    tol : float
+        Required accuracy: every node within ``tol`` times the boundary's
+        bounding-box diagonal of the exact solution (default ``2**-12``).
+    stop : {"error", "paper"}
+        Jacobi's stopping rule: the true ``error`` bound, or the paper's
+        "last step < tol" (not an error bound; for reproducing the paper).
+    max_iter : int, optional
+        Sweep limit of iterative solvers (default: enough for Jacobi in theory).
+    allow_unconverged : bool
+        Return an unconverged grid (``info["converged"]`` False) instead of
+        raising :class:`NotConvergedError`.
+    progress : callable, optional
+        Called with a line of text at each stage and during long iterations.
+
+    Returns
+    -------
+    Grid
+        With ``info``: solver, backend, init, weights, k, tol, stop,
+        iterations, error_estimate (relative; a guaranteed bound when
+        ``error_bound`` is True), converged, seconds, nodes, shape.
+
+    Raises
+    ------
+    InputError
+        Bad options or boundary (:class:`BoundaryError`), a grid that does not
+        fit in memory (:class:`SizeError`).
+    NotConvergedError
+        ``max_iter`` sweeps did not meet the stopping rule; the grid reached
+        is attached as ``.grid``.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda _msg: None)
+    _check_options(init, solver, stop, tol, max_iter)
+    be = get_backend(backend)
+    if nodes is not None:
+        nu, nv = parse_nodes(nodes)
+        boundary = boundary.resampled(nu, nv)
+    nu, nv = boundary.shape
+    if nu < 3 or nv < 3:
+        raise InputError(f"a {nu}x{nv} grid has no interior nodes to place: use at least 3x3 nodes")
+    separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
+    name = solver if solver != "auto" else ("fdm" if separable else "direct")
+    need = check_memory(name, nu, nv)
+    say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
+    w = make_weights(weights, nu, nv, k)
+    problem = Problem(initial_grid(boundary, init), w, boundary.size)
+    name, res = solve(problem, name, backend=be, tol=tol, stop=stop, max_iter=max_iter, progress=progress)
+    seconds = time.perf_counter() - t0
+    info = {
+        "solver": name, "backend": be.name, "init": init, "weights": w.kind,
+        "k": float(k) if w.kind == "paper" else None, "tol": float(tol), "stop": stop,
+        "iterations": int(res.iterations), "error_estimate": float(res.error_estimate),
+        "error_bound": bool(res.bound), "converged": bool(res.converged), "seconds": seconds,
+        "nodes": nu * nv, "shape": [nu, nv], "memory_estimate": estimate_bytes(name, nu, nv),
+    }
+    if res.extra:
+        info.update(res.extra)
+    grid = Grid.from_points(res.points, info=info, dim=boundary.dim,
+                            flip=boundary.dim == 2 and boundary.orientation < 0)
+    say(f"{name}: {res.iterations} iterations, error bound {res.error_estimate:.3g} (tol {tol:.3g}), {seconds:.3f} s")
+    if not res.converged:
+        rule = "last step < tol (the paper's rule)" if stop == "paper" and name == "jacobi" else f"error <= {tol:.3g}"
+        msg = (f"solver '{name}' did not reach {rule} in {res.iterations} iterations: error bound "
+               f"{res.error_estimate:.3g} of the piece's size; raise max_iter or use solver 'auto'")
+        if not allow_unconverged:
+            raise NotConvergedError(msg, grid)
+        say("warning: " + msg)
+    return grid

@@ -1,0 +1,143 @@
+"""The result of a grid generation: :class:`Grid`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Grid", "quad_indices", "arc_length_uv"]
+
+
+def quad_indices(nu: int, nv: int, *, flip: bool = False) -> np.ndarray:
+    """Quads of an ``nu x nv`` structured grid as flat node indices ``i*nv + j``.
+
+    Each quad is ``(i, j), (i+1, j), (i+1, j+1), (i, j+1)``: counter-clockwise in
+    the (u, v) parameter plane, and so in the xy-plane for a counter-clockwise
+    boundary. ``flip=True`` reverses the order (for clockwise pieces).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``((nu-1)*(nv-1), 4)`` int64 array, cells ordered by ``i`` then ``j``.
+    """
+    i, j = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1), indexing="ij")
+    a = (i * nv + j).ravel()
+    q = np.stack([a, a + nv, a + nv + 1, a + 1], axis=1).astype(np.int64)
+    return q[:, ::-1].copy() if flip else q
+
+
+def arc_length_uv(points: np.ndarray) -> np.ndarray:
+    """Normalised arc-length parameters of every node along its grid lines.
+
+    ``uv[i, j, 0]`` is the length of grid line ``j`` from node ``(0, j)`` to
+    ``(i, j)`` divided by the whole line's length; ``uv[i, j, 1]`` likewise
+    along line ``i`` in v. On the boundary these are the sides' own
+    normalised arc-length parameters.
+    """
+    def along(p: np.ndarray, axis: int) -> np.ndarray:
+        seg = np.linalg.norm(np.diff(p, axis=axis), axis=-1)
+        s = np.cumsum(seg, axis=axis)
+        pad = [(0, 0)] * s.ndim
+        pad[axis] = (1, 0)
+        s = np.pad(s, pad)
+        total = np.take(s, [-1], axis=axis)
+        n = p.shape[axis]
+        uniform = np.linspace(0.0, 1.0, n).reshape([-1 if a == axis else 1 for a in range(s.ndim)])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = np.where(total > 0, s / np.where(total > 0, total, 1.0), uniform)
+        return out
+
+    return np.stack([along(points, 0), along(points, 1)], axis=-1)
+
+
+@dataclass
+class Grid:
+    """A structured quad grid.
+
+    Attributes
+    ----------
+    points : numpy.ndarray
+        ``(nu, nv, 3)`` float64 node positions, indexed ``[i, j]`` (``i`` along u).
+    uv : numpy.ndarray
+        ``(nu, nv, 2)`` normalised arc-length parameters in ``[0, 1]``.
+    quads : numpy.ndarray
+        ``(M, 4)`` int64 quads, counter-clockwise, flat node index ``i*nv + j``.
+    info : dict
+        What produced the grid: ``solver``, ``backend``, ``iterations``,
+        ``error_estimate`` (relative to the bounding-box diagonal), ``tol``,
+        ``seconds``, ``nodes`` and more.
+    dim : int
+        2 if the boundary was planar input given in 2D, else 3.
+    """
+
+    points: np.ndarray
+    uv: np.ndarray
+    quads: np.ndarray
+    info: dict[str, Any] = field(default_factory=dict)
+    dim: int = 3
+
+    @classmethod
+    def from_points(cls, points: np.ndarray, *, info: dict | None = None, dim: int = 3,
+                    flip: bool = False) -> "Grid":
+        """Build a grid (quads and uv) from an ``(nu, nv, 3)`` array of nodes."""
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        nu, nv = points.shape[:2]
+        return cls(points=points, uv=arc_length_uv(points), quads=quad_indices(nu, nv, flip=flip),
+                   info=dict(info or {}), dim=dim)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(nu, nv)``: nodes along u and along v."""
+        return int(self.points.shape[0]), int(self.points.shape[1])
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """``(nu*nv, 3)`` node positions in flat index order ``i*nv + j``."""
+        return self.points.reshape(-1, 3)
+
+    def triangles(self, diagonal: str = "fixed") -> np.ndarray:
+        """Split every quad into two counter-clockwise triangles.
+
+        Parameters
+        ----------
+        diagonal : {"fixed", "alternate"}
+            ``fixed`` cuts every quad along its ``a-c`` diagonal; ``alternate``
+            alternates the diagonal in a checkerboard (less directional bias).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(2M, 3)`` int64 triangles.
+        """
+        q = self.quads
+        if diagonal == "fixed":
+            t = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=0)
+            return t.reshape(2, -1, 3).transpose(1, 0, 2).reshape(-1, 3)
+        if diagonal == "alternate":
+            nu, nv = self.shape
+            i, j = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1), indexing="ij")
+            odd = ((i + j).ravel() % 2).astype(bool)
+            first = np.where(odd[:, None], q[:, [0, 1, 3]], q[:, [0, 1, 2]])
+            second = np.where(odd[:, None], q[:, [1, 2, 3]], q[:, [0, 2, 3]])
+            return np.stack([first, second], axis=1).reshape(-1, 3)
+        raise ValueError(f"diagonal must be 'fixed' or 'alternate', not {diagonal!r}")
+
+    def save(self, path: str | Path) -> Path:
+        """Write the grid to ``path``, the format chosen by extension.
+
+        See :func:`clothgrid.writers.save` for the formats. The file is written
+        to a temporary name and renamed on success, so a failure leaves no
+        partial file.
+        """
+        from .writers import save
+
+        return save(self, path)
+
+    def __repr__(self) -> str:
+        nu, nv = self.shape
+        keys = ("solver", "backend", "iterations", "error_estimate", "seconds")
+        shown = ", ".join(f"{k}={self.info[k]!r}" for k in keys if k in self.info)
+        return f"Grid({nu}x{nv}, {shown})"

@@ -1,0 +1,78 @@
+"""What a grid needs in memory, said before allocating it.
+
+Estimates are calibrated on measured peak resident sizes (this repository's
+``benchmarks/bench_core.py`` prints them): about 200 bytes per node for the
+pipeline (initial grid, weights, result, uv, quads), plus per solver:
+
+- ``fdm``: two dense eigenvector matrices, ``8 (m^2 + n^2)`` bytes, and the
+  dense products' work arrays;
+- ``direct``: the sparse LU factors, whose fill on an ``N``-node grid was
+  measured at ``N (6.5 log2 N - 52)`` entries, about 24 bytes each at peak;
+- ``jacobi``: one extra grid.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+from .errors import SizeError
+
+__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes"]
+
+PIPELINE_BYTES_PER_NODE = 200
+
+
+def available_bytes() -> int:
+    """Memory available to this process now (``MemAvailable`` on Linux)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return 1 << 62
+
+
+def estimate_bytes(solver: str, nu: int, nv: int) -> int:
+    """Peak memory, in bytes, to generate an ``nu x nv`` grid with ``solver``."""
+    n = nu * nv
+    m_u, m_v = max(nu - 2, 1), max(nv - 2, 1)
+    total = PIPELINE_BYTES_PER_NODE * n
+    if solver == "fdm":
+        total += 16 * (m_u**2 + m_v**2) + 48 * n
+    elif solver == "direct":
+        fill = n * max(6.5 * math.log2(max(n, 2)) - 52.0, 8.0)
+        total += int(24 * fill) + 60 * n
+    elif solver == "jacobi":
+        total += 24 * n
+    return int(total)
+
+
+def format_bytes(b: float) -> str:
+    """``1.5 GiB``-style text."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if b < 1024 or unit == "TiB":
+            return f"{b:.3g} {unit}"
+        b /= 1024
+    raise AssertionError
+
+
+def check_memory(solver: str, nu: int, nv: int, available: int | None = None) -> int:
+    """Raise :class:`SizeError` if the grid would not fit; return the estimate.
+
+    A grid fits when its estimate is at most 90 % of the available memory.
+    """
+    need = estimate_bytes(solver, nu, nv)
+    have = available_bytes() if available is None else available
+    if need > 0.9 * have:
+        hint = "use fewer nodes"
+        if solver == "direct":
+            hint = "use solver 'fdm' (separable weights) or fewer nodes"
+        raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of memory, "
+                        f"but {format_bytes(have)} is available: {hint}")
+    return need

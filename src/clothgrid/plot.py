@@ -1,0 +1,99 @@
+"""Draw a grid to an image file with matplotlib (Agg, no screen needed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.figure import Figure
+
+from .errors import InputError
+from .grid import Grid
+from .quality import Quality, best_fit_plane, boundary_loop, vector_area
+from .writers import atomic_write
+
+__all__ = ["plot_grid", "plane_coordinates"]
+
+
+def plane_coordinates(grid: Grid) -> np.ndarray:
+    """``(nu, nv, 2)`` drawing coordinates of the nodes.
+
+    2D grids use x and y; 3D grids are projected on the best-fit plane of all
+    nodes, its axes chosen so that the boundary loop keeps its turning sense
+    about the plane's normal oriented by the loop (counter-clockwise).
+    """
+    points = np.asarray(grid.points, dtype=np.float64)
+    if grid.dim == 2:
+        return points[..., :2].copy()
+    flat = points.reshape(-1, 3)
+    centre, normal, _ = best_fit_plane(flat)
+    if vector_area(boundary_loop(points)) @ normal < 0:
+        normal = -normal
+    e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    basis = np.stack([e1, np.cross(normal, e1)], axis=1)    # (3, 2), e1 x e2 = normal
+    return (points - centre) @ basis
+
+
+def _subsample(n: int, max_lines: int) -> np.ndarray:
+    """At most ``max_lines`` evenly spread indices in ``0 .. n-1``, always both ends."""
+    count = min(n, max(int(max_lines), 2))
+    return np.unique(np.round(np.linspace(0, n - 1, count)).astype(np.int64))
+
+
+def plot_grid(grid: Grid, path: str | Path, *, title: str | None = None,
+              quality: Quality | None = None, max_lines: int = 128) -> Path:
+    """Draw the grid lines (boundary thicker) and write the image to ``path``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid; 3D grids are drawn projected on their best-fit plane.
+    path : str or Path
+        Output image; the format follows the extension (``.png``, ``.svg``,
+        ``.pdf``, ...). Written to a temporary file and renamed on success.
+    title : str, optional
+        Title above the drawing.
+    quality : Quality, optional
+        When given, its folded cells are filled red.
+    max_lines : int
+        Most grid lines drawn in each direction (evenly subsampled, boundary
+        lines always included); each line keeps all its nodes.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    fmt = path.suffix[1:].lower() or "png"
+    if fmt not in FigureCanvasAgg.get_supported_filetypes():
+        known = ", ".join(sorted(FigureCanvasAgg.get_supported_filetypes()))
+        raise InputError(f"cannot draw to {str(path)!r}: unknown image format {fmt!r} (known: {known})")
+    xy = plane_coordinates(grid)
+    nu, nv = xy.shape[:2]
+
+    fig = Figure(figsize=(8, 8), dpi=150)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    lines_v = [xy[i] for i in _subsample(nu, max_lines)]         # lines of constant i
+    lines_u = [xy[:, j] for j in _subsample(nv, max_lines)]      # lines of constant j
+    ax.add_collection(LineCollection(lines_v + lines_u, colors="0.35", linewidths=0.4))
+    if quality is not None and quality.folded:
+        i, j = np.asarray(quality.folded_cells, dtype=np.int64).T
+        cells = np.stack([xy[i, j], xy[i + 1, j], xy[i + 1, j + 1], xy[i, j + 1]], axis=1)
+        ax.add_collection(PolyCollection(cells, facecolors="red", edgecolors="darkred",
+                                         linewidths=0.3, alpha=0.8, zorder=3))
+    loop = boundary_loop(xy)
+    ax.plot(*np.vstack([loop, loop[:1]]).T, color="black", linewidth=1.5, zorder=4)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x" if grid.dim == 2 else "plane x")
+    ax.set_ylabel("y" if grid.dim == 2 else "plane y")
+    if title:
+        ax.set_title(title)
+    with atomic_write(path) as fh:
+        fig.savefig(fh, format=fmt, bbox_inches="tight")
+    return path

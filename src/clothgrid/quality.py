@@ -1,0 +1,266 @@
+"""Cell quality of a structured grid: folds, scaled Jacobian, aspect, angles.
+
+A cell ``(i, j)`` has the corners ``(i, j), (i+1, j), (i+1, j+1), (i, j+1)``.
+At each corner ``k`` the cross product ``(R[k+1] - R[k]) x (R[k-1] - R[k])``
+(corners in quad order) must point along the piece's reference normal; a cell
+with any corner pointing the other way (or degenerate) is *folded*.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .grid import Grid
+
+__all__ = ["Quality", "quality"]
+
+#: Largest distance of the boundary loop from its best-fit plane, relative to
+#: its bounding-box diagonal, for which a 3D piece counts as planar.
+PLANAR_TOL = 1e-9
+#: Half width of the block of cells whose corner cross products give the local
+#: normal of a cell on a curved (non-planar) piece: 2 means a 5 x 5 block.
+LOCAL_RADIUS = 2
+
+
+@dataclass(frozen=True, eq=False)
+class Quality:
+    """Quality measures of a grid's cells (see :func:`quality`).
+
+    Attributes
+    ----------
+    folded : int
+        Number of folded (or degenerate) cells.
+    folded_cells : numpy.ndarray
+        ``(K, 2)`` int64 ``(i, j)`` of the folded cells, ordered by ``i`` then ``j``.
+    min_scaled_jacobian : float
+        Smallest corner cross product of the two unit edge vectors, signed with
+        the orientation: 1 for a square, ``<= 0`` for a folded or degenerate corner.
+    max_aspect_ratio : float
+        Largest ratio of a cell's longest to its shortest edge (1 for squares).
+    max_orthogonality_deviation_deg : float
+        Largest ``|angle - 90|`` over all cell corners, in degrees.
+    edge_spread_u, edge_spread_v : float
+        Longest over shortest u-edge ``R[i+1, j] - R[i, j]`` and v-edge
+        ``R[i, j+1] - R[i, j]`` of the whole grid.
+    """
+
+    folded: int
+    folded_cells: np.ndarray
+    min_scaled_jacobian: float
+    max_aspect_ratio: float
+    max_orthogonality_deviation_deg: float
+    edge_spread_u: float
+    edge_spread_v: float
+
+    def as_dict(self) -> dict[str, Any]:
+        """The measures as plain Python numbers and lists (JSON-serialisable)."""
+        return {
+            "folded": int(self.folded),
+            "folded_cells": np.asarray(self.folded_cells).tolist(),
+            "min_scaled_jacobian": float(self.min_scaled_jacobian),
+            "max_aspect_ratio": float(self.max_aspect_ratio),
+            "max_orthogonality_deviation_deg": float(self.max_orthogonality_deviation_deg),
+            "edge_spread_u": float(self.edge_spread_u),
+            "edge_spread_v": float(self.edge_spread_v),
+        }
+
+    def table(self, max_listed: int = 5) -> str:
+        """A two-column text table of the measures, ending with the folded cells.
+
+        Parameters
+        ----------
+        max_listed : int
+            How many folded cells to name at most.
+        """
+        rows = [
+            ("min scaled Jacobian", f"{self.min_scaled_jacobian:.6g}"),
+            ("max aspect ratio", f"{self.max_aspect_ratio:.6g}"),
+            ("max orthogonality deviation", f"{self.max_orthogonality_deviation_deg:.4g} deg"),
+            ("edge spread u (max/min)", f"{self.edge_spread_u:.6g}"),
+            ("edge spread v (max/min)", f"{self.edge_spread_v:.6g}"),
+        ]
+        width = max(len(name) for name, _ in rows)
+        lines = [f"{name:<{width}}  {value}" for name, value in rows]
+        line = f"folded cells: {self.folded}"
+        if self.folded:
+            shown = ", ".join(f"({i}, {j})" for i, j in np.asarray(self.folded_cells)[:max_listed])
+            more = ", ..." if self.folded > max_listed else ""
+            line += f" (first at cells {shown}{more})"
+        return "\n".join(lines + [line])
+
+    def __repr__(self) -> str:
+        return (f"Quality(folded={self.folded}, min_scaled_jacobian={self.min_scaled_jacobian:.4g}, "
+                f"max_aspect_ratio={self.max_aspect_ratio:.4g}, "
+                f"max_orthogonality_deviation_deg={self.max_orthogonality_deviation_deg:.4g})")
+
+
+def boundary_loop(points: np.ndarray) -> np.ndarray:
+    """The boundary nodes of an ``(nu, nv, d)`` grid as one closed loop, each once.
+
+    Bottom (``i`` increasing, ``j = 0``), right (``j`` increasing at ``i = nu-1``),
+    top reversed, left reversed: counter-clockwise for a counter-clockwise piece.
+    """
+    return np.concatenate([points[:-1, 0], points[-1, :-1], points[:0:-1, -1], points[0, :0:-1]])
+
+
+def vector_area(loop: np.ndarray) -> np.ndarray:
+    """Vector area ``1/2 sum p_k x p_{k+1}`` of a closed 3D polygon ``(n, 3)``."""
+    p = loop - loop.mean(axis=0)
+    return 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
+
+
+def best_fit_plane(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Least-squares plane through ``(n, 3)`` points.
+
+    Returns
+    -------
+    centre, normal, distance : numpy.ndarray, numpy.ndarray, float
+        A point of the plane, its unit normal (sign arbitrary) and the largest
+        distance of a point from it.
+    """
+    centre = pts.mean(axis=0)
+    d = pts - centre
+    _, vecs = np.linalg.eigh(d.T @ d)
+    normal = vecs[:, 0]
+    return centre, normal, float(np.abs(d @ normal).max(initial=0.0))
+
+
+def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors of ``(d, ...)`` component-first vectors (zero for zero vectors), and lengths."""
+    length = np.sqrt(np.einsum("k...,k...->...", v, v))
+    return np.divide(v, length, out=np.zeros_like(v), where=length > 0), length
+
+
+def _cross(a: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Cross product of ``(3, ...)`` component-first vectors."""
+    return np.stack([a[1] * c[2] - a[2] * c[1], a[2] * c[0] - a[0] * c[2], a[0] * c[1] - a[1] * c[0]])
+
+
+def _box_sum(a: np.ndarray, r: int) -> np.ndarray:
+    """Sum of ``a`` (``(d, m, n)``) over the ``(2r+1)^2`` block around each entry, clipped."""
+    for axis in (1, 2):
+        pad = [(0, 0)] * 3
+        pad[axis] = (1, 0)
+        c = np.pad(np.cumsum(a, axis=axis), pad)          # c[k] = sum of the first k entries
+        pad[axis] = (r, r)
+        c = np.pad(c, pad, mode="edge")                    # c[k] -> c[clip(k - r, 0, m)]
+        m = a.shape[axis]
+        hi, lo = [slice(None)] * 3, [slice(None)] * 3
+        hi[axis], lo[axis] = slice(2 * r + 1, 2 * r + 1 + m), slice(0, m)
+        a = c[tuple(hi)] - c[tuple(lo)]
+    return a
+
+
+def _reference_normal(grid: Grid, normal, orientation) -> np.ndarray | None:
+    """The piece's oriented unit normal, or ``None`` when it must be local per cell."""
+    points = grid.points
+    if normal is not None:
+        n = np.asarray(normal, dtype=np.float64).reshape(3)
+    elif grid.dim == 2:
+        n = np.array([0.0, 0.0, 1.0])
+    else:
+        loop = boundary_loop(points)
+        _, n, dist = best_fit_plane(loop)
+        if dist > PLANAR_TOL * float(np.linalg.norm(np.ptp(loop, axis=0))):
+            return None
+    norm = np.linalg.norm(n)
+    if not norm > 0:
+        raise InputError(f"normal must be a non-zero 3-vector, not {normal!r}")
+    n = n / norm
+    if orientation is None:
+        orientation = 1.0 if vector_area(boundary_loop(points)) @ n >= 0 else -1.0
+    return n * float(np.sign(orientation) or 1.0)
+
+
+def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Quality:
+    """Measure the cells of ``grid``: folds, scaled Jacobian, aspect ratio, angles.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid; only ``points`` and ``dim`` are used.
+    normal : array_like, optional
+        Reference normal ``(3,)`` of the piece, overriding the detection: by
+        default +z for 2D grids, the best-fit plane's normal for 3D grids whose
+        boundary is planar (distance ``<= 1e-9`` x bounding-box diagonal), and
+        otherwise a local normal per cell, the sum of the corner cross products
+        of the cells in the 5 x 5 block around it (so an isolated fold stands
+        out against the surrounding surface).
+    orientation : float, optional
+        +1 (or -1) when the boundary loop (bottom, right, top reversed, left
+        reversed) turns counter-clockwise (clockwise) about the reference
+        normal; the default takes the sign of the loop's signed area. With
+        local normals it only multiplies them (default +1).
+
+    Returns
+    -------
+    Quality
+        Cells with a zero-length edge count as folded.
+    """
+    R = np.asarray(grid.points, dtype=np.float64)
+    nu, nv = R.shape[:2]
+    if nu < 2 or nv < 2:
+        nan = float("nan")
+        return Quality(0, np.zeros((0, 2), np.int64), nan, nan, nan, nan, nan)
+
+    X = np.ascontiguousarray(np.moveaxis(R, -1, 0))          # (3, nu, nv), component first
+    raw_u, raw_v = X[:, 1:] - X[:, :-1], X[:, :, 1:] - X[:, :, :-1]
+    eu, len_u = _unit(raw_u)                                  # (3, nu-1, nv) u-edges
+    ev, len_v = _unit(raw_v)                                  # (3, nu, nv-1) v-edges
+    n = _reference_normal(grid, normal, orientation)
+    if n is None:                                             # curved piece: local normals
+        cell_sum = _cross(raw_u[:, :, :-1] + raw_u[:, :, 1:], raw_v[:, :-1] + raw_v[:, 1:])
+        n, _ = _unit(_box_sum(cell_sum, LOCAL_RADIUS))        # sum of the corner crosses
+        if orientation is not None:
+            n *= float(np.sign(orientation) or 1.0)
+        cu, cv = eu, ev
+    else:                                                     # constant normal: 2D crosses
+        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        basis = np.stack([e1, np.cross(n, e1)])               # (2, 3), e1 x e2 = n
+        cu, cv = np.tensordot(basis, eu, 1), np.tensordot(basis, ev, 1)
+
+    def sides(u: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
+        """Bottom, top, left and right edges of every cell, ``(d, nu-1, nv-1)`` each."""
+        return {"b": u[:, :, :-1], "t": u[:, :, 1:], "l": v[:, :-1], "r": v[:, 1:]}
+
+    unit, proj = sides(eu, ev), sides(cu, cv)
+    shape = (nu - 1, nv - 1)
+    min_sj, max_cos = np.full(shape, np.inf), np.zeros(shape)
+    folded = np.zeros(shape, dtype=bool)
+    # Corner k of the quad, edge pair (R[k+1]-R[k], R[k-1]-R[k]) in terms of the cell's sides:
+    # 0: (b, l)  1: (r, -b)  2: (-t, -r)  3: (-l, t), whose crosses are b x l, b x r, t x r, t x l.
+    for first, second in ("bl", "br", "tr", "tl"):
+        pa, pc = proj[first], proj[second]
+        if len(pa) == 2:
+            sj = pa[0] * pc[1] - pa[1] * pc[0]
+        else:
+            sj = np.einsum("k...,k...->...", _cross(pa, pc), n)
+        folded |= ~(sj > 0)
+        np.minimum(min_sj, sj, out=min_sj)
+        cos = np.einsum("k...,k...->...", unit[first], unit[second])   # |angle - 90| = asin|cos|
+        np.maximum(max_cos, np.abs(cos), out=max_cos)
+
+    lengths = np.stack([len_u[:, :-1], len_u[:, 1:], len_v[:-1], len_v[1:]])
+    shortest, longest = lengths.min(axis=0), lengths.max(axis=0)
+    degenerate = ~(shortest > 0)
+    folded |= degenerate
+    deviation = np.where(degenerate, 90.0, np.degrees(np.arcsin(np.minimum(max_cos, 1.0))))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        aspect = np.where(degenerate, np.inf, longest / shortest)
+        spread_u = len_u.max() / len_u.min()
+        spread_v = len_v.max() / len_v.min()
+    cells = np.argwhere(folded).astype(np.int64)
+    return Quality(
+        folded=int(len(cells)),
+        folded_cells=cells,
+        min_scaled_jacobian=float(min_sj.min()),
+        max_aspect_ratio=float(aspect.max()),
+        max_orthogonality_deviation_deg=float(deviation.max()),
+        edge_spread_u=float(spread_u),
+        edge_spread_v=float(spread_v),
+    )

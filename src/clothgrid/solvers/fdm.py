@@ -1,0 +1,100 @@
+"""``fdm``: the fast diagonalisation method for separable weights.
+
+With ``wu = cu dv^T`` and ``wv = du cv^T`` the interior system is the Sylvester
+equation ``Ku Y Dv + Du Y Kv = B`` (``Ku``, ``Kv`` weighted second-difference
+matrices, ``Du``, ``Dv`` diagonal). With the generalised eigenpairs
+``Ku Phi = Du Phi Lambda`` (``Phi^T Du Phi = I``) and ``Kv Psi = Dv Psi M``,
+
+    Y = Phi [ (Phi^T B Psi) / (lambda_a + mu_b) ] Psi^T,
+
+exact up to rounding: two tridiagonal eigenproblems and four dense products.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import eigh_tridiagonal
+
+from ..errors import InputError
+from .bounds import barrier_max, error_bound
+from .problem import Problem, SolveResult
+
+__all__ = ["solve_fdm", "generalized_eig"]
+
+
+def generalized_eig(c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs of ``K phi = lam D phi`` for the 1D problem with edge weights ``c``.
+
+    ``c`` holds the ``n+1`` edge weights of a line of ``n`` interior nodes
+    (``K`` tridiagonal, ``K[a, a] = c[a] + c[a+1]``, ``K[a, a+1] = -c[a+1]``),
+    ``d`` the ``n`` positive diagonal entries of ``D``. Returns ``lam`` and
+    ``Phi`` with ``Phi^T D Phi = I``, via the symmetric tridiagonal matrix
+    ``D^-1/2 K D^-1/2``.
+    """
+    s = 1.0 / np.sqrt(d)
+    diag = (c[:-1] + c[1:]) * s * s
+    off = -c[1:-1] * s[:-1] * s[1:]
+    lam, v = eigh_tridiagonal(diag, off)
+    return lam, v * s[:, None]
+
+
+class FDM:
+    """The fast diagonalisation of one separable problem, reusable for many right-hand sides."""
+
+    def __init__(self, weights, nu: int, nv: int):
+        if weights.factors is None:
+            raise InputError("solver 'fdm' needs separable weights ('paper' or 'uniform'); "
+                             "use solver='direct' or 'auto' for per-edge weights")
+        cu, dv, du, cv = weights.factors
+        self.lam, self.phi = generalized_eig(cu, du[1:-1])
+        if nu == nv and np.array_equal(cv, cu) and np.array_equal(dv, du):
+            self.mu, self.psi = self.lam, self.phi
+        else:
+            self.mu, self.psi = generalized_eig(cv, dv[1:-1])
+
+    def apply(self, b: np.ndarray, coords: list[int]) -> np.ndarray:
+        """``A^-1 b`` for an ``(m, n, 3)`` right-hand side, only for ``coords`` (others zero)."""
+        y = np.zeros_like(b)
+        q = len(coords)
+        if not q:
+            return y
+        phi, psi = self.phi, self.psi
+        # Coordinates side by side (left products) or stacked (right products): one GEMM each.
+        t = phi.T @ np.concatenate([b[:, :, c] for c in coords], axis=1)       # (m, q n)
+        t = np.concatenate(np.split(t, q, axis=1), axis=0) @ psi               # (q m, n)
+        t /= np.tile(self.lam[:, None] + self.mu[None, :], (q, 1))
+        t = t @ psi.T
+        t = phi @ np.concatenate(np.split(t, q, axis=0), axis=1)               # (m, q n)
+        for c, yc in zip(coords, np.split(t, q, axis=1)):
+            y[:, :, c] = yc
+        return y
+
+
+def solve_fdm(problem: Problem, *, backend, tol: float = 2.0**-12, max_refine: int = 3, progress=None,
+              **_) -> SolveResult:
+    """Solve exactly by fast diagonalisation (separable weights), refined until the bound meets ``tol``.
+
+    The products lose accuracy as the weights' range grows (about 1e-11 of the
+    piece's size at 1024 x 1024 with the paper's weights); each refinement
+    step solves for the correction from the residual, at the cost of the four
+    products again. At most ``max_refine`` steps are made.
+    """
+    nu, nv = problem.shape
+    if progress:
+        progress(f"fdm: eigenproblems of size {nu - 2} and {nv - 2}")
+    fdm = FDM(problem.weights, nu, nv)
+    coords = problem.active_coords
+    wu, wv = problem.weights.wu, problem.weights.wv
+    points = problem.with_interior(fdm.apply(problem.interior_rhs(), coords))
+    zmax = barrier_max(problem)
+    err = error_bound(points, problem, backend, zmax) / problem.scale
+    refinements = 0
+    # Refine while the guaranteed bound is not comfortably inside tol.
+    while err > 0.5 * tol and refinements < max_refine:
+        refinements += 1
+        if progress:
+            progress(f"fdm: error bound {err:.3g} > tol/2, refinement {refinements}")
+        points[1:-1, 1:-1] += fdm.apply(backend.residual(points, wu, wv), coords)
+        err = error_bound(points, problem, backend, zmax) / problem.scale
+    return SolveResult(points, iterations=refinements, error_estimate=err, converged=err <= tol,
+                       extra={"refinements": refinements})

@@ -1,0 +1,118 @@
+"""Edge weights of the length functional (MATH.md, eqs. 1-2).
+
+The functional is ``F(R) = 1/2 sum wu[i,j] |R[i+1,j]-R[i,j]|^2 + wv[i,j] |R[i,j+1]-R[i,j]|^2``
+with ``wu`` of shape ``(nu-1, nv)`` (u-edges) and ``wv`` of shape ``(nu, nv-1)``
+(v-edges). The paper's weights (eq. 2) give u-edges in row ``j`` the weight
+``Lv[j]^2`` and v-edges in column ``i`` the weight ``Lu[i]^2``.
+
+Weights are *separable* when ``wu[i, j] = cu[i] * dv[j]`` and
+``wv[i, j] = du[i] * cv[j]``; the paper's and uniform weights are, and the
+fast diagonalisation solver needs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["Weights", "paper_lengths", "make_weights"]
+
+
+@dataclass(frozen=True)
+class Weights:
+    """Positive weights on every edge of an ``nu x nv`` grid.
+
+    Attributes
+    ----------
+    wu : numpy.ndarray
+        ``(nu-1, nv)`` weights of the u-edges ``(i, j)-(i+1, j)``.
+    wv : numpy.ndarray
+        ``(nu, nv-1)`` weights of the v-edges ``(i, j)-(i, j+1)``.
+    kind : str
+        ``"paper"``, ``"uniform"`` or ``"custom"``.
+    factors : tuple of numpy.ndarray or None
+        ``(cu, dv, du, cv)`` with ``wu = cu[:, None] * dv[None, :]`` and
+        ``wv = du[:, None] * cv[None, :]`` when the weights are separable.
+    """
+
+    wu: np.ndarray
+    wv: np.ndarray
+    kind: str
+    factors: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(nu, nv)`` of the grid the weights belong to."""
+        return self.wv.shape[0], self.wu.shape[1]
+
+    @property
+    def unit_stencil(self) -> bool:
+        """True when separable with constant ``cu`` and ``cv`` (paper, uniform).
+
+        Then ``w[i, j] = i (nu-1-i) + j (nv-1-j)`` satisfies ``D^-1 A w = 1``
+        exactly, which gives a free a-posteriori error bound
+        (:mod:`clothgrid.solvers.bounds`).
+        """
+        if self.factors is None:
+            return False
+        cu, _, _, cv = self.factors
+        return bool(np.all(cu == cu[0]) and np.all(cv == cv[0]))
+
+    @classmethod
+    def from_factors(cls, cu, dv, du, cv, kind: str) -> "Weights":
+        """Separable weights from their four 1D factors."""
+        cu, dv, du, cv = (np.ascontiguousarray(a, dtype=np.float64) for a in (cu, dv, du, cv))
+        return cls(wu=np.outer(cu, dv), wv=np.outer(du, cv), kind=kind, factors=(cu, dv, du, cv))
+
+
+def paper_lengths(n: int, k: float = 1.0) -> np.ndarray:
+    """The paper's ``L`` of eq. (2), 0-based: ``0.01 + k (0.5 (n-1) - i)^2 / n``."""
+    i = np.arange(n, dtype=np.float64)
+    return 0.01 + k * (0.5 * (n - 1) - i) ** 2 / n
+
+
+def make_weights(spec, nu: int, nv: int, k: float = 1.0) -> Weights:
+    """Build :class:`Weights` for an ``nu x nv`` grid.
+
+    Parameters
+    ----------
+    spec : {"paper", "uniform"} or tuple of array_like or Weights
+        ``"paper"`` (eq. 2 with parameter ``k``), ``"uniform"`` (all ones), or
+        ``(wu, wv)`` arbitrary positive per-edge weights of shapes
+        ``(nu-1, nv)`` and ``(nu, nv-1)`` (the paper's "four weights per node").
+    nu, nv : int
+        Grid size.
+    k : float
+        The paper's ``k`` (anisotropy of the v weights); only for ``"paper"``.
+    """
+    if isinstance(spec, Weights):
+        if spec.shape != (nu, nv):
+            raise InputError(f"weights are for a {spec.shape[0]}x{spec.shape[1]} grid, not {nu}x{nv}")
+        return spec
+    if isinstance(spec, str):
+        if spec == "paper":
+            if not (np.isfinite(k) and k > 0):
+                raise InputError(f"k must be a positive finite number, not {k!r}")
+            lu, lv = paper_lengths(nu), paper_lengths(nv, k)
+            return Weights.from_factors(np.ones(nu - 1), lv**2, lu**2, np.ones(nv - 1), "paper")
+        if spec == "uniform":
+            return Weights.from_factors(np.ones(nu - 1), np.ones(nv), np.ones(nu), np.ones(nv - 1), "uniform")
+        raise InputError(f"unknown weights {spec!r}: use 'paper', 'uniform' or a (wu, wv) pair of arrays")
+    try:
+        wu, wv = spec
+    except (TypeError, ValueError):
+        raise InputError("custom weights must be a pair (wu, wv) of arrays") from None
+    wu = np.ascontiguousarray(wu, dtype=np.float64)
+    wv = np.ascontiguousarray(wv, dtype=np.float64)
+    for name, w, shape in (("wu", wu, (nu - 1, nv)), ("wv", wv, (nu, nv - 1))):
+        if w.shape != shape:
+            raise InputError(f"{name} must have shape {shape} for a {nu}x{nv} grid, not {w.shape}")
+        if not np.all(np.isfinite(w)):
+            raise InputError(f"{name} holds NaN or infinite values")
+        if not np.all(w > 0):
+            bad = np.argwhere(~(w > 0))[0]
+            raise InputError(f"{name} must be positive everywhere; {name}[{bad[0]}, {bad[1]}] = {w[tuple(bad)]!r}")
+    return Weights(wu=wu, wv=wv, kind="custom")

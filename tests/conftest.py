@@ -1,0 +1,71 @@
+from __future__ import annotations
+
+import os
+import zlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+DATA = Path(__file__).parent / "data"
+REGIONS = DATA / "regions"
+
+
+def pytest_report_header(config):
+    return f"clothgrid test seed: {SEED} (set CLOTHGRID_TEST_SEED to replay)"
+
+
+# Fresh random inputs every run; the seed is printed in the header to replay a failure.
+SEED = int(os.environ.get("CLOTHGRID_TEST_SEED", np.random.SeedSequence().entropy % 2**32))
+
+
+@pytest.fixture
+def rng(request):
+    return np.random.default_rng([SEED, zlib.crc32(request.node.nodeid.encode())])
+
+
+def smooth_quad_sides(rng, nu: int, nv: int, dim: int = 2, amp: float = 0.08):
+    """Four smooth random sides of a quad (bottom, right, top, left) that do not cross."""
+    from clothgrid import Boundary, BoundaryError
+
+    for _ in range(100):
+        sides = _draw_quad_sides(rng, nu, nv, dim, amp)
+        try:
+            Boundary.from_sides(*sides)
+            return sides
+        except BoundaryError:
+            continue
+    raise RuntimeError("could not draw a valid random quad")
+
+
+def _draw_quad_sides(rng, nu, nv, dim, amp):
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.1, 1.0], [-0.1, 0.9]]) + rng.normal(scale=0.05, size=(4, 2))
+
+    def side(p, q, n):
+        t = np.linspace(0.0, 1.0, n)
+        pts = (1 - t)[:, None] * p + t[:, None] * q
+        d = q - p
+        normal = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+        bump = sum(rng.normal(scale=amp / m) * np.sin(m * np.pi * t) for m in (1, 2, 3))
+        return pts + bump[:, None] * normal
+
+    sides = [side(corners[0], corners[1], nu), side(corners[1], corners[2], nv),
+             side(corners[3], corners[2], nu), side(corners[0], corners[3], nv)]
+    if dim == 3:
+        def lift(p):
+            return np.column_stack([p, 0.3 * np.sin(2.0 * p[:, 0]) * np.cos(1.5 * p[:, 1])])
+        sides = [lift(s) for s in sides]
+    return sides
+
+
+def regions_with_corners():
+    import json
+
+    out = []
+    for f in sorted(REGIONS.glob("*.json")):
+        if "corners" in json.loads(f.read_text()):
+            out.append(f)
+    return out

@@ -1,0 +1,211 @@
+"""Tests for clothgrid.quality."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from clothgrid.errors import InputError
+from clothgrid.grid import Grid
+from clothgrid.quality import Quality, quality
+
+
+def plane_grid(nu: int = 9, nv: int = 7, shear: float = 0.0, h: float = 1.0) -> np.ndarray:
+    """``(nu, nv, 3)`` nodes ``x = h*(i + shear*j)``, ``y = h*j``, ``z = 0``."""
+    i, j = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
+    return np.stack([h * (i + shear * j), h * j, np.zeros_like(i)], axis=-1)
+
+
+def cylinder_grid(nu: int = 40, nv: int = 20, turn: float = 1.5 * np.pi) -> np.ndarray:
+    """Part of the unit cylinder about z: ``i`` along the angle, ``j`` along z."""
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    theta = turn * i / (nu - 1)
+    return np.stack([np.cos(theta), np.sin(theta), 2.0 * j / (nv - 1)], axis=-1)
+
+
+def reference_folds(points: np.ndarray, normal: np.ndarray) -> set[tuple[int, int]]:
+    """Folded cells by the definition, one corner at a time."""
+    nu, nv = points.shape[:2]
+    out = set()
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            c = [points[i, j], points[i + 1, j], points[i + 1, j + 1], points[i, j + 1]]
+            for k in range(4):
+                cross = np.cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k])
+                if not cross @ normal > 0:
+                    out.add((i, j))
+    return out
+
+
+def folds(q: Quality) -> set[tuple[int, int]]:
+    return {(int(i), int(j)) for i, j in q.folded_cells}
+
+
+def random_rotation(seed: int) -> np.ndarray:
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def test_uniform_square_grid_is_perfect():
+    q = quality(Grid.from_points(plane_grid(), dim=2))
+    assert q.folded == 0
+    assert q.folded_cells.shape == (0, 2)
+    assert q.min_scaled_jacobian == pytest.approx(1.0, abs=1e-14)
+    assert q.max_aspect_ratio == pytest.approx(1.0, abs=1e-14)
+    assert q.max_orthogonality_deviation_deg == pytest.approx(0.0, abs=1e-12)
+    assert q.edge_spread_u == pytest.approx(1.0) and q.edge_spread_v == pytest.approx(1.0)
+
+
+def test_rectangular_cells_aspect_and_spread():
+    p = plane_grid(6, 5)
+    p[..., 1] *= 3.0                       # v-edges 3 long, u-edges 1
+    p[..., 0] = np.array([0, 1, 2, 4, 5, 6], dtype=float)[:, None]   # one u-edge twice as long
+    q = quality(Grid.from_points(p, dim=2))
+    assert q.folded == 0
+    assert q.max_aspect_ratio == pytest.approx(3.0)
+    assert q.edge_spread_u == pytest.approx(2.0)
+    assert q.edge_spread_v == pytest.approx(1.0)
+
+
+def test_node_moved_across_its_neighbour_folds_the_right_cells():
+    p = plane_grid(8, 8)
+    p[3, 3, 0] = 4.5                       # past its neighbour (4, 3)
+    q = quality(Grid.from_points(p, dim=2))
+    assert q.folded == 2
+    assert q.folded_cells.tolist() == [[3, 2], [3, 3]]
+    assert q.folded_cells.dtype == np.int64
+    assert q.min_scaled_jacobian == pytest.approx(-1.0)
+    assert folds(q) == reference_folds(p, np.array([0.0, 0.0, 1.0]))
+    assert "folded cells: 2 (first at cells (3, 2), (3, 3))" in q.table()
+
+
+def test_matches_reference_on_random_perturbations():
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        p = plane_grid(12, 10)
+        p[1:-1, 1:-1, :2] += rng.uniform(-0.8, 0.8, size=(10, 8, 2))
+        q = quality(Grid.from_points(p, dim=2))
+        expected = reference_folds(p, np.array([0.0, 0.0, 1.0]))
+        assert expected, "the perturbation should fold something"
+        assert folds(q) == expected and q.folded == len(expected)
+
+
+def test_clockwise_grid_detects_its_orientation():
+    p = plane_grid(9, 7)
+    p[..., 0] *= -1.0                      # mirrored: the boundary loop turns clockwise
+    g = Grid.from_points(p, dim=2, flip=True)
+    q = quality(g)
+    assert q.folded == 0
+    assert q.min_scaled_jacobian == pytest.approx(1.0)
+    forced = quality(g, orientation=+1)
+    assert forced.folded == 8 * 6
+    assert forced.min_scaled_jacobian == pytest.approx(-1.0)
+    p[4, 3, 0] = -5.5                      # fold the mirrored grid: node past (5, 3)
+    assert folds(quality(Grid.from_points(p, dim=2))) == {(4, 2), (4, 3)}
+
+
+def test_explicit_normal_overrides_detection():
+    g = Grid.from_points(plane_grid(), dim=2)
+    assert quality(g, normal=(0, 0, -1)).folded == 0          # orientation detected about it
+    assert quality(g, normal=(0, 0, -1), orientation=1).folded == 8 * 6
+    with pytest.raises(InputError):
+        quality(g, normal=(0, 0, 0))
+
+
+def test_degenerate_cell_counts_as_folded():
+    p = plane_grid(5, 5)
+    p[2, 2] = p[3, 2]                      # zero-length edge
+    q = quality(Grid.from_points(p, dim=2))
+    assert {(2, 1), (2, 2)} <= folds(q)
+    assert q.min_scaled_jacobian <= 0.0
+    assert math.isinf(q.max_aspect_ratio) and math.isinf(q.edge_spread_u)
+
+
+@pytest.mark.parametrize("shear_deg", [30.0, 10.0])
+def test_sheared_grid_orthogonality(shear_deg):
+    s = math.tan(math.radians(shear_deg))
+    q = quality(Grid.from_points(plane_grid(7, 6, shear=s), dim=2))
+    assert q.folded == 0
+    assert q.max_orthogonality_deviation_deg == pytest.approx(shear_deg, abs=1e-9)
+    assert q.min_scaled_jacobian == pytest.approx(math.cos(math.radians(shear_deg)))
+    assert q.max_aspect_ratio == pytest.approx(1.0 / math.cos(math.radians(shear_deg)))
+
+
+def test_planar_grid_rotated_into_3d_gives_the_same_numbers():
+    rng = np.random.default_rng(7)
+    p = plane_grid(10, 8, shear=0.2, h=0.3)
+    p[1:-1, 1:-1, :2] += rng.uniform(-0.05, 0.05, size=(8, 6, 2))
+    p[4, 4, 0] = p[5, 4, 0] + 0.1          # one fold
+    flat = quality(Grid.from_points(p, dim=2))
+    assert flat.folded > 0
+    for seed in range(3):
+        rot = random_rotation(seed)
+        g3 = Grid.from_points(p @ rot.T + np.array([3.0, -2.0, 10.0]), dim=3)
+        q = quality(g3)
+        assert folds(q) == folds(flat)
+        for name in ("min_scaled_jacobian", "max_aspect_ratio", "max_orthogonality_deviation_deg",
+                     "edge_spread_u", "edge_spread_v"):
+            assert getattr(q, name) == pytest.approx(getattr(flat, name), rel=1e-9, abs=1e-9), name
+        # mirrored and rotated: still detected as a fine grid with the same fold
+        mirrored = p * np.array([-1.0, 1.0, 1.0])
+        qm = quality(Grid.from_points(mirrored @ rot.T, dim=3))
+        assert folds(qm) == folds(flat)
+
+
+def test_curved_grid_without_folds():
+    g = Grid.from_points(cylinder_grid())
+    q = quality(g)
+    assert q.folded == 0                   # 3/4 of a turn: no single plane would do
+    assert 0.99 < q.min_scaled_jacobian <= 1.0 + 1e-12
+    assert q.max_orthogonality_deviation_deg == pytest.approx(0.0, abs=1e-9)
+    assert quality(g, orientation=-1).folded == 39 * 19
+
+
+def test_curved_grid_with_one_folded_node():
+    p = cylinder_grid()
+    p[20, 10] += 1.5 * (p[21, 10] - p[20, 10])   # node moved past its neighbour (21, 10)
+    q = quality(Grid.from_points(p))
+    assert folds(q) == {(20, 9), (20, 10)}
+    assert q.min_scaled_jacobian < 0
+    p[20, 10, :2] *= 1.05                          # also lifted off the surface a little
+    assert folds(quality(Grid.from_points(p))) == {(20, 9), (20, 10)}
+
+
+def test_curved_grid_folded_near_the_edge():
+    p = cylinder_grid()
+    p[1, 1] += 1.5 * (p[2, 1] - p[1, 1])
+    assert folds(quality(Grid.from_points(p))) == {(1, 0), (1, 1)}
+
+
+def test_as_dict_and_table():
+    p = plane_grid(8, 8)
+    p[3, 3, 0] = 4.5
+    q = quality(Grid.from_points(p, dim=2))
+    d = q.as_dict()
+    assert d["folded"] == 2 and d["folded_cells"] == [[3, 2], [3, 3]]
+    assert set(d) == {"folded", "folded_cells", "min_scaled_jacobian", "max_aspect_ratio",
+                      "max_orthogonality_deviation_deg", "edge_spread_u", "edge_spread_v"}
+    lines = quality(Grid.from_points(plane_grid(), dim=2)).table().splitlines()
+    assert lines[-1] == "folded cells: 0"
+    assert lines[0].startswith("min scaled Jacobian") and lines[0].split()[-1] == "1"
+    columns = {len(line) - len(line[line.rindex("  "):].lstrip()) for line in lines[:-1]}
+    assert len(columns) == 1               # the values start in one column
+    many = plane_grid(8, 8)
+    many[..., 0] *= -1
+    assert quality(Grid.from_points(many, dim=2), orientation=1).table().splitlines()[-1].endswith(", ...)")
+
+
+def test_large_grid_is_fast():
+    import time
+
+    p = plane_grid(1024, 1024)
+    g2 = Grid.from_points(p, dim=2)
+    g3 = Grid.from_points(cylinder_grid(1024, 1024))
+    quality(g2)
+    t = time.perf_counter()
+    q2, q3 = quality(g2), quality(g3)
+    assert time.perf_counter() - t < 6.0   # generous: shared CI machines
+    assert q2.folded == 0 and q3.folded == 0

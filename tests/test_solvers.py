@@ -1,0 +1,199 @@
+"""Every solver against an independent exact reference, on fresh inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import regions_with_corners, smooth_quad_sides
+from reference import exact_solution, max_rel_error, paper_weights, uniform_weights
+
+import clothgrid
+from clothgrid.initial import boundary_grid
+
+TOL = 2.0**-12
+REF_WEIGHTS = {"paper": paper_weights, "uniform": uniform_weights}
+
+
+def reference(boundary, weights="paper"):
+    nu, nv = boundary.shape
+    wu, wv = REF_WEIGHTS[weights](nu, nv) if isinstance(weights, str) else weights
+    return exact_solution(boundary_grid(boundary), wu, wv)
+
+
+def check_within_tol(grid, ref, scale, tol=TOL):
+    err = max_rel_error(grid.points, ref, scale)
+    assert err <= tol, f"max error {err:.3g} > tol {tol:.3g} ({grid.info})"
+    # the reported figure is a guaranteed bound: it may not be below the true error
+    assert grid.info["error_bound"] and err <= grid.info["error_estimate"] * (1 + 1e-9) + 1e-14
+    return err
+
+
+@pytest.mark.parametrize("weights", ["paper", "uniform"])
+@pytest.mark.parametrize("init", ["tfi", "average", "zero"])
+@pytest.mark.parametrize("solver", ["direct", "fdm", "jacobi"])
+@pytest.mark.parametrize("size", [(5, 5), (17, 12), (30, 41)])
+def test_random_quads_within_tol(rng, solver, init, weights, size):
+    nu, nv = size
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    g = clothgrid.generate(b, init=init, weights=weights, solver=solver)
+    assert g.points.shape == (nu, nv, 3) and g.info["solver"] == solver and g.info["converged"]
+    check_within_tol(g, reference(b, weights), b.size)
+
+
+@pytest.mark.parametrize("weights", ["paper", "uniform"])
+@pytest.mark.parametrize("solver", ["auto", "direct", "fdm"])
+@pytest.mark.parametrize("size", [(64, 64), (100, 73)])
+def test_random_quads_larger_exact_solvers(rng, solver, weights, size):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, *size))
+    g = clothgrid.generate(b, weights=weights, solver=solver)
+    err = check_within_tol(g, reference(b, weights), b.size)
+    assert err < 1e-8  # exact methods: rounding only
+
+
+@pytest.mark.parametrize("solver", ["direct", "fdm", "jacobi"])
+def test_random_3d_quads(rng, solver):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 21, 15, dim=3))
+    g = clothgrid.generate(b, solver=solver)
+    ref = reference(b)
+    assert np.ptp(ref[..., 2]) > 0.01  # the z coordinate is really solved
+    check_within_tol(g, ref, b.size)
+
+
+REGIONS = regions_with_corners()
+
+
+@pytest.mark.parametrize("path", REGIONS, ids=[p.stem for p in REGIONS])
+@pytest.mark.parametrize("nodes", [None, (33, 27)])
+@pytest.mark.parametrize("weights", ["paper", "uniform"])
+@pytest.mark.parametrize("solver", ["direct", "fdm", "jacobi"])
+def test_regions_within_tol(path, nodes, weights, solver):
+    b = clothgrid.load_boundary(path)
+    if nodes is not None:
+        b = b.resampled(*nodes)
+    init = "average" if solver == "jacobi" and nodes else "tfi"
+    g = clothgrid.generate(b, init=init, weights=weights, solver=solver)
+    check_within_tol(g, reference(b, weights), b.size)
+
+
+def test_regions_are_the_classic_eight():
+    assert {p.stem for p in REGIONS} == {f"roache-{n}" for n in
+                                         "annulus dome horn nhorseshoe plow shell swan tie".split()}
+
+
+@pytest.mark.parametrize("solver", ["direct", "jacobi", "auto"])
+def test_per_edge_weights(rng, solver):
+    nu, nv = 19, 23
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    wu = np.exp(rng.uniform(-3, 3, size=(nu - 1, nv)))
+    wv = np.exp(rng.uniform(-3, 3, size=(nu, nv - 1)))
+    g = clothgrid.generate(b, weights=(wu, wv), solver=solver)
+    assert g.info["weights"] == "custom"
+    if solver == "auto":
+        assert g.info["solver"] == "direct"
+    check_within_tol(g, reference(b, (wu, wv)), b.size)
+
+
+def test_fdm_refuses_per_edge_weights(rng):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 9, 9))
+    with pytest.raises(clothgrid.InputError, match="separable"):
+        clothgrid.generate(b, weights=(np.ones((8, 9)), np.ones((9, 8))), solver="fdm")
+
+
+def test_paper_k_changes_the_solution(rng):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 25, 25))
+    g = clothgrid.generate(b, weights="paper", k=4.0)
+    wu, wv = paper_weights(25, 25, k=4.0)
+    ref = exact_solution(boundary_grid(b), wu, wv)
+    check_within_tol(g, ref, b.size)
+    assert max_rel_error(ref, reference(b, "paper"), b.size) > 10 * TOL
+
+
+def test_fdm_refines_to_tol_at_large_size(rng):
+    """At 2048 nodes the paper's weights span ~1e10; the fdm products lose accuracy and must refine."""
+    from clothgrid.backends import cpu
+    from clothgrid.solvers import Problem
+    from clothgrid.solvers.fdm import solve_fdm
+    from clothgrid.initial import initial_grid
+    from clothgrid.weights import make_weights
+
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 33, 33)).resampled(2000, 9)
+    p = Problem(initial_grid(b), make_weights("paper", 2000, 9), b.size)
+    first = solve_fdm(p, backend=cpu, tol=1e-3)       # no refinement needed for a loose tol
+    assert first.extra["refinements"] == 0 and first.error_estimate > 1e-7
+    res = solve_fdm(p, backend=cpu, tol=1e-7)
+    assert res.extra["refinements"] >= 1 and res.error_estimate <= 1e-7 and res.converged
+    ref = exact_solution(boundary_grid(b), *paper_weights(2000, 9))
+    assert max_rel_error(res.points, ref, b.size) <= res.error_estimate
+
+
+# --- the paper's stopping rule ---------------------------------------------------------------
+
+def test_paper_rule_stops_far_from_the_solution(rng):
+    """The paper's rule (last step < eps) stops with nodes many eps away from the solution."""
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 64, 64, amp=0.15))
+    ref = reference(b)
+    g = clothgrid.generate(b, solver="jacobi", stop="paper", init="tfi")
+    err = max_rel_error(g.points, ref, b.size)
+    assert g.info["converged"] and g.info["last_step"] < TOL
+    assert err > 20 * TOL, f"paper rule error {err:.3g} unexpectedly small"
+    assert g.info["error_estimate"] >= err  # the reported bound tells the truth about it
+    g2 = clothgrid.generate(b, solver="jacobi", stop="error", init="tfi")
+    assert max_rel_error(g2.points, ref, b.size) <= TOL
+    assert g2.info["iterations"] > 10 * g.info["iterations"]
+
+
+def test_paper_rule_tfi_needs_fewer_sweeps_than_average(rng):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 32, 32))
+    n_avg = clothgrid.generate(b, solver="jacobi", stop="paper", init="average").info["iterations"]
+    n_tfi = clothgrid.generate(b, solver="jacobi", stop="paper", init="tfi").info["iterations"]
+    assert n_tfi < n_avg
+
+
+# --- not converged ------------------------------------------------------------------------------
+
+def test_max_iter_raises_with_grid_attached(rng):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 30, 30))
+    with pytest.raises(clothgrid.NotConvergedError, match="did not reach") as exc:
+        clothgrid.generate(b, solver="jacobi", max_iter=10)
+    assert exc.value.grid is not None and exc.value.grid.info["iterations"] == 10
+    g = clothgrid.generate(b, solver="jacobi", max_iter=10, allow_unconverged=True)
+    assert not g.info["converged"] and g.info["error_estimate"] > TOL
+
+
+# --- memory ---------------------------------------------------------------------------------------
+
+def test_oversize_refused_before_allocating(rng):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 9, 9))
+    with pytest.raises(clothgrid.SizeError, match="needs about .* of memory"):
+        clothgrid.generate(b, (300_000, 300_000))
+
+
+def test_memory_estimate_orders_solvers():
+    from clothgrid.memory import check_memory, estimate_bytes
+
+    assert estimate_bytes("direct", 1024, 1024) > 4 * estimate_bytes("fdm", 1024, 1024)
+    with pytest.raises(clothgrid.SizeError, match="solver 'fdm'"):
+        check_memory("direct", 1024, 1024, available=10**9)
+    assert check_memory("fdm", 1024, 1024, available=10**9) < 10**9
+
+
+# --- options ---------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(init="bilinear"), "unknown init"), (dict(solver="cg"), "unknown solver"),
+    (dict(stop="never"), "unknown stop"), (dict(tol=0.0), "tol"), (dict(tol=float("nan")), "tol"),
+    (dict(weights="random"), "unknown weights"), (dict(k=-1.0), "k must be"), (dict(backend="opencl"), "backend"),
+    (dict(max_iter=0), "max_iter"), (dict(weights=(np.ones((3, 3)), np.ones((3, 3)))), "shape"),
+    (dict(weights=(-np.ones((8, 9)), np.ones((9, 8)))), "positive"),
+])
+def test_bad_options(rng, kwargs, words):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 9, 9))
+    with pytest.raises(clothgrid.InputError, match=words):
+        clothgrid.generate(b, **kwargs)
+
+
+@pytest.mark.parametrize("nodes", ["3x", "1x5", (2, 2), 1, "axb", (4, 5, 6)])
+def test_bad_nodes(rng, nodes):
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 9, 9))
+    with pytest.raises(clothgrid.InputError):
+        clothgrid.generate(b, nodes)

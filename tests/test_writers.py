@@ -1,0 +1,185 @@
+"""Tests for clothgrid.writers and clothgrid.plot."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from clothgrid import writers
+from clothgrid.errors import InputError
+from clothgrid.grid import Grid
+from clothgrid.plot import plot_grid
+from clothgrid.quality import quality
+from clothgrid.writers import load_npz, register_writer, save
+
+
+@pytest.fixture
+def grid() -> Grid:
+    """A small warped 3D grid with awkward floats and numpy values in its info."""
+    rng = np.random.default_rng(3)
+    i, j = np.meshgrid(np.linspace(0, 1, 6), np.linspace(0, 1, 4), indexing="ij")
+    p = np.stack([i + 0.1 * np.sin(3 * j), j / 3.0, 0.2 * i * j], axis=-1)
+    p[1:-1, 1:-1] += rng.normal(scale=1e-3, size=(4, 2, 3))
+    info = {"solver": "fdm", "iterations": np.int64(0), "error_estimate": np.float64(1e-13),
+            "shape": np.array([6, 4]), "converged": np.bool_(True), "tol": 2.0 ** -12}
+    return Grid.from_points(p, info=info, dim=3)
+
+
+def listing(directory) -> list[str]:
+    return sorted(os.listdir(directory))
+
+
+def parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    v, vt, f = [], [], []
+    for line in text.splitlines():
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        if parts[0] == "v":
+            v.append([float(x) for x in parts[1:]])
+        elif parts[0] == "vt":
+            vt.append([float(x) for x in parts[1:]])
+        elif parts[0] == "f":
+            pairs = [tuple(int(k) for k in corner.split("/")) for corner in parts[1:]]
+            assert all(a == b for a, b in pairs)
+            f.append([a - 1 for a, _ in pairs])
+        else:
+            raise AssertionError(f"unexpected OBJ line {line!r}")
+    return np.array(v), np.array(vt), np.array(f, dtype=np.int64)
+
+
+def test_npz_round_trip(grid, tmp_path):
+    path = save(grid, tmp_path / "g.npz")
+    assert path == tmp_path / "g.npz"
+    back = load_npz(path)
+    np.testing.assert_array_equal(back.points, grid.points)
+    np.testing.assert_array_equal(back.uv, grid.uv)
+    np.testing.assert_array_equal(back.quads, grid.quads)
+    assert back.dim == 3
+    assert back.info == {"solver": "fdm", "iterations": 0, "error_estimate": 1e-13,
+                         "shape": [6, 4], "converged": True, "tol": 2.0 ** -12}
+    with np.load(path) as z:
+        assert set(z.files) >= {"points", "uv", "quads", "info"}
+        assert z["points"].shape == (6, 4, 3) and z["uv"].shape == (6, 4, 2)
+    assert listing(tmp_path) == ["g.npz"]
+
+
+def test_grid_save_method_and_2d_dim(grid, tmp_path):
+    g2 = Grid.from_points(grid.points * np.array([1.0, 1.0, 0.0]), dim=2)
+    g2.save(tmp_path / "flat.NPZ")
+    assert load_npz(tmp_path / "flat.NPZ").dim == 2
+
+
+def test_obj_exact(grid, tmp_path):
+    text = save(grid, tmp_path / "g.obj").read_text()
+    assert text.startswith("# ")
+    assert '"solver": "fdm"' in text.splitlines()[1]
+    v, vt, f = parse_obj(text)
+    np.testing.assert_array_equal(v, grid.points.reshape(-1, 3))
+    np.testing.assert_array_equal(vt, grid.uv.reshape(-1, 2))
+    np.testing.assert_array_equal(f, grid.quads)
+    assert f.shape == (5 * 3, 4)
+
+
+def test_ply_header_and_counts(grid, tmp_path):
+    lines = save(grid, tmp_path / "g.ply").read_text().splitlines()
+    end = lines.index("end_header")
+    header, body = lines[:end], lines[end + 1:]
+    assert header[:2] == ["ply", "format ascii 1.0"]
+    assert "element vertex 24" in header and "element face 15" in header
+    props = [line.split()[-1] for line in header if line.startswith("property double")]
+    assert props == ["x", "y", "z", "s", "t"]
+    assert "property list uchar int vertex_indices" in header
+    assert len(body) == 24 + 15
+    vertices = np.array([[float(x) for x in line.split()] for line in body[:24]])
+    np.testing.assert_array_equal(vertices[:, :3], grid.points.reshape(-1, 3))
+    np.testing.assert_array_equal(vertices[:, 3:], grid.uv.reshape(-1, 2))
+    faces = np.array([[int(x) for x in line.split()] for line in body[24:]])
+    assert (faces[:, 0] == 4).all()
+    np.testing.assert_array_equal(faces[:, 1:], grid.quads)
+
+
+def test_json_round_trip(grid, tmp_path):
+    doc = json.loads(save(grid, tmp_path / "g.json").read_text())
+    assert doc["shape"] == [6, 4]
+    np.testing.assert_array_equal(np.array(doc["points"]), grid.points)
+    np.testing.assert_array_equal(np.array(doc["uv"]), grid.uv)
+    np.testing.assert_array_equal(np.array(doc["quads"]), grid.quads)
+    assert doc["info"]["iterations"] == 0 and doc["info"]["shape"] == [6, 4]
+    assert doc["info"]["converged"] is True
+
+
+def test_unknown_extension(grid, tmp_path):
+    with pytest.raises(InputError, match=r"\.npz.*\.obj|\.obj.*\.npz"):
+        save(grid, tmp_path / "g.stl")
+    with pytest.raises(InputError):
+        save(grid, tmp_path / "noextension")
+    assert listing(tmp_path) == []
+
+
+def test_missing_directory(grid, tmp_path):
+    target = tmp_path / "missing" / "g.npz"
+    with pytest.raises(InputError, match="does not exist"):
+        save(grid, target)
+    assert listing(tmp_path) == []
+
+
+def test_failing_writer_leaves_nothing(grid, tmp_path, monkeypatch):
+    def half_way(g, fh):
+        fh.write(b"v 0 0 0\n" * 1000)
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setitem(writers.WRITERS, ".obj", half_way)
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        save(grid, tmp_path / "g.obj")
+    assert listing(tmp_path) == []
+
+
+def test_failing_writer_keeps_the_old_file(grid, tmp_path, monkeypatch):
+    path = save(grid, tmp_path / "g.obj")
+    before = path.read_bytes()
+    monkeypatch.setitem(writers.WRITERS, ".obj", lambda g, fh: (fh.write(b"x"), 1 / 0))
+    with pytest.raises(ZeroDivisionError):
+        save(grid, path)
+    assert path.read_bytes() == before
+    assert listing(tmp_path) == ["g.obj"]
+
+
+def test_register_writer(grid, tmp_path, monkeypatch):
+    monkeypatch.setattr(writers, "WRITERS", dict(writers.WRITERS))
+    register_writer("XYZ", lambda g, fh: fh.write(b"%d\n" % g.points.size))
+    assert save(grid, tmp_path / "g.xyz").read_text() == "72\n"
+
+
+def test_load_npz_rejects_bad_files(tmp_path):
+    with pytest.raises(InputError):
+        load_npz(tmp_path / "nothing.npz")
+    np.savez(tmp_path / "other.npz", a=np.zeros(3))
+    with pytest.raises(InputError):
+        load_npz(tmp_path / "other.npz")
+
+
+def test_plot_writes_png(grid, tmp_path):
+    p = grid.points.copy()
+    p[2, 1] = p[3, 1] + 0.5 * (p[3, 1] - p[2, 1])
+    folded = Grid.from_points(p)
+    q = quality(folded)
+    assert q.folded > 0
+    path = plot_grid(folded, tmp_path / "g.png", title="folded", quality=q)
+    data = path.read_bytes()
+    assert data.startswith(b"\x89PNG\r\n\x1a\n") and len(data) > 1000
+    assert listing(tmp_path) == ["g.png"]
+
+
+def test_plot_large_2d_grid_and_errors(tmp_path):
+    i, j = np.meshgrid(np.arange(300.0), np.arange(200.0), indexing="ij")
+    g = Grid.from_points(np.stack([i, j + 0.1 * i, 0 * i], axis=-1), dim=2)
+    assert plot_grid(g, tmp_path / "big.png", max_lines=16).stat().st_size > 1000
+    with pytest.raises(InputError):
+        plot_grid(g, tmp_path / "missing" / "big.png")
+    with pytest.raises(InputError):
+        plot_grid(g, tmp_path / "big.notanimage")
+    assert listing(tmp_path) == ["big.png"]
