@@ -101,7 +101,7 @@ def _write_rows(fh: BinaryIO, fmt: str, rows: np.ndarray) -> None:
 
 def write_npz(grid: Grid, fh: BinaryIO) -> None:
     """Compressed NumPy archive: ``points``, ``uv``, ``quads``, ``dim`` and ``info`` (JSON text)."""
-    np.savez_compressed(fh, points=grid.points, uv=grid.uv, quads=grid.quads,
+    np.savez(fh, points=grid.points, uv=grid.uv, quads=grid.quads,
                         dim=np.int64(grid.dim), info=np.array(info_json(grid.info)))
 
 

@@ -1,81 +1,19 @@
-"""CPU backend: fused Numba kernels over ``(nu, nv, 3)`` float64 grids.
+"""CPU backend: NumPy array operations and fused Numba kernels over ``(nu, nv, 3)`` grids.
 
-Each kernel works on the whole grid at once, boundary nodes untouched, and is
-parallel over rows ``i`` (``numba.prange``). Edge weights follow
-:mod:`clothgrid.weights`: ``wu (nu-1, nv)``, ``wv (nu, nv-1)``.
+Hot loops (the Jacobi sweep) are Numba kernels, parallel over rows ``i`` and
+compiled or loaded from cache on first use; one-shot operations (residual,
+error bound) are plain NumPy, so a direct or fdm solve never pays Numba's
+start-up. Edge weights follow :mod:`clothgrid.weights`: ``wu (nu-1, nv)``,
+``wv (nu, nv-1)``; boundary nodes are never written.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 __all__ = ["name", "sweep", "max_step", "residual", "sweeps"]
 
 name = "cpu"
-
-
-@numba.njit(parallel=True, cache=True)
-def _sweep(r, out, wu, wv):
-    nu, nv = r.shape[0], r.shape[1]
-    rowmax = np.zeros(nu)
-    for i in numba.prange(1, nu - 1):
-        m = 0.0
-        for j in range(1, nv - 1):
-            a = wu[i - 1, j]
-            b = wu[i, j]
-            c = wv[i, j - 1]
-            d = wv[i, j]
-            inv = 1.0 / (a + b + c + d)
-            s2 = 0.0
-            for k in range(3):
-                new = (a * r[i - 1, j, k] + b * r[i + 1, j, k] + c * r[i, j - 1, k] + d * r[i, j + 1, k]) * inv
-                dlt = new - r[i, j, k]
-                s2 += dlt * dlt
-                out[i, j, k] = new
-            if s2 > m:
-                m = s2
-        rowmax[i] = m
-    return np.sqrt(rowmax.max())
-
-
-@numba.njit(parallel=True, cache=True)
-def _max_step(r, wu, wv):
-    nu, nv = r.shape[0], r.shape[1]
-    rowmax = np.zeros(nu)
-    for i in numba.prange(1, nu - 1):
-        m = 0.0
-        for j in range(1, nv - 1):
-            a = wu[i - 1, j]
-            b = wu[i, j]
-            c = wv[i, j - 1]
-            d = wv[i, j]
-            inv = 1.0 / (a + b + c + d)
-            s2 = 0.0
-            for k in range(3):
-                new = (a * r[i - 1, j, k] + b * r[i + 1, j, k] + c * r[i, j - 1, k] + d * r[i, j + 1, k]) * inv
-                dlt = new - r[i, j, k]
-                s2 += dlt * dlt
-            if s2 > m:
-                m = s2
-        rowmax[i] = m
-    return np.sqrt(rowmax.max())
-
-
-@numba.njit(parallel=True, cache=True)
-def _residual(r, wu, wv, out):
-    nu, nv = r.shape[0], r.shape[1]
-    for i in numba.prange(1, nu - 1):
-        for j in range(1, nv - 1):
-            a = wu[i - 1, j]
-            b = wu[i, j]
-            c = wv[i, j - 1]
-            d = wv[i, j]
-            for k in range(3):
-                x = r[i, j, k]
-                out[i - 1, j - 1, k] = (a * (r[i - 1, j, k] - x) + b * (r[i + 1, j, k] - x)
-                                        + c * (r[i, j - 1, k] - x) + d * (r[i, j + 1, k] - x))
-    return out
 
 
 def sweep(r: np.ndarray, out: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> float:
@@ -84,26 +22,37 @@ def sweep(r: np.ndarray, out: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> flo
     ``out`` must already hold the boundary nodes. Returns the largest
     Euclidean node step ``max |out[i, j] - r[i, j]|`` of the sweep.
     """
+    from ._cpu_kernels import _sweep
+
     return float(_sweep(r, out, wu, wv))
-
-
-def max_step(r: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> float:
-    """The largest step a Jacobi sweep would make from ``r``, without making it.
-
-    This is ``max |D^-1 (b - A r)|``: the Jacobi-scaled residual, used in the
-    a-posteriori error bound of :mod:`clothgrid.solvers.bounds`.
-    """
-    return float(_max_step(r, wu, wv))
 
 
 def residual(r: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> np.ndarray:
     """``b - A r`` over the interior nodes, as an ``(nu-2, nv-2, 3)`` array.
 
     The unscaled residual of the SPD system of :mod:`clothgrid.solvers.problem`:
-    ``sum over the four edges of w * (R[neighbour] - R[i, j])``.
+    the sum over the four edges of ``w * (R[neighbour] - R[i, j])``.
     """
-    out = np.empty((r.shape[0] - 2, r.shape[1] - 2, 3))
-    return _residual(r, wu, wv, out)
+    c = r[1:-1, 1:-1]
+    out = wu[:-1, 1:-1, None] * (r[:-2, 1:-1] - c)
+    out += wu[1:, 1:-1, None] * (r[2:, 1:-1] - c)
+    out += wv[1:-1, :-1, None] * (r[1:-1, :-2] - c)
+    out += wv[1:-1, 1:, None] * (r[1:-1, 2:] - c)
+    return out
+
+
+def max_step(r: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> float:
+    """The largest step a Jacobi sweep would make from ``r``, without making it.
+
+    This is ``max |D^-1 (b - A r)|`` (Euclidean per node): the Jacobi-scaled
+    residual, used in the a-posteriori error bound of
+    :mod:`clothgrid.solvers.bounds`.
+    """
+    if r.shape[0] < 3 or r.shape[1] < 3:
+        return 0.0
+    d = wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
+    s = np.linalg.norm(residual(r, wu, wv), axis=-1) / d
+    return float(s.max())
 
 
 def sweeps(r: np.ndarray, wu: np.ndarray, wv: np.ndarray, count: int, scratch: np.ndarray | None = None):

@@ -1,0 +1,371 @@
+"""Command-line interface: ``clothgrid generate``, ``clothgrid demo``.
+
+Exit codes: 0 success, 2 bad input or options (including usage errors),
+3 an iterative solve did not converge within ``--max-iter``, 130 interrupted.
+Any output file of a failed run is removed, so a failure leaves no output.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from .errors import ClothgridError, InputError, NotConvergedError
+
+__all__ = ["main", "parse_nodes", "parse_tol"]
+
+PLOT_SUFFIXES = (".png",)
+DEMO_PIECE = "tshirt_front.json"
+_NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
+_POWER = re.compile(rf"\s*({_NUM})\s*(?:\*\*|\^)\s*({_NUM})\s*")
+_NODES = re.compile(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?")
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+def parse_nodes(text: str) -> tuple[int, int]:
+    """Parse ``NUxNV`` or ``N`` (meaning ``N x N``) into ``(nu, nv)``.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If the text is not of that form or a count is below 2.
+    """
+    m = _NODES.fullmatch(text)
+    if m is None:
+        raise argparse.ArgumentTypeError(
+            f"invalid node counts {text!r}: expected NUxNV or N (integers >= 2), e.g. 257x257")
+    nu = int(m.group(1))
+    nv = int(m.group(2)) if m.group(2) is not None else nu
+    if nu < 2 or nv < 2:
+        raise argparse.ArgumentTypeError(
+            f"invalid node counts {text!r}: each count must be an integer >= 2")
+    return nu, nv
+
+
+def parse_tol(text: str) -> float:
+    """Parse a positive tolerance: a float (``1e-4``) or a power (``2**-12``, ``2^-12``).
+
+    No ``eval``: only a number or ``number ** number`` / ``number ^ number``.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If the text is not of that form or the value is not positive and finite.
+    """
+    value: float | None = None
+    try:
+        value = float(text)
+    except ValueError:
+        m = _POWER.fullmatch(text)
+        if m is not None:
+            try:
+                value = float(m.group(1)) ** float(m.group(2))
+            except (OverflowError, ZeroDivisionError):
+                value = None
+    if value is None or isinstance(value, complex) or not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(
+            f"invalid tolerance {text!r}: expected a positive number such as 1e-4 or 2**-12")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"invalid value {text!r}: expected a positive number")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"invalid value {text!r}: expected an integer >= 1")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors read ``clothgrid: error: ...`` (exit 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(2, f"clothgrid: error: {message}\n")
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import PackageNotFoundError, version
+
+        return version("clothgrid")
+    except (ImportError, PackageNotFoundError):  # running from a source tree
+        return str(getattr(sys.modules.get(__package__ or "clothgrid"), "__version__", "unknown"))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``clothgrid`` argument parser with its ``generate`` and ``demo`` subcommands."""
+    parser = _Parser(
+        prog="clothgrid",
+        description="Structured quad grids inside four boundary curves, for mass-spring cloth.")
+    parser.add_argument("--version", action="version", version=f"clothgrid {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    g = sub.add_parser("generate", help="generate a grid from a boundary file",
+                       description="Generate a grid inside the four boundary curves of INPUT.")
+    g.add_argument("input", metavar="INPUT", help="boundary JSON file")
+    g.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
+                   help="output file, format by extension (.npz .obj .ply .json); repeatable")
+    g.add_argument("--nodes", type=parse_nodes, metavar="NUxNV",
+                   help="grid size, NUxNV or N (default: the input's point counts)")
+    g.add_argument("--init", choices=("zero", "average", "tfi"), default="tfi",
+                   help="initial grid (default: tfi)")
+    g.add_argument("--weights", choices=("paper", "uniform"), default="paper",
+                   help="edge weights (default: paper, eq. 2)")
+    g.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
+                   help="the factor k of the v weights in eq. 2 (default: 1)")
+    g.add_argument("--solver", choices=("auto", "direct", "fdm", "jacobi"), default="auto",
+                   help="solver (default: auto)")
+    g.add_argument("--backend", choices=("auto", "cpu"), default="auto",
+                   help="where the solver runs (default: auto)")
+    g.add_argument("--tol", type=parse_tol, default=2.0**-12, metavar="T",
+                   help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
+                        "(default: 2**-12)")
+    g.add_argument("--stop", choices=("error", "paper"), default="error",
+                   help="jacobi stop rule: true error bound, or the paper's last-step rule "
+                        "(default: error)")
+    g.add_argument("--max-iter", type=_positive_int, default=None, metavar="N",
+                   help="most iterations of an iterative solver")
+    g.add_argument("--allow-unconverged", action="store_true",
+                   help="write the grid even if --max-iter is reached before --tol")
+    g.add_argument("--plot", metavar="PNG", help="also draw the grid to this PNG file")
+    g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
+    g.set_defaults(func=_cmd_generate)
+
+    d = sub.add_parser("demo", help="grid a bundled T-shirt front and write OBJ, NPZ and PNG",
+                       description="Grid the bundled T-shirt front panel and write the results.")
+    d.add_argument("-o", "--output-dir", default="clothgrid-demo", metavar="DIR",
+                   help="output folder, created if missing (default: clothgrid-demo)")
+    d.add_argument("--nodes", type=parse_nodes, default=(257, 257), metavar="NUxNV",
+                   help="grid size (default: 257x257)")
+    d.set_defaults(func=_cmd_demo)
+    return parser
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _say(message: str) -> None:
+    print(f"clothgrid: {message}", file=sys.stderr, flush=True)
+
+
+def _suffix_known(path: Path, known: set[str]) -> bool:
+    return path.suffix.lower() in known
+
+
+def _check_outputs(outputs: Sequence[str], plot: str | None) -> tuple[list[Path], Path | None]:
+    """Fail fast (InputError) on an unknown extension or a missing output folder."""
+    from .writers import WRITERS
+
+    known = {"." + str(k).lower().lstrip(".") for k in WRITERS}
+    paths: list[Path] = []
+    for text in outputs:
+        path = Path(text)
+        if not _suffix_known(path, known):
+            raise InputError(f"unknown output format {path.suffix or '(no extension)'!r} for "
+                             f"{text!r}: use one of {', '.join(sorted(known))}")
+        if path not in paths:
+            paths.append(path)
+    plot_path = None
+    if plot is not None:
+        plot_path = Path(plot)
+        if not _suffix_known(plot_path, set(PLOT_SUFFIXES)):
+            raise InputError(f"--plot {plot!r}: the plot must be a {'/'.join(PLOT_SUFFIXES)} file")
+        if plot_path in paths:
+            raise InputError(f"{plot!r} is given both as an output and as the plot")
+    for path in paths + ([plot_path] if plot_path is not None else []):
+        folder = path.parent
+        if not folder.is_dir():
+            raise InputError(f"output folder {str(folder)!r} does not exist (for {str(path)!r})")
+        if path.is_dir():
+            raise InputError(f"output {str(path)!r} is a folder")
+    return paths, plot_path
+
+
+def _load(path: Path):
+    from .readers import load_boundary
+
+    return load_boundary(path)
+
+
+def _write_all(grid: Any, outputs: Sequence[Path], plot: Path | None, *, title: str | None,
+               quality: Any) -> list[Path]:
+    """Write every output; on any failure remove what this call wrote and re-raise."""
+    from .plot import plot_grid
+    from .writers import save
+
+    written: list[Path] = []
+    try:
+        for path in outputs:
+            written.append(Path(save(grid, path)))
+        if plot is not None:
+            written.append(Path(plot_grid(grid, plot, title=title, quality=quality)))
+    except BaseException as exc:
+        for path in written:
+            path.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            name = getattr(exc, "filename", None) or "output"
+            raise InputError(f"cannot write {name}: {exc.strerror or exc}") from exc
+        raise
+    return written
+
+
+def _fmt(value: Any, spec: str) -> str:
+    try:
+        return format(value, spec)
+    except (TypeError, ValueError):
+        return "n/a"
+
+
+def timing_line(info: dict[str, Any], seconds: float) -> str:
+    """One line: solver, backend, iterations, relative error estimate, tolerance, time."""
+    return (f"solver {info.get('solver', '?')} ({info.get('backend', '?')}): "
+            f"{info.get('iterations', 0)} iterations, "
+            f"error estimate {_fmt(info.get('error_estimate'), '.2e')} relative "
+            f"(tol {_fmt(info.get('tol'), '.2e')}), {seconds:.3f} s")
+
+
+def _progress(quiet: bool) -> Callable[[str], None] | None:
+    return None if quiet else _say
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    from .generate import generate
+    from .quality import quality
+
+    outputs, plot = _check_outputs(args.output, args.plot)
+    progress = _progress(args.quiet)
+    source = Path(args.input)
+
+    t0 = time.perf_counter()
+    boundary = _load(source)
+    t_load = time.perf_counter() - t0
+    if progress:
+        progress(f"loaded {source} in {t_load:.3f} s")
+
+    t0 = time.perf_counter()
+    grid = generate(boundary, args.nodes, init=args.init, weights=args.weights, k=args.k,
+                    solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop,
+                    max_iter=args.max_iter, allow_unconverged=args.allow_unconverged,
+                    progress=progress)
+    t_solve = time.perf_counter() - t0
+
+    q = quality(grid)
+    print(q.table())
+    print(timing_line(grid.info, t_solve), flush=True)
+    if not grid.info.get("converged", True):
+        _say(f"warning: writing a grid that is not converged (error estimate "
+             f"{_fmt(grid.info.get('error_estimate'), '.2e')} > tol {_fmt(args.tol, '.2e')}) "
+             f"because of --allow-unconverged")
+    if q.folded:
+        _say(f"warning: {q.folded} folded cells (see the quality table)")
+
+    t0 = time.perf_counter()
+    title = getattr(boundary, "name", None) or source.stem
+    written = _write_all(grid, outputs, plot, title=title, quality=q)
+    if progress:
+        progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from importlib.resources import as_file, files
+
+    from .generate import generate
+    from .quality import quality
+
+    folder = Path(args.output_dir)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{str(folder)!r} exists and is not a folder")
+
+    t0 = time.perf_counter()
+    with as_file(files("clothgrid").joinpath("data", DEMO_PIECE)) as source:
+        boundary = _load(Path(source))
+    t_load = time.perf_counter() - t0
+    name = getattr(boundary, "name", None) or Path(DEMO_PIECE).stem
+
+    t0 = time.perf_counter()
+    grid = generate(boundary, args.nodes, progress=_say)
+    t_solve = time.perf_counter() - t0
+    q = quality(grid)
+
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    written = _write_all(grid, [folder / f"{name}.obj", folder / f"{name}.npz"],
+                         folder / f"{name}.png", title=name, quality=q)
+    t_write = time.perf_counter() - t0
+
+    nu, nv = grid.shape
+    if q.folded:
+        _say(f"warning: {q.folded} folded cells (see the quality table)")
+    print(f"{name}: {nu} x {nv} nodes")
+    print(q.table())
+    print(timing_line(grid.info, t_solve))
+    print(f"time: load {t_load:.3f} s, solve {t_solve:.3f} s, write {t_write:.3f} s")
+    print(f"files in {folder}/: {', '.join(p.name for p in written)}")
+    return 0
+
+
+# --------------------------------------------------------------------------- entry point
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``clothgrid`` command line and return its exit code.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 2 on bad input or usage, 3 when not converged, 130 when
+        interrupted. Unexpected exceptions propagate with their traceback.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(None if argv is None else list(argv))
+    except SystemExit as exc:  # --help, --version, usage errors
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    if getattr(args, "func", None) is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        _say("interrupted")
+        return 130
+    except NotConvergedError as exc:
+        _say(f"error: {exc}")
+        _say("no output written; raise --max-iter or pass --allow-unconverged to keep the grid")
+        return 3
+    except InputError as exc:
+        _say(f"error: {exc}")
+        return 2
+    except ClothgridError as exc:
+        _say(f"error: {exc}")
+        return 1

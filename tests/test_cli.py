@@ -1,0 +1,343 @@
+"""Tests of the command line, :mod:`clothgrid.cli`, run in-process (one via ``python -m``)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import clothgrid
+from clothgrid import cli
+from clothgrid.cli import main, parse_nodes, parse_tol
+
+# roache-horn from the UNAMalla regions (MIT): 76 points, four sides of 20 points.
+HORN_OUTLINE = [
+    (0.0, -1.0), (0.1579, -1.0), (0.3158, -1.0), (0.4737, -1.0), (0.6316, -1.0),
+    (0.7895, -1.0), (0.9474, -1.0), (1.1053, -1.0), (1.2632, -1.0), (1.4211, -1.0),
+    (1.5789, -1.0), (1.7368, -1.0), (1.8947, -1.0), (2.0526, -1.0526), (2.2105, -1.2105),
+    (2.3684, -1.3684), (2.5263, -1.5263), (2.6842, -1.6842), (2.8421, -1.8421), (3.0, -2.0),
+    (3.1994, -1.7895), (3.3767, -1.5789), (3.5319, -1.3684), (3.6648, -1.1579), (3.7756, -0.9474),
+    (3.8643, -0.7368), (3.9307, -0.5263), (3.9751, -0.3158), (3.9972, -0.1053), (3.9972, 0.1053),
+    (3.9751, 0.3158), (3.9307, 0.5263), (3.8643, 0.7368), (3.7756, 0.9474), (3.6648, 1.1579),
+    (3.5319, 1.3684), (3.3767, 1.5789), (3.1994, 1.7895), (3.0, 2.0), (2.8421, 1.8421),
+    (2.6842, 1.6842), (2.5263, 1.5263), (2.3684, 1.3684), (2.2105, 1.2105), (2.0526, 1.0526),
+    (1.8947, 1.0), (1.7368, 1.0), (1.5789, 1.0), (1.4211, 1.0), (1.2632, 1.0),
+    (1.1053, 1.0), (0.9474, 1.0), (0.7895, 1.0), (0.6316, 1.0), (0.4737, 1.0),
+    (0.3158, 1.0), (0.1579, 1.0), (0.0, 1.0), (0.0, 0.8947), (0.0, 0.7895),
+    (0.0, 0.6842), (0.0, 0.5789), (0.0, 0.4737), (0.0, 0.3684), (0.0, 0.2632),
+    (0.0, 0.1579), (0.0, 0.0526), (0.0, -0.0526), (0.0, -0.1579), (0.0, -0.2632),
+    (0.0, -0.3684), (0.0, -0.4737), (0.0, -0.5789), (0.0, -0.6842), (0.0, -0.7895),
+    (0.0, -0.8947),
+]
+HORN_CORNERS = [0, 19, 38, 57]
+
+
+def _square_sides(n: int = 5) -> dict[str, list[list[float]]]:
+    t = np.linspace(0.0, 1.0, n)
+    return {
+        "bottom": [[x, 0.0] for x in t],
+        "right": [[1.0, y] for y in t],
+        "top": [[x, 1.0] for x in t],
+        "left": [[0.0, y] for y in t],
+    }
+
+
+def _write(path: Path, data) -> Path:
+    path.write_text(data if isinstance(data, str) else json.dumps(data))
+    return path
+
+
+@pytest.fixture
+def horn(tmp_path: Path) -> Path:
+    return _write(tmp_path / "roache-horn.json",
+                  {"name": "roache-horn", "outline": HORN_OUTLINE, "corners": HORN_CORNERS})
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _files(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.rglob("*") if p.is_file())
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+@pytest.mark.parametrize("text, expected", [("257x257", (257, 257)), ("33", (33, 33)),
+                                            ("2X9", (2, 9)), (" 16 x 8 ", (16, 8))])
+def test_parse_nodes(text, expected):
+    assert parse_nodes(text) == expected
+
+
+@pytest.mark.parametrize("text", ["3x", "1x5", "5x1", "x5", "0", "1", "-3x4", "2.5x3", "axb", ""])
+def test_parse_nodes_rejects(text):
+    with pytest.raises(argparse.ArgumentTypeError, match=">= 2"):
+        parse_nodes(text)
+
+
+@pytest.mark.parametrize("text, expected", [("2**-12", 2.0**-12), ("2^-12", 2.0**-12),
+                                            ("1e-4", 1e-4), ("0.001", 1e-3),
+                                            (" 10 ** -3 ", 1e-3)])
+def test_parse_tol(text, expected):
+    assert parse_tol(text) == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("text", ["0", "-1e-3", "nan", "inf", "2**", "__import__('os')",
+                                  "2*-12", "1e400", "(-2)**0.5", "-2**0.5", "2**2000"])
+def test_parse_tol_rejects(text):
+    with pytest.raises(argparse.ArgumentTypeError, match="tolerance"):
+        parse_tol(text)
+
+
+def test_version(capsys):
+    code, out, _ = run(capsys, "--version")
+    assert code == 0
+    assert out.startswith("clothgrid ")
+
+
+def test_no_command_is_usage_error(capsys):
+    code, _, err = run(capsys)
+    assert code == 2
+    assert "generate" in err
+
+
+# --------------------------------------------------------------------------- generate
+
+
+def test_generate_writes_all_formats(capsys, horn, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    code, stdout, err = run(capsys, "generate", horn, "-o", out / "g.npz", "-o", out / "g.obj",
+                            "-o", out / "g.json", "--nodes", "24x16", "--plot", out / "g.png")
+    assert code == 0, err
+    assert _files(out) == ["g.json", "g.npz", "g.obj", "g.png"]
+    with np.load(out / "g.npz") as z:
+        assert z["points"].shape == (24, 16, 3)
+        assert z["quads"].shape == (23 * 15, 4)
+    obj = (out / "g.obj").read_text().splitlines()
+    assert sum(line.startswith("v ") for line in obj) == 24 * 16
+    assert sum(line.startswith("f ") for line in obj) == 23 * 15
+    json.loads((out / "g.json").read_text())
+    assert (out / "g.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "folded" in stdout  # the quality table
+    assert "iterations" in stdout and "error estimate" in stdout  # the timing line
+    assert "clothgrid:" in err  # progress on stderr
+
+
+def test_generate_default_nodes_and_quiet(capsys, horn, tmp_path):
+    code, stdout, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", "-q",
+                            "--solver", "direct", "--tol", "2**-20")
+    assert code == 0, err
+    assert all("warning" in line for line in err.splitlines())  # no progress, only warnings
+    assert "direct" in stdout
+    with np.load(tmp_path / "g.npz") as z:
+        assert z["points"].shape == (20, 20, 3)
+
+
+def test_python_m_clothgrid(horn, tmp_path):
+    src = str(Path(clothgrid.__file__).resolve().parent.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]),
+               MPLBACKEND="Agg")
+    res = subprocess.run([sys.executable, "-m", "clothgrid", "generate", str(horn), "-o",
+                          str(tmp_path / "g.ply"), "--nodes", "12"], capture_output=True,
+                         text=True, env=env, stdin=subprocess.DEVNULL, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "g.ply").is_file()
+    bad = subprocess.run([sys.executable, "-m", "clothgrid", "generate", str(horn), "-o",
+                          str(tmp_path / "g.xyz")], capture_output=True, text=True, env=env,
+                         stdin=subprocess.DEVNULL, timeout=600)
+    assert bad.returncode == 2
+    assert "clothgrid: error:" in bad.stderr
+
+
+# --------------------------------------------------------------------------- bad input -> 2
+
+
+def _bad_inputs() -> dict[str, tuple[object, tuple[str, ...], tuple[str, ...]]]:
+    """name -> (file content, extra args, any of these words in the message)."""
+    nan = _square_sides()
+    nan["bottom"][2] = [float("nan"), 0.0]
+    open_corner = _square_sides()
+    open_corner["right"][0] = [1.1, 0.0]
+    one_point = _square_sides()
+    one_point["left"] = [[0.0, 0.0]]
+    mismatch = _square_sides()
+    mismatch["top"] = [[x, 1.0] for x in np.linspace(0.0, 1.0, 7)]
+    zero = _square_sides()
+    zero["right"] = [[1.0, 0.0]] * 5
+    zero["top"] = [[x, y] for x, y in zip(np.linspace(0.0, 1.0, 5), np.linspace(1.0, 0.0, 5))]
+    t = np.linspace(0.0, 1.0, 6)[:-1]
+    bowtie = ([[x, 0.0] for x in t] + [[1.0 - 0.5 * x, y] for x, y in zip(t, t)]
+              + [[0.5 - 0.5 * x, 1.0 + x] for x in t]
+              + [[0.0 + 2 * x, 2.0 - 2 * x] for x in t])
+    return {
+        "invalid-json": ('{"outline": [[0, 0], [1, 0]', (), ("json",)),
+        "corners-do-not-meet": (open_corner, (), ("corner", "meet", "match")),
+        "nan": (nan, (), ("nan", "finite")),
+        "one-point-side": (one_point, (), ("point", "left", "side")),
+        "mismatched-counts": (mismatch, (), ("--nodes", "count", "match")),
+        "zero-length-side": (zero, (), ("zero", "length", "degenerate")),
+        "self-intersecting": ({"name": "bowtie", "outline": bowtie, "corners": [0, 5, 10, 15]},
+                              (), ("cross", "intersect")),
+    }
+
+
+@pytest.mark.parametrize("case", sorted(_bad_inputs()))
+def test_bad_input_exit_2(capsys, tmp_path, case):
+    content, extra, words = _bad_inputs()[case]
+    src = _write(tmp_path / "in.json", content if isinstance(content, str)
+                 else json.dumps(content))
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, err = run(capsys, "generate", src, "-o", out / "g.npz", "--plot", out / "g.png",
+                       *extra)
+    assert code == 2, err
+    assert "clothgrid: error:" in err
+    assert any(w in err.lower() for w in words), err
+    assert _files(out) == []
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--nodes", "3x"], ("--nodes", "nuxnv")),
+    (["--nodes", "1x5"], ("--nodes", ">= 2")),
+    (["--solver", "magic"], ("--solver", "invalid choice")),
+    (["--tol", "2**x"], ("--tol", "tolerance")),
+    (["--max-iter", "0"], ("--max-iter",)),
+])
+def test_bad_options_exit_2(capsys, horn, tmp_path, args, words):
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", *args)
+    assert code == 2
+    assert "clothgrid: error:" in err
+    assert all(w in err.lower() for w in words), err
+    assert not (tmp_path / "g.npz").exists()
+
+
+def test_missing_input(capsys, tmp_path):
+    code, _, err = run(capsys, "generate", tmp_path / "nope.json", "-o", tmp_path / "g.npz")
+    assert code == 2
+    assert "nope.json" in err and "no such file" in err.lower()
+    assert not (tmp_path / "g.npz").exists()
+
+
+def test_unknown_output_extension(capsys, horn, tmp_path):
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", "-o", tmp_path / "g.stl")
+    assert code == 2
+    assert ".stl" in err and ".npz" in err
+    assert _files(tmp_path) == ["roache-horn.json"]
+
+
+def test_bad_plot_extension(capsys, horn, tmp_path):
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", "--plot",
+                       tmp_path / "g.jpg")
+    assert code == 2
+    assert "--plot" in err
+    assert _files(tmp_path) == ["roache-horn.json"]
+
+
+def test_output_dir_missing(capsys, horn, tmp_path):
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz",
+                       "-o", tmp_path / "missing" / "g.obj")
+    assert code == 2
+    assert "missing" in err and "does not exist" in err
+    assert _files(tmp_path) == ["roache-horn.json"]
+
+
+def test_failed_second_output_removes_first(capsys, horn, tmp_path, monkeypatch):
+    import clothgrid.writers as writers
+
+    real_save = writers.save
+    calls = []
+
+    def flaky_save(grid, path):
+        calls.append(path)
+        if len(calls) == 2:
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_save(grid, path)
+
+    monkeypatch.setattr(writers, "save", flaky_save)
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "a.npz", "-o", tmp_path / "b.obj",
+                       "--nodes", "8")
+    assert code == 2
+    assert "b.obj" in err and "permission denied" in err.lower()
+    assert _files(tmp_path) == ["roache-horn.json"]
+
+
+def test_keyboard_interrupt_exit_130(capsys, horn, tmp_path, monkeypatch):
+    gen = importlib.import_module("clothgrid.generate")  # the module, not the function
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(gen, "generate", interrupted)
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz")
+    assert code == 130
+    assert "interrupted" in err
+    assert not (tmp_path / "g.npz").exists()
+
+
+# --------------------------------------------------------------------------- not converged -> 3
+
+
+def test_not_converged_exit_3(capsys, horn, tmp_path):
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", "--plot",
+                       tmp_path / "g.png", "--solver", "jacobi", "--init", "zero",
+                       "--max-iter", "5")
+    assert code == 3
+    assert "clothgrid: error:" in err and "--allow-unconverged" in err
+    assert _files(tmp_path) == ["roache-horn.json"]
+
+
+def test_allow_unconverged_writes(capsys, horn, tmp_path):
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", "--solver", "jacobi",
+                       "--init", "zero", "--max-iter", "5", "--allow-unconverged")
+    assert code == 0, err
+    assert "warning" in err and "not converged" in err and "--allow-unconverged" in err
+    with np.load(tmp_path / "g.npz") as z:
+        assert z["points"].shape == (20, 20, 3)
+
+
+# --------------------------------------------------------------------------- demo
+
+
+def test_demo(capsys, tmp_path):
+    folder = tmp_path / "demo" / "nested"
+    code, out, err = run(capsys, "demo", "-o", folder, "--nodes", "17x13")
+    assert code == 0, err
+    assert _files(folder) == ["tshirt_front.npz", "tshirt_front.obj", "tshirt_front.png"]
+    with np.load(folder / "tshirt_front.npz") as z:
+        assert z["points"].shape == (17, 13, 3)
+    assert "folded" in out and "solve" in out and str(folder) in out
+
+
+def test_demo_piece_is_valid():
+    from importlib.resources import files
+
+    data = json.loads(files("clothgrid").joinpath("data", "tshirt_front.json").read_text())
+    pts = np.asarray(data["outline"], dtype=float)
+    corners = data["corners"]
+    assert pts.ndim == 2 and pts.shape[1] == 2 and 90 <= len(pts) <= 160
+    assert corners == sorted(corners) and len(corners) == 4 and corners[0] == 0
+    x, y = pts.T
+    area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    assert area > 0  # counter-clockwise
+    assert 0.4 < np.ptp(x) < 0.6 and 0.6 < np.ptp(y) < 0.8
+    # no two non-adjacent segments cross
+    a, b = pts, np.roll(pts, -1, axis=0)
+
+    def side(p, q, r):
+        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) \
+            - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+
+    A, B, C, D = a[:, None], b[:, None], a[None], b[None]
+    cross = (side(A, B, C) * side(A, B, D) < 0) & (side(C, D, A) * side(C, D, B) < 0)
+    assert not cross.any()
