@@ -31,23 +31,22 @@ _NODES = re.compile(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?")
 
 
 def parse_nodes(text: str) -> tuple[int, int]:
-    """Parse ``NUxNV`` or ``N`` (meaning ``N x N``) into ``(nu, nv)``.
+    """Parse ``NUxNV`` or ``N`` (meaning ``N x N``) into ``(nu, nv)`` for argparse.
 
     Raises
     ------
     argparse.ArgumentTypeError
         If the text is not of that form or a count is below 2.
     """
-    m = _NODES.fullmatch(text)
-    if m is None:
+    from .generate import parse_nodes as parse
+
+    if _NODES.fullmatch(text) is None:
         raise argparse.ArgumentTypeError(
             f"invalid node counts {text!r}: expected NUxNV or N (integers >= 2), e.g. 257x257")
-    nu = int(m.group(1))
-    nv = int(m.group(2)) if m.group(2) is not None else nu
-    if nu < 2 or nv < 2:
-        raise argparse.ArgumentTypeError(
-            f"invalid node counts {text!r}: each count must be an integer >= 2")
-    return nu, nv
+    try:
+        return parse(text.strip())
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(f"invalid node counts {text!r}: {exc}") from None
 
 
 def parse_tol(text: str) -> float:
@@ -158,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder, created if missing (default: clothgrid-demo)")
     d.add_argument("--nodes", type=parse_nodes, default=(257, 257), metavar="NUxNV",
                    help="grid size (default: 257x257)")
+    d.add_argument("--weights", choices=("paper", "uniform"), default="uniform",
+                   help="edge weights (default: uniform: the paper's weights fold cells under "
+                        "the neckline of this piece)")
     d.set_defaults(func=_cmd_demo)
     return parser
 
@@ -211,7 +213,6 @@ def _load(path: Path):
 def _write_all(grid: Any, outputs: Sequence[Path], plot: Path | None, *, title: str | None,
                quality: Any) -> list[Path]:
     """Write every output; on any failure remove what this call wrote and re-raise."""
-    from .plot import plot_grid
     from .writers import save
 
     written: list[Path] = []
@@ -219,6 +220,8 @@ def _write_all(grid: Any, outputs: Sequence[Path], plot: Path | None, *, title: 
         for path in outputs:
             written.append(Path(save(grid, path)))
         if plot is not None:
+            from .plot import plot_grid  # matplotlib takes ~0.7 s to import: only when asked
+
             written.append(Path(plot_grid(grid, plot, title=title, quality=quality)))
     except BaseException as exc:
         for path in written:
@@ -308,7 +311,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     name = getattr(boundary, "name", None) or Path(DEMO_PIECE).stem
 
     t0 = time.perf_counter()
-    grid = generate(boundary, args.nodes, progress=_say)
+    grid = generate(boundary, args.nodes, weights=args.weights, progress=_say)
     t_solve = time.perf_counter() - t0
     q = quality(grid)
 
@@ -321,7 +324,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     nu, nv = grid.shape
     if q.folded:
         _say(f"warning: {q.folded} folded cells (see the quality table)")
-    print(f"{name}: {nu} x {nv} nodes")
+    print(f"{name}: {nu} x {nv} nodes, {args.weights} weights")
     print(q.table())
     print(timing_line(grid.info, t_solve))
     print(f"time: load {t_load:.3f} s, solve {t_solve:.3f} s, write {t_write:.3f} s")

@@ -12,7 +12,7 @@ from .backends import get_backend
 from .boundary import Boundary
 from .errors import InputError, NotConvergedError
 from .grid import Grid
-from .initial import INITS, initial_grid
+from .initial import INITS, boundary_grid, initial_grid
 from .memory import check_memory, estimate_bytes, format_bytes
 from .solvers import SOLVERS, Problem, solve
 from .weights import Weights, make_weights
@@ -43,7 +43,7 @@ def parse_nodes(nodes) -> tuple[int, int]:
         raise InputError(f"nodes must be two integers (nu, nv), not {nodes!r}")
     nu, nv = (int(v) for v in vals)
     if nu < 2 or nv < 2:
-        raise InputError(f"a grid needs at least 2 nodes along each side, not {nu}x{nv}")
+        raise InputError(f"each node count must be an integer >= 2 (at least 2 nodes along each side), not {nu}x{nv}")
     return nu, nv
 
 
@@ -76,7 +76,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         uniformly by arc length. Default: the sides' own points.
     init : {"tfi", "average", "zero"}
         Initial grid (eq. 4, the contour mean, or zeros). Only iterative
-        solvers start from it.
+        solvers start from it; exact ones (direct, fdm) do not build it.
     weights : {"paper", "uniform"} or (wu, wv) or Weights
         Edge weights (:func:`clothgrid.weights.make_weights`).
     k : float
@@ -130,7 +130,9 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     need = check_memory(name, nu, nv)
     say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
     w = make_weights(weights, nu, nv, k)
-    problem = Problem(initial_grid(boundary, init), w, boundary.size)
+    # Exact solvers read only the boundary nodes: the initial grid matters to iterative ones.
+    r0 = initial_grid(boundary, init) if name == "jacobi" else boundary_grid(boundary)
+    problem = Problem(r0, w, boundary.size)
     name, res = solve(problem, name, backend=be, tol=tol, stop=stop, max_iter=max_iter, progress=progress)
     seconds = time.perf_counter() - t0
     info = {

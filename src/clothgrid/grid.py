@@ -37,20 +37,21 @@ def arc_length_uv(points: np.ndarray) -> np.ndarray:
     along line ``i`` in v. On the boundary these are the sides' own
     normalised arc-length parameters.
     """
-    def along(p: np.ndarray, axis: int) -> np.ndarray:
-        seg = np.linalg.norm(np.diff(p, axis=axis), axis=-1)
-        s = np.cumsum(seg, axis=axis)
-        pad = [(0, 0)] * s.ndim
-        pad[axis] = (1, 0)
-        s = np.pad(s, pad)
-        total = np.take(s, [-1], axis=axis)
-        n = p.shape[axis]
-        uniform = np.linspace(0.0, 1.0, n).reshape([-1 if a == axis else 1 for a in range(s.ndim)])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out = np.where(total > 0, s / np.where(total > 0, total, 1.0), uniform)
-        return out
-
-    return np.stack([along(points, 0), along(points, 1)], axis=-1)
+    nu, nv = points.shape[:2]
+    uv = np.empty((nu, nv, 2))
+    for axis in (0, 1):
+        d = np.diff(points, axis=axis)
+        seg = np.sqrt(np.einsum("...k,...k->...", d, d))
+        s = np.moveaxis(uv[..., axis], axis, 0)               # view: the parameter runs along axis 0
+        s[0] = 0.0
+        np.cumsum(np.moveaxis(seg, axis, 0), axis=0, out=s[1:])
+        total = s[-1].copy()
+        n = s.shape[0]
+        flat = total <= 0                                     # a line of coincident nodes: uniform
+        s /= np.where(flat, 1.0, total)
+        if flat.any():
+            s[:, flat] = np.linspace(0.0, 1.0, n)[:, None]
+    return uv
 
 
 @dataclass

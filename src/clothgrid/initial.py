@@ -30,15 +30,19 @@ def _average(r: np.ndarray) -> np.ndarray:
 
 
 def _tfi(r: np.ndarray) -> np.ndarray:
+    # Eq. (4) regrouped: (1-u) L'(v) + u R'(v) + (1-v) B(u) + v T(u), where L' and R' are the
+    # left and right sides less the corners' linear interpolation; written into the interior.
     nu, nv = r.shape[:2]
-    u = np.linspace(0.0, 1.0, nu)[:, None, None]
-    v = np.linspace(0.0, 1.0, nv)[None, :, None]
-    left, right = r[0][None], r[-1][None]
-    bottom, top = r[:, 0][:, None], r[:, -1][:, None]
-    corners = ((1 - u) * (1 - v) * r[0, 0] + u * (1 - v) * r[-1, 0]
-               + (1 - u) * v * r[0, -1] + u * v * r[-1, -1])
-    t = (1 - u) * left + u * right + (1 - v) * bottom + v * top - corners
-    r[1:-1, 1:-1] = t[1:-1, 1:-1]
+    u = np.linspace(0.0, 1.0, nu)[1:-1, None, None]
+    v = np.linspace(0.0, 1.0, nv)[None, 1:-1, None]
+    vv = v[0]
+    left = r[0, 1:-1] - ((1 - vv) * r[0, 0] + vv * r[0, -1])
+    right = r[-1, 1:-1] - ((1 - vv) * r[-1, 0] + vv * r[-1, -1])
+    out = r[1:-1, 1:-1]
+    np.multiply(1 - u, left[None], out=out)
+    out += u * right[None]
+    out += (1 - v) * r[1:-1, 0][:, None]
+    out += v * r[1:-1, -1][:, None]
     return r
 
 

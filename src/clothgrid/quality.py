@@ -207,22 +207,23 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
         nan = float("nan")
         return Quality(0, np.zeros((0, 2), np.int64), nan, nan, nan, nan, nan)
 
-    X = np.ascontiguousarray(np.moveaxis(R, -1, 0))          # (3, nu, nv), component first
-    raw_u, raw_v = X[:, 1:] - X[:, :-1], X[:, :, 1:] - X[:, :, :-1]
-    eu, len_u = _unit(raw_u)                                  # (3, nu-1, nv) u-edges
-    ev, len_v = _unit(raw_v)                                  # (3, nu, nv-1) v-edges
     n = _reference_normal(grid, normal, orientation)
     if n is None:                                             # curved piece: local normals
+        X = np.ascontiguousarray(np.moveaxis(R, -1, 0))      # (3, nu, nv), component first
+    else:                                                     # planar: work in the plane's 2D basis
+        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        basis = np.stack([e1, np.cross(n, e1)])               # (2, 3), e1 x e2 = n
+        X = (basis @ R.reshape(-1, 3).T).reshape(2, nu, nv)  # lengths and angles are in-plane
+    raw_u, raw_v = X[:, 1:] - X[:, :-1], X[:, :, 1:] - X[:, :, :-1]
+    eu, len_u = _unit(raw_u)                                  # (d, nu-1, nv) u-edges
+    ev, len_v = _unit(raw_v)                                  # (d, nu, nv-1) v-edges
+    if n is None:
         cell_sum = _cross(raw_u[:, :, :-1] + raw_u[:, :, 1:], raw_v[:, :-1] + raw_v[:, 1:])
         n, _ = _unit(_box_sum(cell_sum, LOCAL_RADIUS))        # sum of the corner crosses
         if orientation is not None:
             n *= float(np.sign(orientation) or 1.0)
-        cu, cv = eu, ev
-    else:                                                     # constant normal: 2D crosses
-        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-        e1 /= np.linalg.norm(e1)
-        basis = np.stack([e1, np.cross(n, e1)])               # (2, 3), e1 x e2 = n
-        cu, cv = np.tensordot(basis, eu, 1), np.tensordot(basis, ev, 1)
+    cu, cv = eu, ev
 
     def sides(u: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
         """Bottom, top, left and right edges of every cell, ``(d, nu-1, nv-1)`` each."""
