@@ -48,7 +48,9 @@ def cli_part(piece: Path, n: int) -> None:
     b = clothgrid.load_boundary(piece).resampled(n, n)
     ref = clothgrid.generate(b, solver="direct")
     base = ref.info["seconds"]
-    print("| run | wall time (s) | max error / tol | vs direct solve (s) |\n|---|---|---|---|")
+    print(f"SciPy sparse direct solve of the same grid, solve alone: {base:.2f} s\n")
+    print("| run | wall time of the whole command (s) | max error / tol | direct solve time / command time |")
+    print("|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "grid.npz"
         for run in (1, 2):
@@ -57,7 +59,7 @@ def cli_part(piece: Path, n: int) -> None:
             wall = time.perf_counter() - t
             pts = np.load(out)["points"]
             err = max_err(pts, ref.points, b.size)
-            print(f"| {run} | {wall:.2f} | {err / TOL:.2e} | {base:.2f} ({base / wall:.1f}x slower) |")
+            print(f"| {run} | {wall:.2f} | {err / TOL:.2e} | {base / wall:.1f}x |")
     print()
 
 
