@@ -1,7 +1,8 @@
 """Command-line interface: ``clothgrid generate``, ``clothgrid demo``.
 
 Exit codes: 0 success, 2 bad input or options (including usage errors),
-3 an iterative solve did not converge within ``--max-iter``, 130 interrupted.
+3 an iterative solve did not converge within ``--max-iter`` or, with
+``--strict``, the grid has folded cells, 130 interrupted.
 Any output file of a failed run is removed, so a failure leaves no output.
 """
 
@@ -147,6 +148,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="most iterations of an iterative solver")
     g.add_argument("--allow-unconverged", action="store_true",
                    help="write the grid even if --max-iter is reached before --tol")
+    g.add_argument("--functional", choices=("length", "foldfree", "auto"), default="length",
+                   help="length: the weighted length functional (may fold cells on non-convex pieces); "
+                        "foldfree: then untangle and smooth it (planar pieces); auto: foldfree only "
+                        "if the length grid folds (default: length)")
+    g.add_argument("--strict", action="store_true",
+                   help="fail (exit 3, no output) if the final grid has folded cells")
     g.add_argument("--plot", metavar="PNG", help="also draw the grid to this PNG file")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
     g.set_defaults(func=_cmd_generate)
@@ -252,12 +259,21 @@ def _progress(quiet: bool) -> Callable[[str], None] | None:
     return None if quiet else _say
 
 
+def folded_text(q: Any, max_listed: int = 5) -> str:
+    """``"N folded cells (i, j), ..."``: how many cells are folded and the first few."""
+    shown = ", ".join(f"({i}, {j})" for i, j in list(q.folded_cells)[:max_listed])
+    more = ", ..." if q.folded > max_listed else ""
+    return f"{q.folded} folded cell{'s' if q.folded != 1 else ''} (first at cells {shown}{more})"
+
+
 # --------------------------------------------------------------------------- commands
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from .generate import generate
-    from .quality import quality
+    from .quality import Quality, quality
 
     outputs, plot = _check_outputs(args.output, args.plot)
     progress = _progress(args.quiet)
@@ -273,18 +289,31 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     grid = generate(boundary, args.nodes, init=args.init, weights=args.weights, k=args.k,
                     solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop,
                     max_iter=args.max_iter, allow_unconverged=args.allow_unconverged,
-                    progress=progress)
+                    progress=progress, functional=args.functional)
     t_solve = time.perf_counter() - t0
 
     q = quality(grid)
+    if grid.info.get("functional") == "foldfree":
+        before = grid.info.get("quality_before") or {}
+        print("length functional:")
+        print(Quality(**{**before, "folded_cells": np.asarray(before.get("folded_cells", []),
+                                                                dtype=np.int64).reshape(-1, 2)}).table())
+        ff = grid.info.get("foldfree", {})
+        print(f"fold-free ({_fmt(ff.get('iterations'), 'd')} iterations, "
+              f"{_fmt(ff.get('seconds'), '.3f')} s):")
     print(q.table())
     print(timing_line(grid.info, t_solve), flush=True)
+    if q.folded and args.strict:
+        _say(f"error: the grid has {folded_text(q)}; no output written "
+             + ("(try --functional auto)" if args.functional == "length" else "(--strict)"))
+        return 3
     if not grid.info.get("converged", True):
         _say(f"warning: writing a grid that is not converged (error estimate "
              f"{_fmt(grid.info.get('error_estimate'), '.2e')} > tol {_fmt(args.tol, '.2e')}) "
              f"because of --allow-unconverged")
     if q.folded:
-        _say(f"warning: {q.folded} folded cells (see the quality table)")
+        hint = "; try --functional auto" if args.functional == "length" else ""
+        _say(f"warning: {folded_text(q)}{hint}")
 
     t0 = time.perf_counter()
     title = getattr(boundary, "name", None) or source.stem

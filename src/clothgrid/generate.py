@@ -20,6 +20,7 @@ from .weights import Weights, make_weights
 __all__ = ["generate", "parse_nodes"]
 
 STOPS = ("error", "paper")
+FUNCTIONALS = ("length", "foldfree", "auto")
 
 
 def parse_nodes(nodes) -> tuple[int, int]:
@@ -64,7 +65,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
              weights: str | tuple[np.ndarray, np.ndarray] | Weights = "paper", k: float = 1.0,
              solver: str = "auto", backend: str = "auto", tol: float = 2.0**-12, stop: str = "error",
              max_iter: int | None = None, allow_unconverged: bool = False,
-             progress: Callable[[str], None] | None = None) -> Grid:
+             progress: Callable[[str], None] | None = None, functional: str = "length") -> Grid:
     """Generate the structured grid inside ``boundary``.
 
     Parameters
@@ -98,13 +99,25 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         raising :class:`NotConvergedError`.
     progress : callable, optional
         Called with a line of text at each stage and during long iterations.
+    functional : {"length", "foldfree", "auto"}
+        ``length``: the weighted length functional (eq. 1), which can fold
+        cells on non-convex pieces. ``foldfree``: its grid is then untangled
+        and smoothed by :func:`clothgrid.foldfree.untangle` (planar pieces
+        only). ``auto``: the length grid, returned unchanged when it has no
+        folded cell, else untangled like ``foldfree`` (a folded curved piece
+        keeps its length grid, with ``info["foldfree_skipped"]`` saying why).
 
     Returns
     -------
     Grid
         With ``info``: solver, backend, init, weights, k, tol, stop,
         iterations, error_estimate (relative; a guaranteed bound when
-        ``error_bound`` is True), converged, seconds, nodes, shape.
+        ``error_bound`` is True), converged, seconds, nodes, shape,
+        functional (the one used); with ``functional`` auto or foldfree also
+        folded_before (folded cells of the length grid) and folded (of the
+        grid returned); after the fold-free method
+        also ``foldfree`` (its :func:`~clothgrid.foldfree.untangle` info) and
+        ``quality_before`` (the length grid's :meth:`Quality.as_dict`).
 
     Raises
     ------
@@ -118,6 +131,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     t0 = time.perf_counter()
     say = progress or (lambda _msg: None)
     _check_options(init, solver, stop, tol, max_iter)
+    if not isinstance(functional, str) or functional not in FUNCTIONALS:
+        raise InputError(f"unknown functional {functional!r}: use one of {', '.join(FUNCTIONALS)}")
     be = get_backend(backend)
     if nodes is not None:
         nu, nv = parse_nodes(nodes)
@@ -125,6 +140,9 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     nu, nv = boundary.shape
     if nu < 3 or nv < 3:
         raise InputError(f"a {nu}x{nv} grid has no interior nodes to place: use at least 3x3 nodes")
+    if functional == "foldfree" and boundary.dim == 3 and not boundary._plane()[3]:
+        raise InputError("functional 'foldfree' is for planar pieces: this 3D piece is curved; "
+                         "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
     separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
     name = solver if solver != "auto" else ("fdm" if separable else "direct")
     need = check_memory(name, nu, nv)
@@ -144,8 +162,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     }
     if res.extra:
         info.update(res.extra)
-    grid = Grid.from_points(res.points, info=info, dim=boundary.dim,
-                            flip=boundary.dim == 2 and boundary.orientation < 0)
+    flip = boundary.dim == 2 and boundary.orientation < 0
+    grid = Grid.from_points(res.points, info=info, dim=boundary.dim, flip=flip)
     say(f"{name}: {res.iterations} iterations, error bound {res.error_estimate:.3g} (tol {tol:.3g}), {seconds:.3f} s")
     if not res.converged:
         rule = "last step < tol (the paper's rule)" if stop == "paper" and name == "jacobi" else f"error <= {tol:.3g}"
@@ -154,4 +172,34 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         if not allow_unconverged:
             raise NotConvergedError(msg, grid)
         say("warning: " + msg)
-    return grid
+    if functional == "length":
+        grid.info["functional"] = "length"
+        return grid
+    return _apply_functional(grid, functional, say, t0, flip)
+
+
+def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool) -> Grid:
+    """Record the length grid's folds and, for ``foldfree`` / folded ``auto``, untangle it."""
+    from .quality import quality
+
+    q = quality(grid)
+    grid.info.update(functional="length", folded_before=q.folded, folded=q.folded)
+    if functional == "auto" and q.folded == 0:
+        return grid
+    from .foldfree import untangle
+
+    try:
+        points, ff = untangle(grid.points, dim=grid.dim, progress=say)
+    except InputError as exc:
+        if functional == "foldfree":
+            raise
+        grid.info["foldfree_skipped"] = str(exc)
+        say(f"warning: {q.folded} folded cells kept: {exc}")
+        return grid
+    info = dict(grid.info)
+    new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
+    q_after = quality(new)
+    new.info.update(functional="foldfree", folded=q_after.folded, foldfree=ff,
+                    quality_before=q.as_dict(), seconds=time.perf_counter() - t0)
+    say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s")
+    return new

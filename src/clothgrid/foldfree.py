@@ -1,0 +1,295 @@
+"""Fold-free grids on planar pieces: simultaneous untangling and smoothing.
+
+Minimising length alone (eq. 1) can fold cells on non-convex boundaries. This
+module moves the interior nodes of a planar grid to a minimum of the
+regularised Winslow energy of Escobar et al. ("Simultaneous untangling and
+smoothing of tetrahedral meshes", 2003), summed over the four corner triangles
+of every cell. At corner ``k`` of a cell, with edges ``a = R[k+1] - R[k]`` and
+``b = R[k-1] - R[k]`` (corners in quad order, coordinates in the piece's plane,
+oriented so that the boundary turns counter-clockwise),
+
+    J = a x b,    f = (|a|^2 + |b|^2) / (J + sqrt(J^2 + 4 delta^2)),
+
+and the energy is ``E = sum f`` over all corners. For ``delta = 0`` and
+``J > 0``, ``f = (|a|^2 + |b|^2) / (2 J)`` is the Winslow / condition-number
+energy of the corner, which is infinite on a degenerate corner: a barrier
+against folding. A ``delta > 0`` makes ``E`` finite and smooth for folded
+corners too, so a folded start can be untangled; ``delta`` is reduced towards 0
+as the folds disappear (``delta^2 = eps (eps - J_min)`` while ``J_min < eps``),
+then a final smoothing stage with a tiny ``delta`` improves the cells while the
+barrier keeps them unfolded. Boundary nodes stay where they are (bit for bit).
+
+See ``docs/foldfree.md``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Callable
+
+import numpy as np
+from scipy.optimize import minimize
+
+from .errors import InputError
+from .quality import PLANAR_TOL, best_fit_plane, boundary_loop, vector_area
+
+__all__ = ["untangle", "corner_jacobians", "plane_frame"]
+
+#: ``eps`` of the delta rule, relative to the mean cell area.
+EPS = 1e-2
+#: ``delta`` of the final smoothing stage, relative to the mean cell area.
+DELTA_SMOOTH = 1e-6
+#: Most untangling rounds (each a reduced ``delta`` and an L-BFGS run).
+MAX_ROUNDS = 40
+#: Grids with more nodes than this along both sides are untangled multilevel.
+COARSE = 40
+
+
+def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """The in-plane frame of a planar grid, oriented counter-clockwise.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        ``(nu, nv, 3)`` nodes (``z = 0`` for 2D grids).
+    dim : int
+        2 for a grid given in the xy-plane, else 3.
+
+    Returns
+    -------
+    centre, basis : numpy.ndarray
+        A point of the plane ``(3,)`` and ``(2, 3)`` orthonormal in-plane axes,
+        chosen so that the boundary loop (bottom, right, top reversed, left
+        reversed) turns counter-clockwise in the coordinates ``(p - centre) @ basis.T``.
+
+    Raises
+    ------
+    InputError
+        The boundary is not planar (a curved 3D piece).
+    """
+    loop = boundary_loop(points)
+    if dim == 2:
+        centre, normal = np.zeros(3), np.array([0.0, 0.0, 1.0])
+        e1 = np.array([1.0, 0.0, 0.0])
+    else:
+        centre, normal, dist = best_fit_plane(loop)
+        diag = float(np.linalg.norm(np.ptp(loop, axis=0)))
+        if dist > PLANAR_TOL * diag:
+            raise InputError(
+                f"the fold-free functional is for planar pieces: this piece's boundary is "
+                f"{dist / diag:.3g} of its size away from a plane; use functional 'length'")
+        e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+    if vector_area(loop) @ normal < 0:
+        normal = -normal
+    return centre, np.stack([e1, np.cross(normal, e1)])
+
+
+def corner_jacobians(X: np.ndarray) -> np.ndarray:
+    """``(4, nu-1, nv-1)`` corner cross products ``a x b`` of ``(nu, nv, 2)`` planar nodes."""
+    P = (X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:])
+    out = np.empty((4,) + P[0].shape[:2])
+    for k in range(4):
+        a, b = P[(k + 1) % 4] - P[k], P[k - 1] - P[k]
+        out[k] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+# Node offsets of the four corners of cell (i, j): the corner's slice of the node array.
+_OFFSETS = ((0, 0), (1, 0), (1, 1), (0, 1))
+
+
+class _Energy:
+    """The regularised Winslow energy of the interior nodes and its gradient."""
+
+    def __init__(self, X: np.ndarray):
+        self.X = X.copy()                       # (nu, nv, 2); boundary entries fixed
+        nu, nv = X.shape[:2]
+        self.nu, self.nv = nu, nv
+        self.G = np.zeros_like(X)
+        self.delta2 = 0.0
+
+    def unpack(self, x: np.ndarray) -> np.ndarray:
+        self.X[1:-1, 1:-1] = x.reshape(self.nu - 2, self.nv - 2, 2)
+        return self.X
+
+    def __call__(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        X = self.unpack(x)
+        nu, nv = self.nu, self.nv
+        P = [X[di:nu - 1 + di, dj:nv - 1 + dj] for di, dj in _OFFSETS]
+        G = self.G
+        G.fill(0.0)
+        total = 0.0
+        d4 = 4.0 * self.delta2
+        for k in range(4):
+            a = P[(k + 1) % 4] - P[k]
+            b = P[k - 1] - P[k]
+            ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
+            J = ax * by - ay * bx
+            N = ax * ax + ay * ay + bx * bx + by * by
+            s = np.sqrt(J * J + d4)
+            D = J + s
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = N / D
+                dN = 2.0 / D                               # df/dN per component, times the vector
+                dJ = -f / D * (1.0 + J / s)                # df/dJ
+            total += float(f.sum())
+            ga = np.stack([dN * ax + dJ * by, dN * ay - dJ * bx], axis=-1)
+            gb = np.stack([dN * bx - dJ * ay, dN * by + dJ * ax], axis=-1)
+            for node, g in (((k + 1) % 4, ga), ((k - 1) % 4, gb)):
+                di, dj = _OFFSETS[node]
+                G[di:nu - 1 + di, dj:nv - 1 + dj] += g
+            di, dj = _OFFSETS[k]
+            G[di:nu - 1 + di, dj:nv - 1 + dj] -= ga + gb
+        if not np.isfinite(total):
+            return np.inf, np.zeros(x.shape)
+        return total, G[1:-1, 1:-1].ravel().copy()
+
+
+def _minimise(energy: _Energy, x: np.ndarray, max_iter: int, gtol: float) -> tuple[np.ndarray, int]:
+    res = minimize(energy, x, jac=True, method="L-BFGS-B",
+                   options={"maxiter": int(max_iter), "gtol": gtol, "ftol": 1e-13, "maxcor": 10})
+    return res.x, int(res.nit)
+
+
+def _tfi_correction(D: np.ndarray) -> np.ndarray:
+    """Transfinite interpolation of a boundary discrepancy ``D`` (zero at the corners) inward."""
+    nu, nv = D.shape[:2]
+    s = np.linspace(0.0, 1.0, nu)[:, None, None]
+    t = np.linspace(0.0, 1.0, nv)[None, :, None]
+    return ((1 - s) * D[:1, :] + s * D[-1:, :] + (1 - t) * D[:, :1] + t * D[:, -1:]
+            - (1 - s) * (1 - t) * D[0, 0] - s * (1 - t) * D[-1, 0]
+            - (1 - s) * t * D[0, -1] - s * t * D[-1, -1])
+
+
+def _prolong(Xc: np.ndarray, ic: np.ndarray, jc: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Fine start from a coarse grid: bilinear in index space, boundary mismatch spread by TFI."""
+    nu, nv = X.shape[:2]
+    p = np.interp(np.arange(nu), ic, np.arange(len(ic)))
+    q = np.interp(np.arange(nv), jc, np.arange(len(jc)))
+    i0 = np.minimum(p.astype(np.int64), len(ic) - 2)
+    j0 = np.minimum(q.astype(np.int64), len(jc) - 2)
+    a = (p - i0)[:, None, None]
+    b = (q - j0)[None, :, None]
+    I0, J0 = i0[:, None], j0[None, :]
+    F = ((1 - a) * (1 - b) * Xc[I0, J0] + a * (1 - b) * Xc[I0 + 1, J0]
+         + (1 - a) * b * Xc[I0, J0 + 1] + a * b * Xc[I0 + 1, J0 + 1])
+    D = np.zeros_like(X)
+    for sl in (np.s_[0, :], np.s_[-1, :], np.s_[:, 0], np.s_[:, -1]):
+        D[sl] = X[sl] - F[sl]
+    F = F + _tfi_correction(D)
+    F[0, :], F[-1, :], F[:, 0], F[:, -1] = X[0, :], X[-1, :], X[:, 0], X[:, -1]
+    return F
+
+
+def _solve(X: np.ndarray, max_iter: int, smooth_iter: int, say: Callable[[str], None],
+           stats: dict[str, Any], level: int = 0) -> np.ndarray:
+    """Untangle and smooth the ``(nu, nv, 2)`` counter-clockwise planar grid ``X``."""
+    nu, nv = X.shape[:2]
+    loop = boundary_loop(X)
+    area = 0.5 * float(np.sum(loop[:, 0] * np.roll(loop[:, 1], -1) - loop[:, 1] * np.roll(loop[:, 0], -1)))
+    if not area > 0:
+        raise InputError("the piece's boundary encloses no area (or does not turn counter-clockwise)")
+    scale = np.sqrt(area / ((nu - 1) * (nv - 1)))                 # mean cell area 1
+    shift = loop.mean(axis=0)
+    Xs = (X - shift) / scale
+    jmin = float(corner_jacobians(Xs).min())
+    if jmin <= 0 and min(nu, nv) > COARSE:
+        # Multilevel: untangle every other grid line first, then start from its interpolation.
+        ic = np.unique(np.round(np.linspace(0, nu - 1, (nu + 1) // 2)).astype(np.int64))
+        jc = np.unique(np.round(np.linspace(0, nv - 1, (nv + 1) // 2)).astype(np.int64))
+        Xc = _solve(Xs[np.ix_(ic, jc)], max_iter, smooth_iter, say, stats, level + 1)
+        Xs = _prolong(Xc, ic, jc, Xs)
+        jmin = float(corner_jacobians(Xs).min())
+    tag = f"fold-free {nu}x{nv}:"
+    energy = _Energy(Xs)
+    x = Xs[1:-1, 1:-1].ravel().copy()
+    say(f"{tag} start min corner Jacobian {jmin:.3g} (relative to the mean cell area)")
+    rounds = 0
+    while jmin <= 0 and rounds < MAX_ROUNDS:
+        rounds += 1
+        energy.delta2 = EPS * (EPS - jmin)
+        x, nit = _minimise(energy, x, max_iter, 1e-6)
+        stats["iterations"] += nit
+        jmin = float(corner_jacobians(energy.unpack(x)).min())
+        say(f"{tag} untangling round {rounds}, delta {np.sqrt(energy.delta2):.3g}, "
+            f"{nit} iterations, min corner Jacobian {jmin:.3g}")
+    if jmin > 0 and smooth_iter > 0:
+        energy.delta2 = DELTA_SMOOTH ** 2
+        x_s, nit = _minimise(energy, x.copy(), smooth_iter, 1e-5)
+        stats["iterations"] += nit
+        j_s = float(corner_jacobians(energy.unpack(x_s)).min())
+        if j_s > 0:
+            x, jmin = x_s, j_s
+        say(f"{tag} smoothing, {nit} iterations, min corner Jacobian {jmin:.3g}")
+    if level == 0:
+        stats["rounds"] = rounds
+        stats["min_corner_jacobian"] = jmin
+    stats["levels"] = max(stats.get("levels", 1), level + 1)
+    return energy.unpack(x) * scale + shift
+
+
+def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_iter: int | None = None,
+             progress: Callable[[str], None] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    """Move the interior nodes of a planar grid to an unfolded, smooth position.
+
+    On grids larger than ``COARSE`` nodes a side whose start is folded, the
+    grid with every other line is untangled first (recursively) and its
+    interpolation is the start of the finer grid.
+
+    Parameters
+    ----------
+    points : array_like
+        ``(nu, nv, 3)`` start grid (for instance the length-functional grid);
+        ``z = 0`` for 2D pieces. Its boundary nodes are kept exactly.
+    dim : int
+        2 if the piece is given in the xy-plane, else 3 (the grid must then lie
+        in a plane).
+    max_iter : int
+        Most L-BFGS iterations of each untangling round.
+    smooth_iter : int, optional
+        Most L-BFGS iterations of the final smoothing stage (default
+        ``max_iter``; 0 skips it).
+    progress : callable, optional
+        Called with a line of text after each stage.
+
+    Returns
+    -------
+    points : numpy.ndarray
+        ``(nu, nv, 3)`` float64 nodes.
+    info : dict
+        ``rounds`` (untangling rounds on the finest grid), ``levels`` (grids
+        solved), ``iterations`` (all L-BFGS iterations), ``untangled`` (no
+        corner with ``J <= 0`` left), ``min_corner_jacobian`` (relative to the
+        mean cell area) and ``seconds``.
+
+    Raises
+    ------
+    InputError
+        Not an ``(nu, nv, 3)`` grid with at least 3 x 3 nodes, or not planar.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda _msg: None)
+    R = np.array(points, dtype=np.float64)
+    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
+        raise InputError(f"untangle needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
+    if not np.isfinite(R).all():
+        raise InputError("untangle needs finite node coordinates")
+    for name, value, least in (("max_iter", max_iter, 1), ("smooth_iter", smooth_iter, 0)):
+        if value is None and name == "smooth_iter":
+            continue
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < least:
+            raise InputError(f"{name} must be an integer >= {least}, not {value!r}")
+    smooth_iter = max_iter if smooth_iter is None else int(smooth_iter)
+    centre, basis = plane_frame(R, dim)
+    X = (R - centre) @ basis.T                                      # (nu, nv, 2), counter-clockwise
+    stats: dict[str, Any] = {"iterations": 0}
+    X = _solve(X, int(max_iter), smooth_iter, say, stats)
+    out = R.copy()
+    out[1:-1, 1:-1] = centre + X[1:-1, 1:-1] @ basis
+    if dim == 2:
+        out[1:-1, 1:-1, 2] = 0.0
+    info = {"rounds": stats["rounds"], "levels": stats["levels"], "iterations": stats["iterations"],
+            "untangled": bool(stats["min_corner_jacobian"] > 0),
+            "min_corner_jacobian": float(stats["min_corner_jacobian"]), "seconds": time.perf_counter() - t0}
+    return out, info

@@ -1,0 +1,117 @@
+"""Fold-free grids (:mod:`clothgrid.foldfree`, ``generate(functional=...)``, ``--functional``/``--strict``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import clothgrid
+from clothgrid import Boundary, InputError, generate, quality
+from clothgrid.cli import main
+from clothgrid.foldfree import corner_jacobians, untangle
+from conftest import regions_with_corners, smooth_quad_sides
+
+REGIONS = regions_with_corners()
+TIE = Path(__file__).parent / "data" / "regions" / "roache-tie.json"
+
+
+def test_the_eight_roache_regions_are_there():
+    assert sorted(p.stem for p in REGIONS) == [
+        "roache-" + n for n in ("annulus", "dome", "horn", "nhorseshoe", "plow", "shell", "swan", "tie")]
+
+
+@pytest.mark.parametrize("weights", ["paper", "uniform"])
+@pytest.mark.parametrize("nodes", [None, 80], ids=["native20", "80x80"])
+@pytest.mark.parametrize("path", REGIONS, ids=lambda p: p.stem)
+def test_auto_is_fold_free_on_roache_regions(path, nodes, weights):
+    b = clothgrid.load_boundary(path)
+    grid = generate(b, nodes, weights=weights, functional="auto")
+    q = quality(grid)
+    assert q.folded == 0
+    assert grid.info["folded"] == 0
+    length = generate(b, nodes, weights=weights)
+    assert grid.info["folded_before"] == quality(length).folded
+    assert grid.info["functional"] == ("foldfree" if grid.info["folded_before"] else "length")
+    # Boundary nodes are kept exactly.
+    for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
+        assert np.array_equal(grid.points[sl], length.points[sl])
+
+
+def test_auto_returns_the_length_grid_when_it_does_not_fold(rng):
+    for _ in range(20):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 24, 17, amp=0.03))
+        length = generate(b)
+        if quality(length).folded == 0:
+            break
+    else:
+        pytest.fail("no unfolded random quad drawn")
+    grid = generate(b, functional="auto")
+    assert np.array_equal(grid.points, length.points)
+    assert grid.info["functional"] == "length" and grid.info["folded_before"] == 0 == grid.info["folded"]
+    shell = clothgrid.load_boundary(REGIONS[[p.stem for p in REGIONS].index("roache-shell")])
+    length = generate(shell, weights="uniform")
+    assert quality(length).folded == 0
+    assert np.array_equal(generate(shell, weights="uniform", functional="auto").points, length.points)
+
+
+def test_foldfree_always_runs_and_keeps_a_clockwise_or_3d_planar_piece_unfolded(rng):
+    data = json.loads(TIE.read_text())
+    pts = np.asarray(data["outline"], dtype=float)
+    b = Boundary.from_outline(pts, data["corners"])
+    g = generate(b, functional="foldfree")
+    assert g.info["functional"] == "foldfree" and quality(g).folded == 0 < g.info["folded_before"]
+    # The same piece tilted into a plane in 3D.
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    b3 = Boundary.from_sides(*[np.column_stack([s, np.zeros(len(s))]) @ rot.T
+                                for s in (b.bottom[:, :2], b.right[:, :2], b.top[:, :2], b.left[:, :2])])
+    g3 = generate(b3, functional="auto")
+    assert g3.info["functional"] == "foldfree" and quality(g3).folded == 0
+    # Mirrored (clockwise) piece.
+    bm = Boundary.from_sides(*[s[:, :2] * [-1.0, 1.0] for s in (b.bottom, b.right, b.top, b.left)])
+    gm = generate(bm, functional="auto")
+    assert quality(gm).folded == 0
+
+
+def test_untangle_api():
+    b = clothgrid.load_boundary(TIE)
+    g = generate(b)
+    points, info = untangle(g.points, dim=2)
+    assert info["untangled"] and info["min_corner_jacobian"] > 0
+    assert (corner_jacobians(points[..., :2]) > 0).all()
+    assert np.array_equal(points[0], g.points[0]) and np.array_equal(points[:, -1], g.points[:, -1])
+    with pytest.raises(InputError):
+        untangle(g.points[..., :2])
+    with pytest.raises(InputError):
+        untangle(g.points, max_iter=0)
+
+
+def test_bad_functional_and_curved_piece(rng):
+    b = clothgrid.load_boundary(TIE)
+    with pytest.raises(InputError, match="functional"):
+        generate(b, functional="area")
+    curved = Boundary.from_sides(*smooth_quad_sides(rng, 12, 12, dim=3))
+    with pytest.raises(InputError, match="planar"):
+        generate(curved, functional="foldfree")
+    grid = generate(curved, functional="auto")          # curved: never untangled
+    assert grid.info["functional"] == "length"
+
+
+def test_cli_strict_and_auto(tmp_path, capsys):
+    out = tmp_path / "tie.npz"
+    assert main(["generate", str(TIE), "-o", str(out), "-q", "--strict"]) == 3
+    assert not out.exists()
+    err = capsys.readouterr().err
+    assert "10 folded cells" in err and "(0, 0)" in err
+    assert main(["generate", str(TIE), "-o", str(out), "-q", "--functional", "auto", "--strict"]) == 0
+    assert out.exists()
+    captured = capsys.readouterr()
+    assert "length functional:" in captured.out and captured.out.count("folded cells:") == 2
+    out.unlink()
+    assert main(["generate", str(TIE), "-o", str(out), "-q"]) == 0           # warns, writes
+    err = capsys.readouterr().err
+    assert "warning: 10 folded cells (first at cells (0, 0)" in err and "--functional auto" in err
+    assert main(["generate", str(TIE), "-o", str(tmp_path / "x.npz"), "--functional", "bad"]) == 2
+    assert not (tmp_path / "x.npz").exists()
