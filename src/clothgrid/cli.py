@@ -252,7 +252,9 @@ def timing_line(info: dict[str, Any], seconds: float) -> str:
     return (f"solver {info.get('solver', '?')} ({info.get('backend', '?')}): "
             f"{info.get('iterations', 0)} iterations, "
             f"error estimate {_fmt(info.get('error_estimate'), '.2e')} relative "
-            f"(tol {_fmt(info.get('tol'), '.2e')}), {seconds:.3f} s")
+            f"(tol {_fmt(info.get('tol'), '.2e')}), {seconds:.3f} s"
+            + ("; the error estimate is the length solve's: the fold-free grid then moved away from it"
+               if info.get("functional") == "foldfree" else ""))
 
 
 def _progress(quiet: bool) -> Callable[[str], None] | None:
