@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .errors import BoundaryError, InputError
+from .geometry import PLANAR_TOL, best_fit_plane, plane_axes
 
 __all__ = ["Boundary", "resample_polyline"]
 
@@ -30,7 +31,7 @@ CORNERS = {
     "top-left": (("top", 0), ("left", -1)),
     "top-right": (("top", -1), ("right", -1)),
 }
-CORNER_TOL = 1e-9    # corners, planarity, touching: relative to the piece's size
+CORNER_TOL = 1e-9    # corners, touching: relative to the piece's size
 LENGTH_TOL = 1e-12   # a side shorter than this (relative) has zero length
 _TINY = np.finfo(np.float64).tiny
 
@@ -398,17 +399,12 @@ class Boundary:
         p = self.outline()
         if self.dim == 2:
             return np.zeros(3), np.eye(3)[:2], np.array([0.0, 0.0, 1.0]), True
-        origin = p.mean(axis=0)
-        _, _, vt = np.linalg.svd(p - origin, full_matrices=False)
-        normal = vt[2]
+        origin, normal, dist = best_fit_plane(p)
         for k in (2, 1, 0):
             if abs(normal[k]) > 1e-9:
                 normal = normal if normal[k] > 0 else -normal
                 break
-        e1 = vt[0]
-        axes = np.stack([e1, np.cross(normal, e1)])
-        planar = float(np.abs((p - origin) @ normal).max()) <= CORNER_TOL * _bbox_diagonal(p)
-        return origin, axes, normal, planar
+        return origin, plane_axes(normal), normal, dist <= PLANAR_TOL * _bbox_diagonal(p)
 
     @property
     def orientation(self) -> float:
@@ -422,6 +418,11 @@ class Boundary:
         p = self.outline() - origin
         area = 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
         return -1.0 if float(area @ normal) < 0 else 1.0
+
+    @property
+    def planar(self) -> bool:
+        """True if the piece lies in a plane (to ``PLANAR_TOL`` of its size); always for 2D."""
+        return self._plane()[3]
 
     @property
     def normal(self) -> np.ndarray:

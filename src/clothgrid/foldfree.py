@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .errors import InputError
-from .quality import PLANAR_TOL, best_fit_plane, boundary_loop, vector_area
+from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, plane_axes, vector_area
 
 __all__ = ["untangle", "corner_jacobians", "plane_frame"]
 
@@ -70,7 +70,6 @@ def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarra
     loop = boundary_loop(points)
     if dim == 2:
         centre, normal = np.zeros(3), np.array([0.0, 0.0, 1.0])
-        e1 = np.array([1.0, 0.0, 0.0])
     else:
         centre, normal, dist = best_fit_plane(loop)
         diag = float(np.linalg.norm(np.ptp(loop, axis=0)))
@@ -78,11 +77,9 @@ def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarra
             raise InputError(
                 f"the fold-free functional is for planar pieces: this piece's boundary is "
                 f"{dist / diag:.3g} of its size away from a plane; use functional 'length'")
-        e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-        e1 /= np.linalg.norm(e1)
     if vector_area(loop) @ normal < 0:
         normal = -normal
-    return centre, np.stack([e1, np.cross(normal, e1)])
+    return centre, plane_axes(normal)
 
 
 def corner_jacobians(X: np.ndarray) -> np.ndarray:

@@ -140,7 +140,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     nu, nv = boundary.shape
     if nu < 3 or nv < 3:
         raise InputError(f"a {nu}x{nv} grid has no interior nodes to place: use at least 3x3 nodes")
-    if functional == "foldfree" and boundary.dim == 3 and not boundary._plane()[3]:
+    if functional == "foldfree" and not boundary.planar:
         raise InputError("functional 'foldfree' is for planar pieces: this 3D piece is curved; "
                          "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
     separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)

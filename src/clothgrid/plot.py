@@ -11,7 +11,8 @@ from matplotlib.figure import Figure
 
 from .errors import InputError
 from .grid import Grid
-from .quality import Quality, best_fit_plane, boundary_loop, vector_area
+from .geometry import best_fit_plane, boundary_loop, plane_axes, vector_area
+from .quality import Quality
 from .writers import atomic_write
 
 __all__ = ["plot_grid", "plane_coordinates"]
@@ -31,10 +32,7 @@ def plane_coordinates(grid: Grid) -> np.ndarray:
     centre, normal, _ = best_fit_plane(flat)
     if vector_area(boundary_loop(points)) @ normal < 0:
         normal = -normal
-    e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    basis = np.stack([e1, np.cross(normal, e1)], axis=1)    # (3, 2), e1 x e2 = normal
-    return (points - centre) @ basis
+    return (points - centre) @ plane_axes(normal).T
 
 
 def _subsample(n: int, max_lines: int) -> np.ndarray:

@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, plane_axes, vector_area
 from .grid import Grid
 
 __all__ = ["Quality", "quality"]
 
 #: Largest distance of the boundary loop from its best-fit plane, relative to
 #: its bounding-box diagonal, for which a 3D piece counts as planar.
-PLANAR_TOL = 1e-9
 #: Half width of the block of cells whose corner cross products give the local
 #: normal of a cell on a curved (non-planar) piece: 2 means a 5 x 5 block.
 LOCAL_RADIUS = 2
@@ -96,37 +96,6 @@ class Quality:
         return (f"Quality(folded={self.folded}, min_scaled_jacobian={self.min_scaled_jacobian:.4g}, "
                 f"max_aspect_ratio={self.max_aspect_ratio:.4g}, "
                 f"max_orthogonality_deviation_deg={self.max_orthogonality_deviation_deg:.4g})")
-
-
-def boundary_loop(points: np.ndarray) -> np.ndarray:
-    """The boundary nodes of an ``(nu, nv, d)`` grid as one closed loop, each once.
-
-    Bottom (``i`` increasing, ``j = 0``), right (``j`` increasing at ``i = nu-1``),
-    top reversed, left reversed: counter-clockwise for a counter-clockwise piece.
-    """
-    return np.concatenate([points[:-1, 0], points[-1, :-1], points[:0:-1, -1], points[0, :0:-1]])
-
-
-def vector_area(loop: np.ndarray) -> np.ndarray:
-    """Vector area ``1/2 sum p_k x p_{k+1}`` of a closed 3D polygon ``(n, 3)``."""
-    p = loop - loop.mean(axis=0)
-    return 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
-
-
-def best_fit_plane(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Least-squares plane through ``(n, 3)`` points.
-
-    Returns
-    -------
-    centre, normal, distance : numpy.ndarray, numpy.ndarray, float
-        A point of the plane, its unit normal (sign arbitrary) and the largest
-        distance of a point from it.
-    """
-    centre = pts.mean(axis=0)
-    d = pts - centre
-    _, vecs = np.linalg.eigh(d.T @ d)
-    normal = vecs[:, 0]
-    return centre, normal, float(np.abs(d @ normal).max(initial=0.0))
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -211,9 +180,7 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
     if n is None:                                             # curved piece: local normals
         X = np.ascontiguousarray(np.moveaxis(R, -1, 0))      # (3, nu, nv), component first
     else:                                                     # planar: work in the plane's 2D basis
-        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-        e1 /= np.linalg.norm(e1)
-        basis = np.stack([e1, np.cross(n, e1)])               # (2, 3), e1 x e2 = n
+        basis = plane_axes(n)                                 # (2, 3), e1 x e2 = n
         X = (basis @ R.reshape(-1, 3).T).reshape(2, nu, nv)  # lengths and angles are in-plane
     raw_u, raw_v = X[:, 1:] - X[:, :-1], X[:, :, 1:] - X[:, :, :-1]
     eu, len_u = _unit(raw_u)                                  # (d, nu-1, nv) u-edges
