@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["Weights", "paper_lengths", "make_weights"]
+__all__ = ["Weights", "paper_lengths", "make_weights", "interior_diagonal"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,11 @@ class Weights:
         """Separable weights from their four 1D factors."""
         cu, dv, du, cv = (np.ascontiguousarray(a, dtype=np.float64) for a in (cu, dv, du, cv))
         return cls(wu=np.outer(cu, dv), wv=np.outer(du, cv), kind=kind, factors=(cu, dv, du, cv))
+
+
+def interior_diagonal(wu: np.ndarray, wv: np.ndarray) -> np.ndarray:
+    """``(nu-2, nv-2)`` diagonal of the SPD system: the sum of each interior node's four edge weights."""
+    return wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
 
 
 def paper_lengths(n: int, k: float = 1.0) -> np.ndarray:

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["name", "sweep", "max_step", "residual", "sweeps"]
+from ..weights import interior_diagonal
+
+__all__ = ["name", "sweep", "max_step", "residual"]
 
 name = "cpu"
 
@@ -50,23 +52,5 @@ def max_step(r: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> float:
     """
     if r.shape[0] < 3 or r.shape[1] < 3:
         return 0.0
-    d = wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
-    s = np.linalg.norm(residual(r, wu, wv), axis=-1) / d
+    s = np.linalg.norm(residual(r, wu, wv), axis=-1) / interior_diagonal(wu, wv)
     return float(s.max())
-
-
-def sweeps(r: np.ndarray, wu: np.ndarray, wv: np.ndarray, count: int, scratch: np.ndarray | None = None):
-    """Run ``count`` Jacobi sweeps in place on ``r``; return the last step.
-
-    ``scratch`` (same shape as ``r``, boundary set) is reused when given.
-    """
-    if scratch is None:
-        scratch = r.copy()
-    step = 0.0
-    a, b = r, scratch
-    for _ in range(count):
-        step = sweep(a, b, wu, wv)
-        a, b = b, a
-    if a is not r:
-        r[...] = a
-    return step

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..weights import Weights
+from ..weights import Weights, interior_diagonal
 
 __all__ = ["Problem", "SolveResult"]
 
@@ -56,9 +56,8 @@ class Problem:
         nu, nv = self.shape
         wu, wv = self.weights.wu, self.weights.wv
         m, n = nu - 2, nv - 2
-        west, east = wu[:-1, 1:-1], wu[1:, 1:-1]          # edges to (i-1, j) and (i+1, j)
-        south, north = wv[1:-1, :-1], wv[1:-1, 1:]        # edges to (i, j-1) and (i, j+1)
-        diag = (west + east + south + north).ravel()
+        east, north = wu[1:, 1:-1], wv[1:-1, 1:]          # edges to (i+1, j) and (i, j+1)
+        diag = self.diagonal().ravel()
         idx = np.arange(m * n).reshape(m, n)
         rows = [idx.ravel()]
         cols = [idx.ravel()]
@@ -83,8 +82,7 @@ class Problem:
 
     def diagonal(self) -> np.ndarray:
         """The diagonal of ``A`` as ``(nu-2, nv-2)``."""
-        wu, wv = self.weights.wu, self.weights.wv
-        return wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
+        return interior_diagonal(self.weights.wu, self.weights.wv)
 
     def with_interior(self, y: np.ndarray) -> np.ndarray:
         """A full grid: the boundary of ``r0`` and the interior ``y`` ``(nu-2, nv-2, 3)``."""
