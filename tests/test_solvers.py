@@ -168,6 +168,18 @@ def test_oversize_refused_before_allocating(rng):
         clothgrid.generate(b, (300_000, 300_000))
 
 
+def test_jacobi_true_rule_with_per_edge_weights_checks_the_direct_solve_memory(rng, monkeypatch):
+    import clothgrid.memory as memory
+
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 9, 9))
+    w = (np.ones((8, 9)), np.ones((9, 8)))
+    limit = memory.estimate_bytes("direct", 9, 9) - 1            # enough for jacobi, not for direct
+    monkeypatch.setattr(memory, "available_bytes", lambda: int(limit / 0.9))
+    with pytest.raises(clothgrid.SizeError, match="solver 'direct'"):
+        clothgrid.generate(b, weights=w, solver="jacobi", stop="error")
+    clothgrid.generate(b, weights=w, solver="jacobi", stop="paper")  # no barrier solve: fits
+
+
 def test_memory_estimate_orders_solvers():
     from clothgrid.memory import check_memory, estimate_bytes
 

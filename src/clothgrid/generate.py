@@ -146,6 +146,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
     name = solver if solver != "auto" else ("fdm" if separable else "direct")
     need = check_memory(name, nu, nv)
+    if name == "jacobi" and not separable and stop == "error":
+        need = max(need, check_memory("direct", nu, nv))  # the bound's barrier takes one direct solve
     say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
     w = make_weights(weights, nu, nv, k)
     # Exact solvers read only the boundary nodes: the initial grid matters to iterative ones.
