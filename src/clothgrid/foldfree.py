@@ -32,6 +32,7 @@ from scipy.optimize import minimize
 
 from .errors import InputError
 from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, plane_axes, vector_area
+from .initial import transfinite
 
 __all__ = ["untangle", "corner_jacobians", "plane_frame"]
 
@@ -149,16 +150,6 @@ def _minimise(energy: _Energy, x: np.ndarray, max_iter: int, gtol: float) -> tup
     return res.x, int(res.nit)
 
 
-def _tfi_correction(D: np.ndarray) -> np.ndarray:
-    """Transfinite interpolation of a boundary discrepancy ``D`` (zero at the corners) inward."""
-    nu, nv = D.shape[:2]
-    s = np.linspace(0.0, 1.0, nu)[:, None, None]
-    t = np.linspace(0.0, 1.0, nv)[None, :, None]
-    return ((1 - s) * D[:1, :] + s * D[-1:, :] + (1 - t) * D[:, :1] + t * D[:, -1:]
-            - (1 - s) * (1 - t) * D[0, 0] - s * (1 - t) * D[-1, 0]
-            - (1 - s) * t * D[0, -1] - s * t * D[-1, -1])
-
-
 def _prolong(Xc: np.ndarray, ic: np.ndarray, jc: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Fine start from a coarse grid: bilinear in index space, boundary mismatch spread by TFI."""
     nu, nv = X.shape[:2]
@@ -174,7 +165,7 @@ def _prolong(Xc: np.ndarray, ic: np.ndarray, jc: np.ndarray, X: np.ndarray) -> n
     D = np.zeros_like(X)
     for sl in (np.s_[0, :], np.s_[-1, :], np.s_[:, 0], np.s_[:, -1]):
         D[sl] = X[sl] - F[sl]
-    F = F + _tfi_correction(D)
+    F += transfinite(D)                                   # spread the mismatch inward (eq. 4)
     F[0, :], F[-1, :], F[:, 0], F[:, -1] = X[0, :], X[-1, :], X[:, 0], X[:, -1]
     return F
 

@@ -7,7 +7,7 @@ import numpy as np
 from .boundary import Boundary
 from .errors import InputError
 
-__all__ = ["INITS", "initial_grid", "boundary_grid"]
+__all__ = ["INITS", "initial_grid", "boundary_grid", "transfinite"]
 
 
 def boundary_grid(boundary: Boundary) -> np.ndarray:
@@ -29,7 +29,8 @@ def _average(r: np.ndarray) -> np.ndarray:
     return r
 
 
-def _tfi(r: np.ndarray) -> np.ndarray:
+def transfinite(r: np.ndarray) -> np.ndarray:
+    """Fill the interior of ``r`` (``(nu, nv, d)``, any ``d``) from its boundary by eq. (4), in place."""
     # Eq. (4) regrouped: (1-u) L'(v) + u R'(v) + (1-v) B(u) + v T(u), where L' and R' are the
     # left and right sides less the corners' linear interpolation; written into the interior.
     nu, nv = r.shape[:2]
@@ -46,7 +47,7 @@ def _tfi(r: np.ndarray) -> np.ndarray:
     return r
 
 
-INITS = {"zero": _zero, "average": _average, "tfi": _tfi}
+INITS = {"zero": _zero, "average": _average, "tfi": transfinite}
 
 
 def initial_grid(boundary: Boundary, init: str = "tfi") -> np.ndarray:
