@@ -86,6 +86,39 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def parse_density(text: str) -> float:
+    """Parse an areal density with a unit (``0.2kg/m2``, ``150gsm``) into kg/m^2 for argparse.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Text without a unit, an unknown unit, or a density that is not positive.
+    """
+    from .cloth import parse_density as parse
+
+    try:
+        float(text)
+    except ValueError:
+        pass
+    else:
+        raise argparse.ArgumentTypeError(
+            f"invalid density {text!r}: give a unit, e.g. 0.2kg/m2, 150g/m2 or 150gsm")
+    try:
+        return parse(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _length_unit(text: str) -> str:
+    from .cloth import length_scale
+
+    try:
+        length_scale(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text.strip().lower()
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -123,9 +156,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     g = sub.add_parser("generate", help="generate a grid from a boundary file",
                        description="Generate a grid inside the four boundary curves of INPUT.")
-    g.add_argument("input", metavar="INPUT", help="boundary JSON file")
+    g.add_argument("input", metavar="INPUT",
+                   help="boundary JSON file, or a pattern file (.svg, .dxf, GarmentCode .json)")
     g.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
-                   help="output file, format by extension (.npz .obj .ply .json); repeatable")
+                   help="output file, format by extension (.npz .obj .ply .json .vts); repeatable")
     g.add_argument("--nodes", type=parse_nodes, metavar="NUxNV",
                    help="grid size, NUxNV or N (default: the input's point counts)")
     g.add_argument("--init", choices=("zero", "average", "tfi"), default="tfi",
@@ -134,10 +168,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="edge weights (default: paper, eq. 2)")
     g.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
                    help="the factor k of the v weights in eq. 2 (default: 1)")
-    g.add_argument("--solver", choices=("auto", "direct", "fdm", "jacobi"), default="auto",
+    g.add_argument("--solver", choices=("auto", "direct", "fdm", "jacobi", "multigrid"), default="auto",
                    help="solver (default: auto)")
-    g.add_argument("--backend", choices=("auto", "cpu"), default="auto",
-                   help="where the solver runs (default: auto)")
+    g.add_argument("--backend", choices=("auto", "cpu", "gl"), default="auto",
+                   help="where the solver runs: cpu, or gl (OpenGL through headless EGL: the GPU's "
+                        "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi) "
+                        "(default: auto, the CPU)")
     g.add_argument("--tol", type=parse_tol, default=2.0**-12, metavar="T",
                    help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
                         "(default: 2**-12)")
@@ -155,7 +191,26 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--strict", action="store_true",
                    help="fail (exit 3, no output) if the final grid has folded cells")
     g.add_argument("--plot", metavar="PNG", help="also draw the grid to this PNG file")
+    g.add_argument("--cloth", action="store_true",
+                   help="add the simulation arrays to .npz outputs: pattern coordinates, triangles, "
+                        "springs with rest lengths, node areas (and masses with --density)")
+    g.add_argument("--density", type=parse_density, metavar="D",
+                   help="areal density with a unit, e.g. 0.2kg/m2, 150g/m2 or 150gsm: adds node "
+                        "masses (kg) to .npz (implies --cloth) and .vts outputs")
+    g.add_argument("--units", type=_length_unit, metavar="UNIT",
+                   help="length unit of the input's coordinates: m, cm, mm, in, ft, yd, ... (default: "
+                        "the unit a pattern file states; m for a boundary JSON); used for --density "
+                        "masses and recorded in the outputs")
+    g.add_argument("--triangles", choices=("fixed", "alternate"),
+                   help="write triangle faces to .obj and .ply (quads are split along one diagonal, "
+                        "or alternating ones); also the diagonal of the --cloth .npz triangles")
+    g.add_argument("--uv", choices=("normalised", "pattern"),
+                   help="texture coordinates of .obj and .ply: normalised arc length in [0, 1] "
+                        "(default) or the flat pattern coordinates in length units")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
+    from .patterns.command import add_generate_arguments, add_pieces_parser
+
+    add_generate_arguments(g)  # --edge-length and the pattern-file options
     g.set_defaults(func=_cmd_generate)
 
     d = sub.add_parser("demo", help="grid a bundled T-shirt front and write OBJ, NPZ and PNG",
@@ -168,6 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="edge weights (default: uniform: the paper's weights fold cells under "
                         "the neckline of this piece)")
     d.set_defaults(func=_cmd_demo)
+    add_pieces_parser(sub)  # clothgrid pieces FILE
     return parser
 
 
@@ -218,14 +274,19 @@ def _load(path: Path):
 
 
 def _write_all(grid: Any, outputs: Sequence[Path], plot: Path | None, *, title: str | None,
-               quality: Any) -> list[Path]:
-    """Write every output; on any failure remove what this call wrote and re-raise."""
-    from .writers import save
+               quality: Any, options: dict[str, Any] | None = None) -> list[Path]:
+    """Write every output; on any failure remove what this call wrote and re-raise.
+
+    Each writer gets those of ``options`` it takes (:func:`clothgrid.writers.writer_options`).
+    """
+    from .writers import save, writer_options
 
     written: list[Path] = []
     try:
         for path in outputs:
-            written.append(Path(save(grid, path)))
+            takes = writer_options(path.suffix)
+            opts = {k: v for k, v in (options or {}).items() if k in takes and v is not None}
+            written.append(Path(save(grid, path, **opts)))
         if plot is not None:
             from .plot import plot_grid  # matplotlib takes ~0.7 s to import: only when asked
 
@@ -277,6 +338,11 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     from .generate import generate
     from .quality import Quality, quality
 
+    from .patterns.command import check_boundary_args, generate_pattern, grid_nodes, is_pattern_input
+
+    if is_pattern_input(args.input):  # every piece of an SVG, DXF or GarmentCode file
+        return generate_pattern(args)
+    check_boundary_args(args)
     outputs, plot = _check_outputs(args.output, args.plot)
     progress = _progress(args.quiet)
     source = Path(args.input)
@@ -288,7 +354,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         progress(f"loaded {source} in {t_load:.3f} s")
 
     t0 = time.perf_counter()
-    grid = generate(boundary, args.nodes, init=args.init, weights=args.weights, k=args.k,
+    nodes, _ = grid_nodes(args, boundary, pattern=False)  # --nodes or --edge-length
+    grid = generate(boundary, nodes, init=args.init, weights=args.weights, k=args.k,
                     solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop,
                     max_iter=args.max_iter, allow_unconverged=args.allow_unconverged,
                     progress=progress, functional=args.functional)
@@ -319,7 +386,11 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     title = getattr(boundary, "name", None) or source.stem
-    written = _write_all(grid, outputs, plot, title=title, quality=q)
+    # The writers read the coordinates' unit from info["length_unit"] (clothgrid.cloth).
+    grid.info["length_unit"] = args.units or getattr(boundary, "length_unit", None) or "m"
+    options = {"triangles": args.triangles, "uv": args.uv, "density": args.density,
+               "cloth": args.cloth or None}
+    written = _write_all(grid, outputs, plot, title=title, quality=q, options=options)
     if progress:
         progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
     return 0

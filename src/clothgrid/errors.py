@@ -14,6 +14,7 @@ __all__ = [
     "SizeError",
     "NotConvergedError",
     "BackendUnavailableError",
+    "MissingDependencyError",
 ]
 
 
@@ -35,6 +36,10 @@ class SizeError(InputError):
 
 class BackendUnavailableError(InputError):
     """The requested backend cannot run on this machine."""
+
+
+class MissingDependencyError(InputError, ImportError):
+    """An optional package a feature needs (trimesh, pyvista, ...) is not installed."""
 
 
 class NotConvergedError(ClothgridError):

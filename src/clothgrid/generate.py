@@ -14,7 +14,7 @@ from .errors import InputError, NotConvergedError
 from .grid import Grid
 from .initial import INITS, boundary_grid, initial_grid
 from .memory import check_memory, estimate_bytes, format_bytes
-from .solvers import SOLVERS, Problem, solve
+from .solvers import SOLVERS, Problem, choose_solver, solve
 from .weights import Weights, make_weights
 
 __all__ = ["generate", "parse_nodes"]
@@ -84,8 +84,12 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         The paper's ``k`` for ``weights="paper"``.
     solver : {"auto", "direct", "fdm", "jacobi"}
         ``auto`` picks the fastest solver that meets ``tol`` for the weights.
-    backend : {"auto", "cpu"}
-        Where the array operations run.
+    backend : {"auto", "cpu", "gl"}
+        Where the array operations run: ``gl`` is OpenGL through headless EGL
+        (the GPU's driver, or Mesa's llvmpipe), for solvers ``multigrid``
+        (``auto``) and ``jacobi``; it raises
+        :class:`~clothgrid.errors.BackendUnavailableError` when no context can
+        be made. The grid's info then records ``gl_renderer``.
     tol : float
         Required accuracy: every node within ``tol`` times the boundary's
         bounding-box diagonal of the exact solution (default ``2**-12``).
@@ -144,14 +148,27 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         raise InputError("functional 'foldfree' is for planar pieces: this 3D piece is curved; "
                          "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
     separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
-    name = solver if solver != "auto" else ("fdm" if separable else "direct")
+    on_device = getattr(be, "solvers", None)  # a backend that runs only some solvers (gl)
+    if on_device and solver != "auto" and solver not in on_device:
+        raise InputError(f"solver {solver!r} does not run on backend {be.name!r}: use one of auto, "
+                         f"{', '.join(on_device)} (or backend 'cpu')")
+    if solver != "auto":
+        name = solver
+    elif on_device:  # the paper's rule is Jacobi's: on a device, auto with stop="paper" is the paper's method
+        name = "jacobi" if stop == "paper" and "jacobi" in on_device else on_device[0]
+    else:
+        name = choose_solver(separable, nu, nv)
+    if on_device:  # the device's texture size and memory, before anything is allocated (SizeError)
+        be.check_size(nu, nv, name, estimate_bytes(name, nu, nv))
     need = check_memory(name, nu, nv)
     if name == "jacobi" and not separable and stop == "error":
         need = max(need, check_memory("direct", nu, nv))  # the bound's barrier takes one direct solve
     say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
+    if on_device:
+        say(f"backend {be.name}: {be.summary()}")
     w = make_weights(weights, nu, nv, k)
     # Exact solvers read only the boundary nodes: the initial grid matters to iterative ones.
-    r0 = initial_grid(boundary, init) if name == "jacobi" else boundary_grid(boundary)
+    r0 = initial_grid(boundary, init) if name in ("jacobi", "multigrid") else boundary_grid(boundary)
     problem = Problem(r0, w, boundary.size)
     name, res = solve(problem, name, backend=be, tol=tol, stop=stop, max_iter=max_iter, progress=progress)
     seconds = time.perf_counter() - t0
@@ -164,6 +181,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     }
     if res.extra:
         info.update(res.extra)
+    if hasattr(be, "describe"):
+        info.update(be.describe())  # e.g. the GL renderer: EGL falls back to llvmpipe silently
     flip = boundary.dim == 2 and boundary.orientation < 0
     grid = Grid.from_points(res.points, info=info, dim=boundary.dim, flip=flip)
     say(f"{name}: {res.iterations} iterations, error bound {res.error_estimate:.3g} (tol {tol:.3g}), {seconds:.3f} s")

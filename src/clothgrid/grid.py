@@ -72,6 +72,11 @@ class Grid:
         ``seconds``, ``nodes`` and more.
     dim : int
         2 if the boundary was planar input given in 2D, else 3.
+
+    For simulation, :attr:`pattern_uv` gives the flat rest shape,
+    :meth:`springs` Provot's springs, :meth:`node_masses` lumped masses and
+    :attr:`sides` / :attr:`corners` node indices for pinning and sewing (see
+    :mod:`clothgrid.cloth`).
     """
 
     points: np.ndarray
@@ -126,16 +131,72 @@ class Grid:
             return np.stack([first, second], axis=1).reshape(-1, 3)
         raise ValueError(f"diagonal must be 'fixed' or 'alternate', not {diagonal!r}")
 
-    def save(self, path: str | Path) -> Path:
+    # ------------------------------------------------------------ simulation
+    @property
+    def planar(self) -> bool:
+        """True for a planar piece (2D input, or a 3D boundary lying in a plane)."""
+        from .cloth import is_planar
+
+        return is_planar(self)
+
+    @property
+    def pattern_uv(self) -> np.ndarray:
+        """``(nu, nv, 2)`` node positions in the piece's flat pattern coordinates (length units).
+
+        For 2D input ``x, y``; for a planar 3D piece the coordinates in its
+        plane; for a curved piece (:attr:`planar` False) the arc lengths along
+        the grid lines. See :func:`clothgrid.cloth.pattern_uv`.
+        """
+        from .cloth import pattern_uv
+
+        return pattern_uv(self)
+
+    @property
+    def sides(self) -> dict[str, np.ndarray]:
+        """Flat node indices of the sides ``bottom``, ``right``, ``top``, ``left``, in their directions."""
+        from .cloth import sides
+
+        return sides(self)
+
+    @property
+    def corners(self) -> dict[str, int]:
+        """Flat node indices of the corners ``bottom-left``, ``bottom-right``, ``top-right``, ``top-left``."""
+        from .cloth import corners
+
+        return corners(self)
+
+    def springs(self):
+        """Provot's structural, shear and bend springs with rest lengths (:class:`clothgrid.cloth.Springs`)."""
+        from .cloth import springs
+
+        return springs(self)
+
+    def node_areas(self) -> np.ndarray:
+        """``(nu*nv,)`` lumped rest area per node (a quarter of each adjacent cell), length unit squared."""
+        from .cloth import node_areas
+
+        return node_areas(self)
+
+    def node_masses(self, density: float | str, length_unit: str | None = None) -> np.ndarray:
+        """``(nu*nv,)`` lumped node masses in kg for an areal density (kg/m^2, or text like ``"150gsm"``).
+
+        ``length_unit`` is the unit of the coordinates (default
+        ``info["length_unit"]``, else metres); see :func:`clothgrid.cloth.node_masses`.
+        """
+        from .cloth import node_masses
+
+        return node_masses(self, density, length_unit)
+
+    def save(self, path: str | Path, **options: Any) -> Path:
         """Write the grid to ``path``, the format chosen by extension.
 
-        See :func:`clothgrid.writers.save` for the formats. The file is written
-        to a temporary name and renamed on success, so a failure leaves no
-        partial file.
+        See :func:`clothgrid.writers.save` for the formats and their
+        ``options``. The file is written to a temporary name and renamed on
+        success, so a failure leaves no partial file.
         """
         from .writers import save
 
-        return save(self, path)
+        return save(self, path, **options)
 
     def __repr__(self) -> str:
         nu, nv = self.shape

@@ -8,7 +8,9 @@ pipeline (initial grid, weights, result, uv, quads), plus per solver:
   dense products' work arrays;
 - ``direct``: the sparse LU factors, whose fill on an ``N``-node grid was
   measured at ``N (6.5 log2 N - 52)`` entries, about 24 bytes each at peak;
-- ``jacobi``: one extra grid.
+- ``jacobi``: one extra grid;
+- ``multigrid``: the float64 iterate and float32 coarse levels (about as many
+  nodes again), 68 bytes per node for three coordinates.
 """
 
 from __future__ import annotations
@@ -50,6 +52,10 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
         total += int(24 * fill) + 60 * n
     elif solver == "jacobi":
         total += 24 * n
+    elif solver == "multigrid":
+        from .solvers.multigrid import hierarchy_bytes
+
+        total += hierarchy_bytes(nu, nv)
     return int(total)
 
 

@@ -1,14 +1,23 @@
-"""Write grids to files: NPZ, Wavefront OBJ, ASCII PLY and JSON.
+"""Write grids to files: NPZ, Wavefront OBJ, ASCII PLY, JSON and VTK structured grid.
 
 The format is chosen by the file's extension through :data:`WRITERS`, which
 :func:`register_writer` extends. :func:`save` writes to a temporary file in the
 target directory and renames it on success, so a failure never leaves a partial
 file behind.
+
+Writers may take keyword-only options (:func:`writer_options` lists them):
+``triangles`` (``"fixed"`` or ``"alternate"``: triangle faces instead of quads,
+see :meth:`Grid.triangles`), ``uv`` (``"normalised"`` or ``"pattern"``: which
+texture coordinates to write), ``cloth`` (NPZ: add springs, triangles, pattern
+coordinates and areas), ``density`` (areal density, for masses) and
+``length_unit`` (the coordinates' unit, see :mod:`clothgrid.cloth`).
 """
 
 from __future__ import annotations
 
+import base64
 import contextlib
+import inspect
 import json
 import os
 import tempfile
@@ -30,6 +39,8 @@ __all__ = [
     "write_obj",
     "write_ply",
     "write_json",
+    "write_vts",
+    "writer_options",
     "load_npz",
     "info_json",
 ]
@@ -99,25 +110,99 @@ def _write_rows(fh: BinaryIO, fmt: str, rows: np.ndarray) -> None:
         fh.write(((fmt * len(chunk)) % tuple(chunk.ravel().tolist())).encode("ascii"))
 
 
-def write_npz(grid: Grid, fh: BinaryIO) -> None:
-    """Compressed NumPy archive: ``points``, ``uv``, ``quads``, ``dim`` and ``info`` (JSON text)."""
-    np.savez(fh, points=grid.points, uv=grid.uv, quads=grid.quads,
-                        dim=np.int64(grid.dim), info=np.array(info_json(grid.info)))
+UV_CHOICES = ("normalised", "pattern")
+TRIANGLE_CHOICES = ("fixed", "alternate")
 
 
-def write_obj(grid: Grid, fh: BinaryIO) -> None:
-    """Wavefront OBJ: ``v x y z``, ``vt u v`` (same index) and ``f a/a b/b c/c d/d`` (1-based)."""
+def _faces(grid: Grid, triangles: str | None) -> np.ndarray:
+    """The quads, or with ``triangles`` the triangles with that diagonal choice."""
+    if triangles is None:
+        return np.asarray(grid.quads, dtype=np.int64)
+    if triangles not in TRIANGLE_CHOICES:
+        raise InputError(f"triangles must be one of {', '.join(TRIANGLE_CHOICES)}, not {triangles!r}")
+    return np.asarray(grid.triangles(triangles), dtype=np.int64)
+
+
+def _texture(grid: Grid, uv: str) -> np.ndarray:
+    """``(N, 2)`` texture coordinates: the normalised ``uv`` or the pattern's (length units)."""
+    if uv == "normalised":
+        return grid.uv.reshape(-1, 2)
+    if uv == "pattern":
+        return grid.pattern_uv.reshape(-1, 2)
+    raise InputError(f"uv must be one of {', '.join(UV_CHOICES)}, not {uv!r}")
+
+
+def write_npz(grid: Grid, fh: BinaryIO, *, cloth: bool = False, triangles: str = "fixed",
+              density: float | str | None = None, length_unit: str | None = None) -> None:
+    """NumPy archive (uncompressed, fast to write).
+
+    Always: ``points`` ``(nu, nv, 3)``, ``uv`` ``(nu, nv, 2)`` (normalised),
+    ``quads``, ``dim``, ``info`` (JSON text), ``length_unit``, ``planar``,
+    ``side_bottom``, ``side_right``, ``side_top``, ``side_left`` (flat indices
+    in each side's direction) and ``corners`` (bottom-left, bottom-right,
+    top-right, top-left, named in ``corner_names``).
+
+    With ``cloth=True`` (implied by ``density``) also what a simulator needs:
+    ``pattern_uv`` ``(nu, nv, 2)`` (flat pattern coordinates, length unit);
+    ``triangles`` ``(2M, 3)`` (diagonal choice ``triangles``, recorded in
+    ``triangle_diagonal``); the springs ``spring_pairs`` ``(m, 2)``,
+    ``spring_kind`` (int8 codes into ``spring_kind_names``), ``spring_axis``
+    and ``spring_rest_length``; ``node_area`` ``(N,)`` (length unit squared)
+    and, with ``density``, ``masses`` ``(N,)`` in kg and ``density`` in kg/m^2.
+    These are about 15 numbers per node: opt-in, so that the plain archive of
+    a 1024 x 1024 grid stays quick to write.
+    """
+    from . import cloth as sim
+
+    unit = sim.resolve_length_unit(grid, length_unit)
+    side = sim.sides(grid)
+    corner = sim.corners(grid)
+    arrays: dict[str, Any] = {
+        "points": grid.points, "uv": grid.uv, "quads": grid.quads, "dim": np.int64(grid.dim),
+        "info": np.array(info_json(grid.info)), "length_unit": np.array(unit),
+        "planar": np.bool_(grid.planar), **{f"side_{k}": v for k, v in side.items()},
+        "corners": np.array([corner[k] for k in sim.CORNER_NAMES], dtype=np.int64),
+        "corner_names": np.array(sim.CORNER_NAMES),
+    }
+    if cloth or density is not None:
+        tris = _faces(grid, triangles)
+        sp = sim.springs(grid)
+        arrays.update(pattern_uv=grid.pattern_uv, triangles=tris, triangle_diagonal=np.array(triangles),
+                      spring_pairs=sp.pairs, spring_kind=sp.kind, spring_axis=sp.axis,
+                      spring_rest_length=sp.rest_length, spring_kind_names=np.array(sim.SPRING_KINDS),
+                      node_area=sim.node_areas(grid))
+        if density is not None:
+            rho = sim.parse_density(density)
+            arrays.update(masses=sim.node_masses(grid, rho, unit), density=np.float64(rho))
+    np.savez(fh, **arrays)
+
+
+def write_obj(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str = "normalised") -> None:
+    """Wavefront OBJ: ``v x y z``, ``vt u v`` (same index) and ``f a/a b/b c/c d/d`` (1-based).
+
+    ``triangles`` (``"fixed"`` or ``"alternate"``) writes triangles
+    ``f a/a b/b c/c`` instead of quads; ``uv="pattern"`` writes the flat
+    pattern coordinates (length units, as ARCSim's material space wants)
+    instead of the normalised ones as ``vt``.
+    """
     nu, nv = grid.shape
+    texture = _texture(grid, uv)
+    faces = _faces(grid, triangles)
     fh.write(f"# clothgrid grid {nu} x {nv}\n# info: {info_json(grid.info)}\n".encode("ascii"))
     _write_rows(fh, "v %.17g %.17g %.17g\n", grid.points.reshape(-1, 3))
-    _write_rows(fh, "vt %.17g %.17g\n", grid.uv.reshape(-1, 2))
-    q = np.repeat(np.asarray(grid.quads, dtype=np.int64) + 1, 2, axis=1)
-    _write_rows(fh, "f %d/%d %d/%d %d/%d %d/%d\n", q)
+    _write_rows(fh, "vt %.17g %.17g\n", texture)
+    f = np.repeat(faces + 1, 2, axis=1)
+    _write_rows(fh, "f" + " %d/%d" * faces.shape[1] + "\n", f)
 
 
-def write_ply(grid: Grid, fh: BinaryIO) -> None:
-    """ASCII PLY: vertices ``x y z s t`` (s, t the texture coordinates) and quad faces."""
+def write_ply(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str = "normalised") -> None:
+    """ASCII PLY: vertices ``x y z s t`` (s, t the texture coordinates) and quad faces.
+
+    ``triangles`` and ``uv`` as in :func:`write_obj`.
+    """
     nu, nv = grid.shape
+    texture = _texture(grid, uv)
+    faces = _faces(grid, triangles)
     header = "\n".join([
         "ply",
         "format ascii 1.0",
@@ -125,15 +210,16 @@ def write_ply(grid: Grid, fh: BinaryIO) -> None:
         f"comment info: {info_json(grid.info)}",
         f"element vertex {nu * nv}",
         *(f"property double {name}" for name in "xyzst"),
-        f"element face {len(grid.quads)}",
+        f"element face {len(faces)}",
         "property list uchar int vertex_indices",
         "end_header",
         "",
     ])
     fh.write(header.encode("ascii"))
-    vertices = np.concatenate([grid.points.reshape(-1, 3), grid.uv.reshape(-1, 2)], axis=1)
+    vertices = np.concatenate([grid.points.reshape(-1, 3), texture], axis=1)
     _write_rows(fh, "%.17g %.17g %.17g %.17g %.17g\n", vertices)
-    _write_rows(fh, "4 %d %d %d %d\n", np.asarray(grid.quads, dtype=np.int64))
+    k = faces.shape[1]
+    _write_rows(fh, f"{k}" + " %d" * k + "\n", faces)
 
 
 def write_json(grid: Grid, fh: BinaryIO) -> None:
@@ -144,13 +230,85 @@ def write_json(grid: Grid, fh: BinaryIO) -> None:
     fh.write(json.dumps(doc).encode("utf-8"))
 
 
+def _b64_block(a: np.ndarray, dtype: str) -> str:
+    """A VTK XML ``format="binary"`` payload: base64 of a UInt64 byte count and the data."""
+    data = np.ascontiguousarray(a, dtype=dtype).tobytes()
+    return base64.b64encode(np.uint64(len(data)).astype("<u8").tobytes() + data).decode("ascii")
+
+
+def write_vts(grid: Grid, fh: BinaryIO, *, density: float | str | None = None,
+              length_unit: str | None = None) -> None:
+    """VTK XML structured grid (``.vts``, for ParaView), data inline in base64.
+
+    The extent is ``0..nv-1`` by ``0..nu-1`` (VTK's first index is clothgrid's
+    ``j``), so VTK point ids are clothgrid's flat indices ``i*nv + j``. Point
+    data: ``uv`` (the texture coordinates), ``pattern_uv``, ``node_area`` and,
+    with ``density``, ``mass`` (kg). The info and length unit are in a comment.
+    """
+    from . import cloth
+
+    nu, nv = grid.shape
+    unit = cloth.resolve_length_unit(grid, length_unit)
+    arrays: list[tuple[str, np.ndarray, int]] = [
+        ("uv", grid.uv.reshape(-1, 2), 2),
+        ("pattern_uv", grid.pattern_uv.reshape(-1, 2), 2),
+        ("node_area", cloth.node_areas(grid), 1),
+    ]
+    if density is not None:
+        arrays.append(("mass", cloth.node_masses(grid, density, unit), 1))
+    extent = f"0 {nv - 1} 0 {nu - 1} 0 0"
+    comment = f"clothgrid grid {nu} x {nv}, length unit {unit}; info: {info_json(grid.info)}"
+    comment = comment.replace("--", "- -")
+    out = [
+        '<?xml version="1.0"?>',
+        f"<!-- {comment} -->",
+        '<VTKFile type="StructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+        f'  <StructuredGrid WholeExtent="{extent}">',
+        f'    <Piece Extent="{extent}">',
+        '      <PointData Scalars="node_area" TCoords="uv">',
+    ]
+    for name, a, k in arrays:
+        out.append(f'        <DataArray type="Float64" Name="{name}" NumberOfComponents="{k}" '
+                   f'format="binary">{_b64_block(a, "<f8")}</DataArray>')
+    out += [
+        "      </PointData>",
+        "      <Points>",
+        '        <DataArray type="Float64" Name="Points" NumberOfComponents="3" format="binary">'
+        f'{_b64_block(grid.points.reshape(-1, 3), "<f8")}</DataArray>',
+        "      </Points>",
+        "    </Piece>",
+        "  </StructuredGrid>",
+        "</VTKFile>",
+        "",
+    ]
+    fh.write("\n".join(out).encode("utf-8"))
+
+
 #: Writers by lower-case file extension (with the dot).
 WRITERS: dict[str, Writer] = {
     ".npz": write_npz,
     ".obj": write_obj,
     ".ply": write_ply,
     ".json": write_json,
+    ".vts": write_vts,
 }
+
+
+def writer_options(extension: str) -> frozenset[str]:
+    """Names of the keyword options the writer of ``extension`` (``".obj"``) takes.
+
+    Empty for an unknown extension or a writer without options.
+    """
+    ext = extension.lower() if extension.startswith(".") else "." + extension.lower()
+    writer = WRITERS.get(ext)
+    if writer is None:
+        return frozenset()
+    try:
+        params = list(inspect.signature(writer).parameters.values())
+    except (TypeError, ValueError):
+        return frozenset()
+    return frozenset(p.name for p in params[2:]
+                     if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
 
 
 def register_writer(extension: str, writer: Writer) -> Writer:
@@ -163,11 +321,14 @@ def register_writer(extension: str, writer: Writer) -> Writer:
     return writer
 
 
-def save(grid: Grid, path: str | Path) -> Path:
+def save(grid: Grid, path: str | Path, **options: Any) -> Path:
     """Write ``grid`` to ``path``, the format chosen by the extension (see :data:`WRITERS`).
 
     The file is written to a temporary file in the same directory and renamed
-    on success; on failure nothing is left behind.
+    on success; on failure nothing is left behind. ``options`` go to the
+    writer (options set to None are dropped): ``triangles`` and ``uv`` for
+    .obj and .ply, ``cloth``, ``triangles``, ``density`` and ``length_unit``
+    for .npz, ``density`` and ``length_unit`` for .vts (:func:`writer_options`).
 
     Returns
     -------
@@ -177,7 +338,8 @@ def save(grid: Grid, path: str | Path) -> Path:
     Raises
     ------
     InputError
-        For an unknown extension or a directory that does not exist.
+        For an unknown extension, an option the format does not take, a bad
+        option value or a directory that does not exist.
     """
     path = Path(path)
     writer = WRITERS.get(path.suffix.lower())
@@ -185,8 +347,14 @@ def save(grid: Grid, path: str | Path) -> Path:
         known = ", ".join(sorted(WRITERS))
         raise InputError(f"cannot write {str(path)!r}: unknown extension {path.suffix!r} "
                          f"(known: {known})")
+    options = {k: v for k, v in options.items() if v is not None}
+    unknown = sorted(set(options) - writer_options(path.suffix))
+    if unknown:
+        takes = ", ".join(sorted(writer_options(path.suffix))) or "none"
+        raise InputError(f"cannot write {str(path)!r}: the {path.suffix.lower()} writer takes no "
+                         f"option {', '.join(unknown)} (its options: {takes})")
     with atomic_write(path) as fh:
-        writer(grid, fh)
+        writer(grid, fh, **options)
     return path
 
 

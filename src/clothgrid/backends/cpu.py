@@ -13,7 +13,7 @@ import numpy as np
 
 from ..weights import interior_diagonal
 
-__all__ = ["name", "sweep", "max_step", "residual"]
+__all__ = ["name", "sweep", "max_step", "residual", "multigrid"]
 
 name = "cpu"
 
@@ -54,3 +54,14 @@ def max_step(r: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> float:
         return 0.0
     s = np.linalg.norm(residual(r, wu, wv), axis=-1) / interior_diagonal(wu, wv)
     return float(s.max())
+
+
+def multigrid(levels, x0: np.ndarray, rhs: np.ndarray | None = None):
+    """The multigrid operations (:class:`~clothgrid.solvers.multigrid.MultigridOps`) on this backend.
+
+    ``levels`` from :func:`~clothgrid.solvers.multigrid.build_hierarchy`; ``x0``
+    the ``(nu, nv, k)`` level-0 iterate, updated in place.
+    """
+    from ._cpu_multigrid import CpuMultigrid
+
+    return CpuMultigrid(levels, x0, rhs)

@@ -8,33 +8,47 @@ dispatches by name and resolves ``"auto"``.
 ``direct``    sparse LU (SuperLU): the paper's CPU baseline, any weights
 ``fdm``       fast diagonalisation: exact, separable weights only
 ``jacobi``    eq. (3) sweeps with the ``paper`` or the true ``error`` rule
-``auto``      ``fdm`` for separable weights, else ``direct``
+``multigrid`` semi-coarsening multigrid with line relaxation, any weights
+``auto``      by size: ``fdm`` (separable) or ``direct`` when small, else ``multigrid``
 ============  ==============================================================
 """
 
 from __future__ import annotations
 
 from ..errors import InputError
-from ..weights import Weights
 from .direct import solve_direct
 from .fdm import solve_fdm
 from .jacobi import solve_jacobi
+from .multigrid import solve_multigrid
 from .problem import Problem, SolveResult
 
 __all__ = ["SOLVERS", "choose_solver", "solve", "Problem", "SolveResult"]
 
-SOLVERS = {"direct": solve_direct, "fdm": solve_fdm, "jacobi": solve_jacobi}
+SOLVERS = {"direct": solve_direct, "fdm": solve_fdm, "jacobi": solve_jacobi, "multigrid": solve_multigrid}
 
 
-def choose_solver(weights: Weights) -> str:
-    """The fastest solver that meets the tolerance for these weights."""
-    return "fdm" if weights.factors is not None else "direct"
+# Largest grids (nodes) where the exact solvers beat multigrid on the CPU:
+# measured with benchmarks/bench_solvers.py (docs/performance.md).
+FDM_MAX_NODES = 384 * 384
+DIRECT_MAX_NODES = 160 * 160
+
+
+def choose_solver(separable: bool, nu: int, nv: int) -> str:
+    """The fastest CPU solver that meets the tolerance, by size and weights.
+
+    Fast diagonalisation (separable weights) and the sparse direct solve win
+    on small grids; multigrid's O(n) cycles win above ``FDM_MAX_NODES`` and
+    ``DIRECT_MAX_NODES`` nodes.
+    """
+    if separable:
+        return "fdm" if nu * nv <= FDM_MAX_NODES else "multigrid"
+    return "direct" if nu * nv <= DIRECT_MAX_NODES else "multigrid"
 
 
 def solve(problem: Problem, solver: str = "auto", **options) -> tuple[str, SolveResult]:
     """Solve ``problem`` with the named solver; returns ``(name used, result)``."""
     if solver == "auto":
-        solver = choose_solver(problem.weights)
+        solver = choose_solver(problem.weights.factors is not None, *problem.shape)
     try:
         func = SOLVERS[solver]
     except KeyError:

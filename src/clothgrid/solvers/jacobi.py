@@ -22,7 +22,7 @@ from ..errors import InputError
 from .bounds import barrier_max
 from .problem import Problem, SolveResult
 
-__all__ = ["solve_jacobi", "default_max_iter"]
+__all__ = ["solve_jacobi", "default_max_iter", "HostSweeper"]
 
 
 def default_max_iter(nu: int, nv: int) -> int:
@@ -40,32 +40,69 @@ def solve_jacobi(problem: Problem, *, backend, tol: float, stop: str = "error", 
         max_iter = default_max_iter(nu, nv)
     if max_iter < 1:
         raise InputError(f"max_iter must be at least 1, not {max_iter}")
-    wu, wv = problem.weights.wu, problem.weights.wv
     # The barrier max turns a step into a guaranteed error bound; without the
     # analytic barrier it costs a direct solve, which only the true rule needs.
     zmax = barrier_max(problem) if (stop == "error" or problem.weights.unit_stencil) else math.nan
     limit = tol * problem.scale / (zmax if stop == "error" else 1.0)
-    a = problem.r0.copy()
-    b = a.copy()
+    factory = getattr(backend, "jacobi_sweeper", None)
+    run = factory(problem, stop=stop) if factory is not None else HostSweeper(problem, backend)
     step = math.inf
     it = 0
     last_report, last_it, last_step = time.perf_counter(), 0, None
-    while it < max_iter:
-        step = backend.sweep(a, b, wu, wv)
-        a, b = b, a
-        it += 1
-        if step <= limit:
-            break
-        if progress and (now := time.perf_counter()) - last_report >= progress_seconds:
-            msg = f"jacobi: {it} sweeps, last step {step / problem.scale:.3g}"
-            if stop == "error":
-                msg += f", error bound {step * zmax / problem.scale:.3g} (tol {tol:.3g})"
-            if last_step and 0 < step < last_step:
-                rate = math.log(last_step / step) / (it - last_it)
-                msg += f", about {math.log(step / limit) / rate:.3g} sweeps to go"
-            progress(msg)
-            last_report, last_it, last_step = now, it, step
-    converged = step <= limit
-    err = step * zmax / problem.scale if not math.isnan(zmax) else math.nan
-    return SolveResult(a, iterations=it, error_estimate=err, converged=converged, bound=not math.isnan(zmax),
-                       extra={"last_step": step / problem.scale})
+    try:
+        while it < max_iter:
+            done, step = run.sweeps(max_iter - it, limit)
+            it += done
+            if step <= limit:
+                break
+            if progress and (now := time.perf_counter()) - last_report >= progress_seconds:
+                msg = f"jacobi: {it} sweeps, last step {step / problem.scale:.3g}"
+                if stop == "error":
+                    msg += f", error bound {step * zmax / problem.scale:.3g} (tol {tol:.3g})"
+                if last_step and 0 < step < last_step:
+                    rate = math.log(last_step / step) / (it - last_it)
+                    msg += f", about {math.log(step / limit) / rate:.3g} sweeps to go"
+                progress(msg)
+                last_report, last_it, last_step = now, it, step
+        converged = step <= limit
+        points, bound_step = run.result(step)
+        extra = {"last_step": step / problem.scale, **run.extra()}
+    finally:
+        run.close()
+    err = bound_step * zmax / problem.scale if not math.isnan(zmax) else math.nan
+    return SolveResult(points, iterations=it, error_estimate=err, converged=converged, bound=not math.isnan(zmax),
+                       extra=extra)
+
+
+class HostSweeper:
+    """The sweep loop's operations on host arrays, one ``backend.sweep`` at a time (the CPU backend).
+
+    A backend may supply its own as ``backend.jacobi_sweeper(problem, stop=...)``
+    (the gl backend: sweeps on the device, the largest step read back only now
+    and then). The protocol: ``sweeps(n, limit) -> (sweeps made, last step)``
+    makes at most ``n`` sweeps and stops after the first whose step is
+    ``<= limit``; ``result(step) -> (points, bound step)`` returns the grid and
+    the step that, times ``max z``, bounds its error; ``extra()`` adds to the
+    result's info; ``close()`` frees what the sweeper holds.
+    """
+
+    def __init__(self, problem: Problem, backend):
+        self.backend = backend
+        self.wu, self.wv = problem.weights.wu, problem.weights.wv
+        self.a = problem.r0.copy()
+        self.b = self.a.copy()
+
+    def sweeps(self, n: int, limit: float) -> tuple[int, float]:
+        step = self.backend.sweep(self.a, self.b, self.wu, self.wv)
+        self.a, self.b = self.b, self.a
+        return 1, step
+
+    def result(self, step: float):
+        # The last sweep's step bounds the grid it produced too (J z <= z, clothgrid.solvers.bounds).
+        return self.a, step
+
+    def extra(self) -> dict:
+        return {}
+
+    def close(self) -> None:
+        pass

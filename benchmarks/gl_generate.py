@@ -1,0 +1,201 @@
+"""``clothgrid generate --backend gl`` at 1024 x 1024: wall time, accuracy, and where the time goes.
+
+Run ``python benchmarks/gl_generate.py [--nodes 1024] [--runs 3] [--piece FILE]``.
+
+1. The command of issue 3's bar, as a subprocess, ``--runs`` times::
+
+       clothgrid generate src/clothgrid/data/tshirt_front.json --nodes 1024x1024 \\
+           --weights paper --backend gl -o /tmp/.../g.npz
+
+   (solver ``auto`` is ``multigrid`` on the gl backend, ``tol`` 2^-12, ``stop`` error),
+   timed from the outside, with its own timing line.
+2. The grid written is checked against an exact solve (``solver="fdm"``): the true max
+   node error relative to the piece's size, against the bound the command reported.
+3. The same pipeline in-process, step by step, with the GL queue drained (``finish``)
+   after every multigrid operation so that each step's time is its own: the breakdown.
+   Draining costs a little, so the steps add up to slightly more than an undisturbed run.
+
+The machine's load is printed with the results (``os.getloadavg``): on a shared machine
+other jobs' load slows llvmpipe, which runs on the CPU cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+PIECE = ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json"
+TOL = 2.0**-12
+
+
+def cli_runs(piece: Path, n: int, runs: int, out: Path) -> list[float]:
+    cmd = [sys.executable, "-m", "clothgrid", "generate", str(piece), "--nodes", f"{n}x{n}",
+           "--weights", "paper", "--backend", "gl", "-o", str(out)]
+    print("command: clothgrid " + " ".join(cmd[3:]).replace(str(out), "g.npz").replace(str(ROOT) + "/", ""))
+    times = []
+    for r in range(runs):
+        t0 = time.perf_counter()
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if res.returncode != 0:
+            sys.exit(f"command failed ({res.returncode}):\n{res.stderr}")
+        line = next((s for s in res.stdout.splitlines() if s.startswith("solver ")), "")
+        print(f"  run {r + 1}: {wall:.2f} s wall, load {os.getloadavg()[0]:.2f}; {line}")
+        times.append(wall)
+    return times
+
+
+class _Timed:
+    """A GLMultigrid whose every operation is drained and timed."""
+
+    def __init__(self, ops, times):
+        self.ops, self.times, self.levels = ops, times, ops.levels
+        self.ctx = ops.dev.ctx
+
+    def _call(self, name, *args):
+        t0 = time.perf_counter()
+        out = getattr(self.ops, name)(*args)
+        if name != "solution":
+            self.ctx.finish()
+        self.times[name] += time.perf_counter() - t0
+        self.times["n_" + name] += 1
+        return out
+
+    def smooth(self, level, reverse=False):
+        return self._call("smooth", level, reverse)
+
+    def restrict(self, level):
+        return self._call("restrict", level)
+
+    def prolong(self, level):
+        return self._call("prolong", level)
+
+    def max_step(self):
+        return self._call("max_step")
+
+    def solution(self):
+        return self._call("solution")
+
+
+def breakdown(piece: Path, n: int, out: Path) -> None:
+    steps: list[tuple[str, float]] = []
+
+    def step(name, t0):
+        steps.append((name, time.perf_counter() - t0))
+        return time.perf_counter()
+
+    t = time.perf_counter()
+    res = subprocess.run([sys.executable, "-c", "import clothgrid.cli, clothgrid.generate"], check=True)
+    t = step("Python start-up and imports (a fresh interpreter)", t)
+    import clothgrid
+    from clothgrid.backends import gl
+    from clothgrid.backends.gl import _device
+    from clothgrid.backends.gl._multigrid import GLMultigrid
+    from clothgrid.initial import initial_grid
+    from clothgrid.quality import quality
+    from clothgrid.solvers import Problem
+    from clothgrid.solvers.multigrid import build_hierarchy, solve_multigrid
+    from clothgrid.weights import make_weights
+    from clothgrid.grid import Grid
+
+    t = time.perf_counter()
+    dev = _device.device()
+    t = step(f"EGL context ({dev.renderer})", t)
+    clothgrid.generate(clothgrid.load_boundary(piece), (5, 5), backend="gl")
+    clothgrid.generate(clothgrid.load_boundary(piece), (5, 5), backend="gl", solver="jacobi")
+    t = step("shader compile (Mesa compiles at the first draw: one 5x5 solve)", t)
+    b = clothgrid.load_boundary(piece).resampled(n, n)
+    t = step("load the piece and resample its sides", t)
+    gl.check_size(n, n, "multigrid")
+    t = step("size check (texture limit, free memory, probe texture)", t)
+    r0 = initial_grid(b, "tfi")
+    w = make_weights("paper", n, n)
+    problem = Problem(r0, w, b.size)
+    t = step("initial grid (tfi, eq. 4) and weights (eq. 2)", t)
+    levels = build_hierarchy(w)
+    t = step(f"multigrid hierarchy on the CPU ({len(levels)} levels, Galerkin operators)", t)
+
+    times: dict = defaultdict(float)
+
+    def make(levels_, x0, rhs=None):
+        t0 = time.perf_counter()
+        ops = GLMultigrid(levels_, x0, rhs)
+        dev.ctx.finish()
+        times["upload"] += time.perf_counter() - t0
+        return _Timed(ops, times)
+
+    proxy = SimpleNamespace(name="gl", multigrid=make)
+    build = [levels]
+    import clothgrid.solvers.multigrid as mgmod
+
+    real_build = mgmod.build_hierarchy
+    mgmod.build_hierarchy = lambda weights, *a, **k: build[0]   # reuse the hierarchy timed above
+    try:
+        t = time.perf_counter()
+        result = solve_multigrid(problem, backend=proxy, tol=TOL)
+        total = time.perf_counter() - t
+    finally:
+        mgmod.build_hierarchy = real_build
+    steps.append(("textures: upload, Thomas factors, first float64 residual", times["upload"]))
+    steps.append((f"line smoothing, {times['n_smooth']} zebra sweeps (compute shaders)", times["smooth"]))
+    steps.append((f"residual + restriction, {times['n_restrict']} times (fragment shaders)", times["restrict"]))
+    steps.append((f"prolongation, {times['n_prolong']} times (fragment shader)", times["prolong"]))
+    steps.append((f"float64 fold + residual + max-reduction, {times['n_max_step']} times", times["max_step"]))
+    steps.append(("download the float64 grid", times["solution"]))
+    rest = total - sum(times[k] for k in ("upload", "smooth", "restrict", "prolong", "max_step", "solution"))
+    steps.append(("solver bookkeeping (Python)", rest))
+    t = time.perf_counter()
+    grid = Grid.from_points(result.points, info={}, dim=b.dim)
+    q = quality(grid)
+    t = step("quality table", t)
+    grid.save(out)
+    t = step("write the NPZ", t)
+    print(f"\nin-process breakdown ({result.iterations} V-cycles, error bound {result.error_estimate:.2e}, "
+          f"load {os.getloadavg()[0]:.2f}):\n")
+    print("| step | seconds |")
+    print("|---|---|")
+    for name, secs in steps:
+        print(f"| {name} | {secs:.3f} |")
+    print(f"| **total** | **{sum(s for _, s in steps):.3f}** |")
+    del q
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--piece", type=Path, default=PIECE)
+    ap.add_argument("--nodes", type=int, default=1024)
+    ap.add_argument("--runs", type=int, default=3)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "g.npz"
+        print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+        times = cli_runs(args.piece, args.nodes, args.runs, out)
+        print(f"wall time: best {min(times):.2f} s, median {float(np.median(times)):.2f} s, worst {max(times):.2f} s")
+
+        import clothgrid
+
+        data = np.load(out)
+        import json
+
+        info = json.loads(str(data["info"]))
+        b = clothgrid.load_boundary(args.piece).resampled(args.nodes, args.nodes)
+        exact = clothgrid.generate(b, solver="fdm", tol=1e-9).points
+        err = float(np.linalg.norm(data["points"] - exact, axis=-1).max() / b.size)
+        print(f"true max error {err:.2e} of the piece's size (tol {TOL:.2e}); bound reported "
+              f"{info['error_estimate']:.2e}; renderer {info.get('gl_renderer')}")
+        breakdown(args.piece, args.nodes, Path(tmp) / "h.npz")
+
+
+if __name__ == "__main__":
+    main()

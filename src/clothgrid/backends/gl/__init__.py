@@ -1,0 +1,99 @@
+"""gl backend: the paper's method on the graphics pipeline (OpenGL 4.3 through headless EGL).
+
+The grid lives in textures on the GL device: the float32 correction in RGBA32F
+(x, y, z and a spare channel for each node's step), the per-edge weights as
+RGBA32F "four weights per node", and the float64 iterate and weights as pairs of
+uints where the device has float64 shader arithmetic. Eq. (3) is a fragment
+shader drawn into ping-pong framebuffers; boundary nodes are never written; the
+largest step is found by a max-reduction pyramid, read back one float at a time.
+The error bound every solver reports is computed from a float64 residual (on
+the device, or on the host where the device lacks float64). ``docs/gl.md`` says
+what runs where.
+
+It runs on Mesa's llvmpipe (no GPU: Debian packages ``libegl1 libgl1
+libgl1-mesa-dri``) and on vendor drivers with EGL. :func:`require` raises
+:class:`~clothgrid.errors.BackendUnavailableError` with the reason when no
+context can be made.
+"""
+
+from __future__ import annotations
+
+from ...errors import InputError
+
+__all__ = ["name", "solvers", "require", "available", "info", "describe", "summary", "check_size", "device_bytes",
+           "jacobi_sweeper", "multigrid"]
+
+name = "gl"
+#: Solvers that run on this backend (``auto`` picks the first).
+solvers = ("multigrid", "jacobi")
+#: Run the float64 steps (fold, residual, bound) in NumPy even where the device has doubles.
+HOST_FP64 = False
+
+
+def require():
+    """The GL device; raises BackendUnavailableError (with the reason) when there is none."""
+    from ._device import device
+
+    return device()
+
+
+def available() -> tuple[bool, str]:
+    """``(True, renderer)`` or ``(False, why not)``."""
+    from ...errors import BackendUnavailableError
+
+    try:
+        return True, require().renderer
+    except BackendUnavailableError as exc:
+        return False, str(exc)
+
+
+def describe() -> dict:
+    """The device's renderer, vendor, version and texture size limit (``gl_*`` keys of a grid's info)."""
+    return require().describe()
+
+
+info = describe
+
+
+def summary() -> str:
+    """One line: renderer and GL version."""
+    d = require()
+    return f"{d.renderer}, OpenGL {d.version}"
+
+
+def device_bytes(solver: str, nu: int, nv: int) -> int:
+    """Bytes of textures a solve of an ``nu x nv`` grid allocates on the device."""
+    n = nu * nv
+    base = 16 * n * 4 + 16 * n // 15 + 2          # w32, e (2), f, snapshot or residual; reduction pyramid
+    base += (32 + 2 * 32) * n                      # float64 weights, float64 iterate (2 x 2 uint textures)
+    if solver == "jacobi":
+        return base
+    if solver == "multigrid":
+        # level 0: residual and stencil textures; coarse levels (about nu * nv nodes in all):
+        # iterate (2), right-hand side, residual and three stencil textures
+        return base + 2 * 16 * n + 7 * 16 * n
+    raise InputError(f"solver {solver!r} does not run on backend 'gl': use one of {', '.join(solvers)}")
+
+
+def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0) -> None:
+    """Raise :class:`~clothgrid.errors.SizeError` before allocating a grid the device cannot hold.
+
+    The limits come from the driver: GL_MAX_TEXTURE_SIZE (and the viewport and
+    framebuffer limits) for the side, the free memory where the driver says it
+    (host memory for a software renderer), and a probe texture for large grids.
+    """
+    require().check_size(nu, nv, device_bytes(solver, nu, nv), host_bytes)
+
+
+def jacobi_sweeper(problem, *, stop: str = "error"):
+    """Jacobi sweeps on the device for :func:`clothgrid.solvers.jacobi.solve_jacobi`."""
+    from ._jacobi import GLJacobi
+
+    return GLJacobi(problem, stop=stop, host_fp64=HOST_FP64)
+
+
+def multigrid(levels, x0, rhs=None):
+    """The multigrid operations (:class:`~clothgrid.solvers.multigrid.MultigridOps`) on the device."""
+    from ._multigrid import GLMultigrid
+
+    return GLMultigrid(levels, x0, rhs, host_fp64=HOST_FP64)

@@ -1,0 +1,249 @@
+"""The multigrid operations of :mod:`clothgrid.solvers.multigrid` as GL passes.
+
+:func:`~clothgrid.solvers.multigrid.vcycle` drives these operations exactly as
+it drives the CPU's; the hierarchy (coarse operators, built once on the CPU in
+float64) is uploaded as float32 textures, with each level's Thomas factors. Per
+level: the iterate (two RGBA32F textures, ping-pong for the prolongation), its
+right-hand side, a residual texture and three stencil textures.
+
+- ``smooth``: zebra line Gauss-Seidel along u, one compute dispatch per colour
+  (one invocation per row ``j``, Thomas algorithm along ``i`` on an image);
+- ``restrict``: a residual pass and a restriction pass (fragment shaders);
+- ``prolong``: a prolongation pass (fragment shader) into the other texture;
+- ``max_step``: the fold of :class:`~clothgrid.backends.gl._device.Level0`:
+  level 0's float32 iterate is the correction of a float64 iterate; the fold
+  adds it in float64 and recomputes the float64 residual, whose Jacobi-scaled
+  max (one float read back) is the guaranteed bound's factor. So every cycle is
+  one step of mixed-precision iterative refinement with a float32 V-cycle as the
+  inner solver.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ._device import Level0, device
+
+__all__ = ["GLMultigrid", "stencil_textures"]
+
+_LOCAL = 32   # LINE_SOLVE's local_size_x
+
+
+def thomas_factors(C: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``inv, g`` of the row systems ``C x[i] - E[i-1] x[i-1] - E[i] x[i+1]`` (float64, all rows at once).
+
+    Forward elimination along ``i``: ``den = C[i] - E[i-1] g[i-1]``, ``inv = 1/den``,
+    ``g[i] = E[i] inv`` for interior ``i``; zero elsewhere.
+    """
+    nu = C.shape[0]
+    inv = np.zeros_like(C)
+    g = np.zeros_like(C)
+    prev = np.zeros(C.shape[1])
+    for i in range(1, nu - 1):
+        den = C[i] - E[i - 1] * prev
+        with np.errstate(divide="ignore"):
+            inv[i] = np.where(den != 0, 1.0 / den, 0.0)
+        g[i] = E[i] * inv[i]
+        prev = g[i]
+    return inv, g
+
+
+def full_stencil(level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``C, E, N`` of a :class:`~clothgrid.solvers.multigrid.Level` as float64 ``(nu, nv)`` arrays.
+
+    The finest level holds only its edge weights (``E = wu`` ``(nu-1, nv)``,
+    ``N = wv`` ``(nu, nv-1)``, ``C`` None): they are padded with zeros and
+    ``C`` is their sum around each node; coarse levels hold all three.
+    """
+    nu, nv = level.shape
+    if level.C is not None and level.E.shape == (nu, nv):
+        return (np.asarray(level.C, np.float64), np.asarray(level.E, np.float64),
+                np.asarray(level.N, np.float64))
+    E = np.zeros((nu, nv))
+    N = np.zeros((nu, nv))
+    E[:-1] = level.E
+    N[:, :-1] = level.N
+    C = E.copy()
+    C[1:] += E[:-1]
+    C += N
+    C[:, 1:] += N[:, :-1]
+    return C, E, N
+
+
+def stencil_textures(level, with_t1: bool = True) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """``t1, t2, t3`` float32 ``(nu, nv, 4)`` arrays of one :class:`~clothgrid.solvers.multigrid.Level`.
+
+    ``t1`` is skipped (None) unless ``with_t1``: level 0's is the weight texture of
+    :class:`~clothgrid.backends.gl._device.Level0`; ``t2`` is None on a 5-point level.
+    """
+    C, E, N = full_stencil(level)
+    nu, nv = C.shape
+    t1 = t2 = None
+    if with_t1:
+        t1 = np.zeros((nu, nv, 4), np.float32)
+        t1[1:, :, 0] = E[:-1]
+        t1[:, :, 1] = E
+        t1[:, 1:, 2] = N[:, :-1]
+        t1[:, :, 3] = N
+    if level.NE is not None:
+        t2 = np.zeros((nu, nv, 4), np.float32)
+        t2[:, :, 0] = level.NE
+        t2[1:, 1:, 1] = level.NE[:-1, :-1]
+        t2[:, :, 2] = level.NW
+        t2[:-1, 1:, 3] = level.NW[1:, :-1]
+    inv, g = thomas_factors(C, E)
+    t3 = np.zeros((nu, nv, 4), np.float32)
+    t3[..., 0] = C
+    t3[..., 1] = inv
+    t3[..., 2] = g
+    return t1, t2, t3
+
+
+class _Level:
+    """Textures of one coarse level (or level 0's extra ones)."""
+
+    def __init__(self, owner, shape, t1, t2, t3, x=None, x_fbo=None, b=None):
+        self.nu, self.nv = shape
+        tex, fbo = owner._tex, owner._fbo
+        self.t1 = t1 if not isinstance(t1, np.ndarray) else tex(shape, t1)
+        self.nine = t2 is not None
+        self.t2 = tex(shape, t2) if self.nine else self.t1
+        self.t3 = tex(shape, t3)
+        if x is None:
+            x = [tex(shape), tex(shape)]
+            x_fbo = [fbo(t) for t in x]
+        self.x, self.x_fbo = x, x_fbo
+        self.b = b if b is not None else tex(shape)
+        self.b_fbo = None if b is not None else fbo(self.b)
+        self.r = tex(shape)
+        self.r_fbo = fbo(self.r)
+
+    def stencil(self) -> dict:
+        return {"t1": self.t1, "t2": self.t2, "t3": self.t3, "b": self.b}
+
+
+class GLMultigrid:
+    """:class:`~clothgrid.solvers.multigrid.MultigridOps` on the GL device.
+
+    Parameters
+    ----------
+    levels : list of Level
+        The hierarchy from :func:`~clothgrid.solvers.multigrid.build_hierarchy`.
+    x0 : numpy.ndarray
+        ``(nu, nv, k)`` level-0 iterate, boundary nodes holding the data (``k <= 3``).
+    rhs : numpy.ndarray, optional
+        ``(nu-2, nv-2, k)`` level-0 right-hand side (zero if omitted).
+    host_fp64 : bool
+        Run the float64 fold and residual in NumPy instead of on the device.
+    """
+
+    def __init__(self, levels, x0: np.ndarray, rhs: np.ndarray | None = None, *, host_fp64: bool = False):
+        self.dev = dev = device()
+        t0 = time.perf_counter()
+        self.levels = len(levels)
+        fine = levels[0]
+        _, E, N = full_stencil(fine)
+        wu, wv = E[:-1], N[:, :-1]
+        self._objects: list = []
+        self.counts = {"smooth": 0, "restrict": 0, "prolong": 0, "fold": 0}
+        self.seconds = {"smooth": 0.0, "restrict": 0.0, "prolong": 0.0, "fold": 0.0}
+        with dev.current():
+            self.l0 = Level0(dev, np.asarray(x0, np.float64), wu, wv, host_fp64=host_fp64, rhs=rhs)
+            _, _, t3 = stencil_textures(fine, with_t1=False)
+            self.lv = [_Level(self, fine.shape, self.l0.w32, None, t3, x=self.l0.e, x_fbo=self.l0.e_fbo,
+                              b=self.l0.f)]
+            for level in levels[1:]:
+                self.lv.append(_Level(self, level.shape, *stencil_textures(level)))
+            self.cert = self.l0.fold()
+            self.clean = True
+        self.seconds["setup"] = time.perf_counter() - t0
+
+    # -- allocation helpers (released with the level 0 objects)
+    def _tex(self, shape, data: np.ndarray | None = None):
+        nu, nv = shape
+        t = self.dev.texture(nv, nu, 4, "f4", None if data is None else np.ascontiguousarray(data, np.float32).tobytes())
+        self._objects.append(t)
+        return t
+
+    def _fbo(self, *textures):
+        f = self.dev.framebuffer(*textures)
+        self._objects.append(f)
+        return f
+
+    # -- MultigridOps
+    def smooth(self, level: int, reverse: bool = False) -> None:
+        t0 = time.perf_counter()
+        lv = self.lv[level]
+        dev = self.dev
+        with dev.current():
+            for first in ((1, 2) if reverse else (2, 1)):
+                rows = (lv.nv - 2 - first) // 2 + 1 if first <= lv.nv - 2 else 0
+                if rows > 0:
+                    dev.dispatch("LINE_SOLVE", -(-rows // _LOCAL), {0: lv.x[0]}, lv.stencil(),
+                                 {"first": first, "nine": lv.nine})
+        self.clean = False
+        self.counts["smooth"] += 1
+        self.seconds["smooth"] += time.perf_counter() - t0
+
+    def restrict(self, level: int) -> None:
+        t0 = time.perf_counter()
+        lv, lc = self.lv[level], self.lv[level + 1]
+        dev = self.dev
+        with dev.current():
+            dev.draw("RESIDUAL", lv.r_fbo, {"x": lv.x[0], **lv.stencil()}, {"nine": lv.nine})
+            dev.draw("RESTRICT", lc.b_fbo, {"r": lv.r})
+            lc.x_fbo[0].clear(0.0, 0.0, 0.0, 0.0)
+        self.counts["restrict"] += 1
+        self.seconds["restrict"] += time.perf_counter() - t0
+
+    def prolong(self, level: int) -> None:
+        t0 = time.perf_counter()
+        lv, lc = self.lv[level], self.lv[level + 1]
+        dev = self.dev
+        with dev.current():
+            dev.draw("PROLONG", lv.x_fbo[1], {"x": lv.x[0], "xc": lc.x[0]})
+            lv.x.reverse()
+            lv.x_fbo.reverse()
+        self.counts["prolong"] += 1
+        self.seconds["prolong"] += time.perf_counter() - t0
+
+    def max_step(self) -> float:
+        """Fold level 0's correction into the float64 iterate; ``max |D^-1 (b - A x)|`` in float64."""
+        t0 = time.perf_counter()
+        if not self.clean:
+            with self.dev.current():
+                self.cert = self.l0.fold()
+            self.clean = True
+            self.counts["fold"] += 1
+        self.seconds["fold"] += time.perf_counter() - t0
+        return self.cert
+
+    def solution(self) -> np.ndarray:
+        """Level 0's float64 iterate (after a fold); unbinds the context from this thread."""
+        self.max_step()
+        with self.dev.current():
+            x = self.l0.points()
+        self.dev.release_thread()
+        return x
+
+    def extra(self) -> dict:
+        return {**self.dev.describe(), "gl_fp64": "device" if self.l0.device_fp64 else "host",
+                "gl_passes": dict(self.counts), "gl_seconds": {**self.seconds, **self.l0.timings}}
+
+    def release(self) -> None:
+        """Free the textures (also done when the object is garbage collected)."""
+        with self.dev.current():
+            for obj in reversed(self._objects):
+                obj.release()
+            self._objects = []
+            self.l0.release()
+        self.dev.release_thread()
+
+    def __del__(self):
+        try:
+            if self._objects or self.l0._objects:
+                self.release()
+        except Exception:
+            pass

@@ -1,0 +1,353 @@
+"""Choosing the four grid corners of a pattern piece.
+
+A structured grid needs four sides, but a piece may have any number of
+natural corners. :func:`choose_corners` decides, in this order:
+
+1. **Given corners**: four indices into the outline, or four points (the
+   outline point nearest to each is used), bottom-left, bottom-right,
+   top-right, top-left in the outline's counter-clockwise order.
+2. **The file's turn points** (AAMA/ASTM layer 2, GarmentCode panel vertices):
+   exactly four are used as they are; more than four are scored as below.
+3. **Corner candidates**: the source's vertices where the outline turns by at
+   least ``min_turn`` degrees (20 by default).
+
+With more than four candidates every choice of four (of the 16 best) is scored
+by ``sum(q) + balance``: ``q = 1 - |turn - 90°| / 90°`` (clipped to ``[0, 1]``)
+rewards right-angled convex corners (1) over flat points, needle tips and
+concave corners (0), and ``balance = (min/max of bottom and top lengths) x
+(min/max of left and right lengths)`` in ``(0, 1]`` rewards opposite sides of
+similar length, which gives well-shaped cells. With fewer than four, the
+longest side (by arc length) is split at its middle until there are four; a
+smooth outline without any candidate (a circle) starts at the point nearest
+the bottom-left of its bounding box and is cut into four sides of equal
+length. A new corner falls on an existing outline point of that side when one
+lies within 2% of the side's length of the middle (so it is exactly on the
+curve), else a point is inserted on the outline there.
+
+Which automatic corner is the bottom-left: the one that makes the bottom side
+run most nearly across the grain line (left and right along it), or, without
+a grain line, most nearly along +x.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from .piece import Piece
+
+__all__ = ["CornerCandidate", "CornerChoice", "turn_angles", "corner_candidates",
+           "choose_corners", "MIN_TURN_DEG"]
+
+#: smallest turn (degrees) that makes a vertex a corner candidate
+MIN_TURN_DEG = 20.0
+MAX_SCORED = 16
+_SNAP = 0.02
+_NAMES = ("bottom-left", "bottom-right", "top-right", "top-left")
+
+
+@dataclass(frozen=True)
+class CornerCandidate:
+    """A possible grid corner: outline ``index``, ``point`` (mm), ``turn`` (degrees, + convex)."""
+
+    index: int
+    point: tuple[float, float]
+    turn: float
+    turn_point: bool
+    score: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"index": self.index, "point": list(self.point), "turn": self.turn,
+                "turn_point": self.turn_point, "score": self.score}
+
+
+@dataclass(frozen=True, eq=False)
+class CornerChoice:
+    """The four corners chosen for a piece.
+
+    Attributes
+    ----------
+    outline : numpy.ndarray
+        ``(N, 2)`` outline the indices refer to: the piece's, or it with the
+        inserted corner points.
+    corners : tuple of 4 int
+        Bottom-left, bottom-right, top-right, top-left indices into ``outline``.
+    method : str
+        ``"given"``, ``"near"``, ``"turn-points"``, ``"scored"``, ``"split"`` or
+        ``"equal-sides"``.
+    message : str
+        One sentence saying what was chosen and why.
+    candidates : int
+        How many candidates there were.
+    inserted : tuple of int
+        Indices (into ``outline``) of points added to the piece's outline.
+    """
+
+    outline: np.ndarray
+    corners: tuple[int, int, int, int]
+    method: str
+    message: str
+    candidates: int = 0
+    inserted: tuple[int, ...] = ()
+
+    @property
+    def points(self) -> np.ndarray:
+        """``(4, 2)`` corner points (mm)."""
+        return self.outline[list(self.corners)]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"indices": list(self.corners), "points": self.points.tolist(),
+                "method": self.method, "message": self.message,
+                "candidates": self.candidates, "inserted": list(self.inserted)}
+
+
+def turn_angles(outline: np.ndarray) -> np.ndarray:
+    """Signed turn at every point of a closed outline (radians, + left / convex for CCW)."""
+    p = np.asarray(outline, dtype=np.float64)
+    d_in = p - np.roll(p, 1, axis=0)
+    d_out = np.roll(p, -1, axis=0) - p
+    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+    dot = (d_in * d_out).sum(axis=1)
+    return np.arctan2(cross, dot)
+
+
+def _quality(turn: np.ndarray) -> np.ndarray:
+    return np.clip(1.0 - np.abs(turn - math.pi / 2) / (math.pi / 2), 0.0, 1.0)
+
+
+def corner_candidates(piece: Piece, min_turn: float = MIN_TURN_DEG) -> list[CornerCandidate]:
+    """The piece's corner candidates, in outline order.
+
+    The file's turn points, plus the source vertices that turn by at least
+    ``min_turn`` degrees either way.
+    """
+    turn = turn_angles(piece.outline)
+    tp = set(int(i) for i in piece.turn_points)
+    v = np.asarray(piece.vertices, dtype=np.int64)
+    sharp = set(int(i) for i in v[np.abs(turn[v]) >= math.radians(min_turn)]) if v.size else set()
+    q = _quality(turn)
+    return [CornerCandidate(i, (float(piece.outline[i, 0]), float(piece.outline[i, 1])),
+                            float(math.degrees(turn[i])), i in tp, float(q[i]))
+            for i in sorted(tp | sharp)]
+
+
+def _arc(outline: np.ndarray) -> tuple[np.ndarray, float]:
+    d = np.diff(np.vstack([outline, outline[:1]]), axis=0)
+    seg = np.hypot(d[:, 0], d[:, 1])
+    return np.concatenate([[0.0], np.cumsum(seg)[:-1]]), float(seg.sum())
+
+
+def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float) -> list[int]:
+    """The 4 of ``idx`` (outline order) with the best score; ``q``, ``s`` per outline point."""
+    idx = sorted(idx)
+    if len(idx) > MAX_SCORED:
+        keep = sorted(idx, key=lambda i: -q[i])[:MAX_SCORED]
+        idx = sorted(keep)
+    cand = np.asarray(idx)
+    combos = np.array(list(itertools.combinations(range(len(cand)), 4)))
+    c = cand[combos]
+    pos = s[c]
+    sides = np.column_stack([pos[:, 1] - pos[:, 0], pos[:, 2] - pos[:, 1], pos[:, 3] - pos[:, 2],
+                             perimeter - (pos[:, 3] - pos[:, 0])])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1 = np.minimum(sides[:, 0], sides[:, 2]) / np.maximum(sides[:, 0], sides[:, 2])
+        r2 = np.minimum(sides[:, 1], sides[:, 3]) / np.maximum(sides[:, 1], sides[:, 3])
+    balance = np.nan_to_num(r1 * r2)
+    score = q[c].sum(axis=1) + balance
+    return [int(x) for x in c[int(np.argmax(score))]]
+
+
+def _split(outline: np.ndarray, corners: list[int]) -> tuple[np.ndarray, list[int], list[int]]:
+    """Add corners at the middle of the longest sides until there are four.
+
+    Returns the (possibly extended) outline, the 4 corner indices in outline
+    order, and the indices of inserted points.
+    """
+    s, perimeter = _arc(outline)
+    n = len(outline)
+    pos = sorted(float(s[i]) for i in corners)       # arc-length positions
+    while len(pos) < 4:
+        if len(pos) == 1:
+            a, length = pos[0], perimeter
+        else:
+            lens = [(pos[(k + 1) % len(pos)] - pos[k]) % perimeter or perimeter
+                    for k in range(len(pos))]
+            k = int(np.argmax(lens))
+            a, length = pos[k], lens[k]
+        pos.append((a + 0.5 * length) % perimeter)
+        pos.sort()
+    # materialise: existing point near the target (within 2% of that side), else insert
+    original = {float(s[i]): i for i in corners}
+    chosen: list[tuple[float, int | None]] = []      # (position, existing index or None)
+    for k, x in enumerate(pos):
+        if x in original:
+            chosen.append((x, original[x]))
+            continue
+        prev, nxt = pos[k - 1], pos[(k + 1) % 4]
+        side = ((nxt - prev) % perimeter) or perimeter
+        rel = (s - x + perimeter / 2) % perimeter - perimeter / 2
+        lo_ok = ((s - prev) % perimeter > 0) & ((nxt - s) % perimeter > 0)
+        near = np.flatnonzero(lo_ok & (np.abs(rel) <= _SNAP * side))
+        if near.size:
+            chosen.append((x, int(near[np.argmin(np.abs(rel[near]))])))
+        else:
+            chosen.append((x, None))
+    inserts = sorted((x, int(np.searchsorted(s, x, side="right") - 1))
+                     for x, i in chosen if i is None)
+    if not inserts:
+        return outline, sorted(i for _, i in chosen), []
+    rows: list[np.ndarray] = []
+    mapping = np.empty(n, dtype=np.int64)
+    new_of: dict[float, int] = {}
+    k = 0
+    for j in range(n):
+        mapping[j] = len(rows)
+        rows.append(outline[j])
+        while k < len(inserts) and inserts[k][1] == j:
+            x = inserts[k][0]
+            a, b = outline[j], outline[(j + 1) % n]
+            seg = float(np.hypot(*(b - a)))
+            f = 0.0 if seg == 0 else min(max((x - s[j]) / seg, 0.0), 1.0)
+            new_of[x] = len(rows)
+            rows.append(a + f * (b - a))
+            k += 1
+    out = np.asarray(rows)
+    idx = [int(mapping[i]) if i is not None else new_of[x] for x, i in chosen]
+    return out, sorted(idx), sorted(new_of.values())
+
+
+def _rotate_to_grain(outline: np.ndarray, corners: list[int],
+                     grain: np.ndarray | None) -> list[int]:
+    """Order the 4 corners (outline order) so that corners[0] is the bottom-left."""
+    up = np.array([0.0, 1.0])
+    if grain is not None:
+        g = np.asarray(grain, dtype=np.float64)
+        d = g[1] - g[0]
+        if np.hypot(*d) > 0:
+            up = d / np.hypot(*d)
+            if up[1] < 0 or (up[1] == 0 and up[0] < 0):
+                up = -up
+    right = np.array([up[1], -up[0]])
+    p = outline[corners]
+    best, best_k = -np.inf, 0
+    for k in range(4):
+        d = p[(k + 1) % 4] - p[k]
+        norm = np.hypot(*d)
+        val = float(d @ right / norm) if norm > 0 else -np.inf
+        if val > best + 1e-12:
+            best, best_k = val, k
+    return corners[best_k:] + corners[:best_k]
+
+
+def _fmt_idx(idx: Sequence[int]) -> str:
+    return ", ".join(str(int(i)) for i in idx)
+
+
+def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
+                   near: Any = None, *, min_turn: float = MIN_TURN_DEG) -> CornerChoice:
+    """Choose the four grid corners of ``piece`` (see the module's description).
+
+    Parameters
+    ----------
+    piece : Piece
+        The piece.
+    corners : sequence of 4 int, optional
+        Outline indices of the bottom-left, bottom-right, top-right and top-left
+        corners (counter-clockwise order).
+    near : array_like, optional
+        ``(4, 2)`` points (mm): the outline point nearest to each is a corner,
+        in the same order as ``corners``.
+    min_turn : float
+        Smallest turn (degrees) for a vertex to be a corner candidate.
+
+    Returns
+    -------
+    CornerChoice
+
+    Raises
+    ------
+    InputError
+        Both ``corners`` and ``near`` given, or not four of them.
+    """
+    outline = piece.outline
+    n = len(outline)
+    if corners is not None and near is not None:
+        raise InputError("give the corners either as outline indices or as points, not both")
+    if corners is not None:
+        if isinstance(corners, (str, bytes)) or len(corners) != 4:
+            raise InputError(f"corners must be 4 outline indices (bottom-left, bottom-right, "
+                             f"top-right, top-left), got {corners!r}")
+        idx = []
+        for c in corners:
+            if isinstance(c, (bool, np.bool_)) or not isinstance(c, (int, np.integer)):
+                raise InputError(f"corner indices must be integers, got {c!r}")
+            if not -n <= int(c) < n:
+                raise InputError(f"corner index {int(c)} is out of range: piece {piece.name!r} "
+                                 f"has {n} outline points (0..{n - 1})")
+            idx.append(int(c) % n)
+        return CornerChoice(outline, tuple(idx), "given",
+                            f"corners given by outline index: {_fmt_idx(idx)}")
+    if near is not None:
+        try:
+            pts = np.asarray(near, dtype=np.float64)
+        except (TypeError, ValueError):
+            pts = np.zeros((0,))
+        if pts.shape != (4, 2) or not np.isfinite(pts).all():
+            raise InputError(f"corner points must be 4 finite points (x, y) in mm, got {near!r}")
+        d = np.linalg.norm(outline[None] - pts[:, None], axis=2)
+        idx = [int(i) for i in d.argmin(axis=1)]
+        far = d[np.arange(4), idx].max()
+        return CornerChoice(outline, tuple(idx), "near",
+                            f"corners nearest to the given points: outline indices "
+                            f"{_fmt_idx(idx)} (farthest {far:.3g} mm from its point)")
+
+    cands = corner_candidates(piece, min_turn)
+    turn = turn_angles(outline)
+    q = _quality(turn)
+    s, perimeter = _arc(outline)
+    tps = [c.index for c in cands if c.turn_point]
+    geo = [c.index for c in cands]
+    k_desc = (f"{len(tps)} turn point{'s' if len(tps) != 1 else ''}" if tps
+              else f"{len(geo)} corner candidate{'s' if len(geo) != 1 else ''} "
+                   f"(turns of {min_turn:g}° or more)")
+    inserted: list[int] = []
+    pool = tps if len(tps) >= 4 else geo if len(geo) >= 4 else None
+    if pool is not None and len(pool) == 4:
+        chosen = sorted(pool)
+        method = "turn-points" if pool is tps else "candidates"
+        message = f"the {k_desc} are the corners"
+    elif pool is not None:
+        chosen, method = _best_four(pool, q, s, perimeter), "scored"
+        left = [i for i in pool if i not in chosen]
+        what = (k_desc if pool is tps
+                else f"{len(pool)} corner candidates (turns of {min_turn:g}° or more"
+                     + (f", {len(tps)} of them turn points)" if tps else ")"))
+        message = (f"chose 4 of {what} by score (right-angled convex corners, opposite "
+                   f"sides of similar length); left out outline indices {_fmt_idx(left)}")
+    else:
+        base = sorted(set(geo))
+        if not base:
+            bl = outline.min(axis=0)
+            base = [int(np.argmin(np.linalg.norm(outline - bl, axis=1)))]
+            method = "equal-sides"
+            message = ("no corner candidates (a smooth outline): four sides of equal length, "
+                       "the first corner nearest the bottom-left of the bounding box")
+        else:
+            method = "split"
+            extra = 4 - len(base)
+            message = (f"only {len(base)} corner candidate{'s' if len(base) != 1 else ''} "
+                       f"(turn points and turns of {min_turn:g}° or more): added {extra} "
+                       f"corner{'s' if extra != 1 else ''} at the middle of the longest "
+                       f"side{'s' if extra != 1 else ''}")
+        outline, chosen, inserted = _split(outline, base)
+        if inserted:
+            message += (f" (inserted outline point{'s' if len(inserted) > 1 else ''} "
+                        f"{_fmt_idx(inserted)})")
+    ordered = _rotate_to_grain(outline, sorted(chosen), piece.grain_line)
+    message += (": " + ", ".join(f"{name} {i}" for name, i in zip(_NAMES, ordered)))
+    return CornerChoice(outline, tuple(ordered), method, message, len(cands), tuple(inserted))

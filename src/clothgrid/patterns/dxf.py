@@ -1,0 +1,478 @@
+"""Read pattern pieces from a DXF file (plain CAD drawings and AAMA/ASTM D6673 patterns).
+
+**AAMA/ASTM D6673** (the apparel industry's DXF): a file whose blocks hold
+entities on layer ``1`` is read as one piece per block insert (``INSERT`` in
+the model space, its transformation applied; a piece block that is never
+inserted is read as it is). In each block, layer ``1`` is the piece
+boundary (polylines, lines, arcs, splines, chained into one closed loop; an
+open boundary is closed with a straight segment), layer ``2`` the turn
+points (``POINT`` entities: the corner candidates), layer ``7`` the grain line
+(a ``LINE``); the text ``Piece Name: ...`` names the piece (else the block's
+name) and ``Size: ...`` tells graded copies apart. The text ``Units: METRIC``
+(millimetres) or ``Units: ENGLISH`` (inches) gives the units; without it
+``$INSUNITS``. Curve points (layer 3), notches, drill holes and internal lines
+are not needed for meshing and are ignored.
+
+**Plain DXF**: every closed ``LWPOLYLINE``/``POLYLINE`` (flagged closed or
+ending at its start), ``SPLINE``, ``CIRCLE`` and full ``ELLIPSE`` in the model
+space (also inside inserted blocks) is a piece; open ``LINE``, ``ARC``,
+polylines, splines and elliptical arcs are joined end to end (gaps up to
+``1e-6`` of the drawing's size) and every chain that closes is a piece.
+``$INSUNITS`` gives the units.
+
+Curves are exact primitives: polyline bulges and arcs are circular arcs,
+ellipses elliptical arcs, splines (rational or not) are split into Bézier
+pieces by knot insertion; all are then sampled with a guaranteed chord
+tolerance (:mod:`clothgrid.patterns.sampling`). A spline given only by fit
+points is first interpolated by ezdxf, which need not match the drawing
+program's interpolation exactly. Entities must lie in planes parallel to
+the xy-plane (z is dropped).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from ..errors import InputError
+from .piece import Piece, piece_from_primitives
+from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
+from .units import UNITS, unit_to_mm
+
+__all__ = ["read_dxf", "INSUNITS"]
+
+#: $INSUNITS code -> unit name (see clothgrid.patterns.units.UNITS)
+INSUNITS: dict[int, str] = {1: "in", 2: "ft", 4: "mm", 5: "cm", 6: "m", 8: "um", 9: "mil",
+                            10: "yd", 13: "um", 14: "dm"}
+_INSUNITS_NAMES = {0: "unitless", 3: "miles", 7: "km", 8: "microinches", 11: "angstroms",
+                   12: "nanometers", 15: "decameters", 16: "hectometers", 17: "gigameters",
+                   18: "astronomical units", 19: "light years", 20: "parsecs"}
+_CURVES = {"LINE", "ARC", "CIRCLE", "ELLIPSE", "LWPOLYLINE", "POLYLINE", "SPLINE"}
+_KEY = re.compile(r"\s*([A-Za-z][A-Za-z ]*?)\s*:\s*(.*?)\s*$")
+
+
+def _xy(v: Any) -> np.ndarray:
+    return np.array([float(v[0]), float(v[1])])
+
+
+class _Ctx:
+    def __init__(self, where: str):
+        self.where = where
+        self.notes: list[str] = []
+
+
+def _check_flat(e: Any, ctx: _Ctx) -> None:
+    ext = e.dxf.get("extrusion", (0.0, 0.0, 1.0))
+    if abs(abs(float(ext[2])) - 1.0) > 1e-9:
+        raise InputError(f"{ctx.where}: {e.dxftype()} {e.dxf.handle} does not lie in a plane "
+                         f"parallel to the xy-plane (extrusion {tuple(ext)}); pattern pieces are 2D")
+
+
+def _ocs_map(e: Any):
+    """(point map, vector map) from the entity's OCS to 2D WCS."""
+    ocs = e.ocs()
+
+    def point(p) -> np.ndarray:
+        return _xy(ocs.to_wcs((float(p[0]), float(p[1]), float(p[2]) if len(p) > 2 else 0.0)))
+
+    origin = point((0.0, 0.0, 0.0))
+
+    def vector(v) -> np.ndarray:
+        return point((float(v[0]), float(v[1]), 0.0)) - origin
+
+    return point, vector
+
+
+def _bulge_arc(p0: np.ndarray, p1: np.ndarray, bulge: float) -> Primitive:
+    """The circular arc of a polyline segment with ``bulge`` (OCS, + counter-clockwise)."""
+    theta = 4.0 * math.atan(bulge)
+    c = p1 - p0
+    chord = float(np.hypot(*c))
+    if chord == 0.0 or theta == 0.0:
+        return Bezier(np.array([p0, p1]))
+    left = np.array([-c[1], c[0]]) / chord
+    center = 0.5 * (p0 + p1) + (chord / (2.0 * math.tan(theta / 2.0))) * left
+    r = chord / (2.0 * abs(math.sin(theta / 2.0)))
+    a0 = math.atan2(p0[1] - center[1], p0[0] - center[0])
+    return EllipseArc(center, np.array([r, 0.0]), np.array([0.0, r]), a0, a0 + theta,
+                      start_point=p0, end_point=p1)
+
+
+def _to_wcs(prim: Primitive, point, vector) -> Primitive:
+    if isinstance(prim, Bezier):
+        return Bezier(np.array([point((x, y, 0.0)) for x, y in prim.ctrl]), prim.weights)
+    return EllipseArc(point((*prim.center, 0.0)), vector(prim.a), vector(prim.b), prim.t0, prim.t1,
+                      None if prim.start_point is None else point((*prim.start_point, 0.0)),
+                      None if prim.end_point is None else point((*prim.end_point, 0.0)))
+
+
+def _polyline_prims(pts: list[tuple[float, float, float]], closed: bool, point, vector
+                    ) -> tuple[list[Primitive], bool]:
+    """Primitives of polyline vertices ``(x, y, bulge)`` in OCS; whether the loop is closed."""
+    if len(pts) < 2:
+        return [], False
+    xy = [np.array([float(p[0]), float(p[1])]) for p in pts]
+    bulges = [float(p[2]) for p in pts]
+    if not closed and np.array_equal(xy[0], xy[-1]):
+        closed = True
+        xy, bulges = xy[:-1], bulges[:-1]
+    n = len(xy)
+    segs = n if closed else n - 1
+    prims = [_bulge_arc(xy[i], xy[(i + 1) % n], bulges[i]) for i in range(segs)]
+    prims = [p for p in prims if not (isinstance(p, Bezier) and np.array_equal(p.ctrl[0], p.ctrl[-1]))]
+    return [_to_wcs(p, point, vector) for p in prims], closed
+
+
+def _entity_prims(e: Any, ctx: _Ctx) -> tuple[list[Primitive], bool]:
+    """The entity as exact primitives (2D WCS, file units) and whether it is closed."""
+    kind = e.dxftype()
+    if kind == "LINE":
+        s, t = _xy(e.dxf.start), _xy(e.dxf.end)
+        return ([] if np.array_equal(s, t) else [Bezier(np.array([s, t]))]), False
+    if kind in ("ARC", "CIRCLE"):
+        _check_flat(e, ctx)
+        point, vector = _ocs_map(e)
+        r = float(e.dxf.radius)
+        if not r > 0:
+            return [], False
+        c = point(e.dxf.center)
+        if kind == "CIRCLE":
+            a0, a1, closed = 0.0, 2 * math.pi, True
+        else:
+            a0 = math.radians(float(e.dxf.start_angle))
+            a1 = math.radians(float(e.dxf.end_angle))
+            while a1 <= a0:
+                a1 += 2 * math.pi
+            closed = False
+        return [EllipseArc(c, vector((r, 0.0)), vector((0.0, r)), a0, a1)], closed
+    if kind == "ELLIPSE":
+        _check_flat(e, ctx)
+        t0, t1 = float(e.dxf.start_param), float(e.dxf.end_param)
+        while t1 <= t0:
+            t1 += 2 * math.pi
+        closed = abs((t1 - t0) - 2 * math.pi) <= 1e-9
+        if closed:
+            t1 = t0 + 2 * math.pi
+        return [EllipseArc(_xy(e.dxf.center), _xy(e.dxf.major_axis), _xy(e.minor_axis), t0, t1)], \
+            closed
+    if kind == "LWPOLYLINE":
+        _check_flat(e, ctx)
+        point, vector = _ocs_map(e)
+        elev = float(e.dxf.get("elevation", 0.0))
+        pts = [(x, y, b) for x, y, b in e.get_points("xyb")]
+        return _polyline_prims([(x, y, b) for x, y, b in pts], bool(e.closed),
+                               lambda p: point((p[0], p[1], elev)), vector)
+    if kind == "POLYLINE":
+        if e.is_polygon_mesh or e.is_poly_face_mesh:
+            return [], False
+        verts = [v for v in e.vertices if not (int(v.dxf.get("flags", 0)) & 16)]
+        if e.is_2d_polyline:
+            _check_flat(e, ctx)
+            point, vector = _ocs_map(e)
+            pts = [(v.dxf.location[0], v.dxf.location[1], float(v.dxf.get("bulge", 0.0)))
+                   for v in verts]
+            return _polyline_prims(pts, bool(e.is_closed), point, vector)
+        pts = [(v.dxf.location[0], v.dxf.location[1], 0.0) for v in verts]
+        zs = [float(v.dxf.location[2]) for v in verts]
+        if zs and max(zs) - min(zs) > 1e-9 * (1.0 + max(abs(z) for z in zs)):
+            raise InputError(f"{ctx.where}: 3D POLYLINE {e.dxf.handle} is not flat in z; "
+                             "pattern pieces are 2D")
+        return _polyline_prims(pts, bool(e.is_closed), lambda p: _xy(p), lambda v: _xy(v))
+    if kind == "SPLINE":
+        try:
+            bs = e.construction_tool()
+        except Exception as exc:                      # ezdxf raises several types
+            raise InputError(f"{ctx.where}: SPLINE {e.dxf.handle} cannot be evaluated ({exc})") from None
+        if not len(e.control_points) and len(e.fit_points):
+            ctx.notes.append("a spline given by fit points was interpolated by ezdxf")
+        ctrl = np.array([[float(p[0]), float(p[1]), float(p[2])] for p in bs.control_points])
+        if len(ctrl) and np.ptp(ctrl[:, 2]) > 1e-9 * (1.0 + np.abs(ctrl[:, 2]).max()):
+            raise InputError(f"{ctx.where}: SPLINE {e.dxf.handle} is not flat in z; pattern "
+                             "pieces are 2D")
+        weights = list(bs.weights()) if bs.is_rational else None
+        prims: list[Primitive] = bspline_to_beziers(bs.degree, list(bs.knots()), ctrl[:, :2],
+                                                    weights)
+        closed = bool(prims) and np.allclose(prims[0].start, prims[-1].end, rtol=0.0,
+                                             atol=1e-12 * (1.0 + np.abs(ctrl[:, :2]).max()))
+        return prims, closed
+    return [], False
+
+
+def _reverse(p: Primitive) -> Primitive:
+    if isinstance(p, Bezier):
+        return Bezier(p.ctrl[::-1].copy(), None if p.weights is None else p.weights[::-1].copy())
+    return EllipseArc(p.center, p.a, p.b, p.t1, p.t0, p.end_point, p.start_point)
+
+
+def _chain(pieces: list[list[Primitive]], tol: float) -> tuple[list[list[Primitive]], int]:
+    """Join open chains end to end; the closed loops and the number of chains left open."""
+    open_ = [list(p) for p in pieces if p]
+    loops: list[list[Primitive]] = []
+    left_open = 0
+    while open_:
+        chain = open_.pop(0)
+        while True:
+            start, end = chain[0].start, chain[-1].end
+            if len(chain) > 1 and np.linalg.norm(end - start) <= tol:
+                loops.append(chain)
+                break
+            best, best_d, flip = -1, tol, False
+            for k, other in enumerate(open_):
+                d0 = float(np.linalg.norm(other[0].start - end))
+                d1 = float(np.linalg.norm(other[-1].end - end))
+                if d0 <= best_d:
+                    best, best_d, flip = k, d0, False
+                if d1 <= best_d and d1 < d0:
+                    best, best_d, flip = k, d1, True
+            if best < 0:
+                if np.linalg.norm(end - start) <= tol:
+                    loops.append(chain)
+                else:
+                    left_open += 1
+                break
+            nxt = open_.pop(best)
+            chain += [_reverse(p) for p in reversed(nxt)] if flip else nxt
+    return loops, left_open
+
+
+def _scale(prims: list[Primitive], s: float) -> list[Primitive]:
+    out: list[Primitive] = []
+    for p in prims:
+        if isinstance(p, Bezier):
+            out.append(Bezier(p.ctrl * s, p.weights))
+        else:
+            out.append(EllipseArc(p.center * s, p.a * s, p.b * s, p.t0, p.t1,
+                                  None if p.start_point is None else p.start_point * s,
+                                  None if p.end_point is None else p.end_point * s))
+    return out
+
+
+def _texts(entities: Iterable[Any]) -> dict[str, str]:
+    """``key -> value`` of ``TEXT``/``MTEXT`` entities written ``Key: value`` (keys lower case)."""
+    out: dict[str, str] = {}
+    for e in entities:
+        kind = e.dxftype()
+        if kind == "TEXT":
+            text = str(e.dxf.get("text", ""))
+        elif kind == "MTEXT":
+            text = e.plain_text() if hasattr(e, "plain_text") else str(e.text)
+        else:
+            continue
+        m = _KEY.match(text)
+        if m:
+            out.setdefault(m.group(1).strip().lower(), m.group(2).strip())
+    return out
+
+
+def _units(doc: Any, texts: dict[str, str], units: str | None, where: str) -> tuple[float, str, str]:
+    """(mm per drawing unit, unit name, how it was found)."""
+    if units is not None:
+        return unit_to_mm(units, what="--units"), units, f"{units} (given)"
+    stated = texts.get("units")
+    if stated:
+        key = stated.strip().upper()
+        if key == "METRIC":
+            return 1.0, "mm", "Units: METRIC (millimetres)"
+        if key == "ENGLISH":
+            return UNITS["in"], "in", "Units: ENGLISH (inches)"
+        raise InputError(f"{where}: unknown units {stated!r} in the AAMA/ASTM text 'Units:' (known: "
+                         "METRIC, ENGLISH); give the units with --units")
+    code = int(doc.header.get("$INSUNITS", 0) or 0)
+    if code in INSUNITS:
+        name = INSUNITS[code]
+        return UNITS[name], name, f"$INSUNITS {code} ({name})"
+    what = _INSUNITS_NAMES.get(code, "an unknown code")
+    raise InputError(f"{where}: the DXF does not give usable units ($INSUNITS is {code}, {what}); "
+                     "give them with --units (mm, cm, in, ...)")
+
+
+def _is_piece_block(block: Any) -> bool:
+    if block.is_any_layout or block.name.startswith("*"):
+        return False
+    return any(e.dxf.get("layer", "") == "1" and e.dxftype() in _CURVES for e in block)
+
+
+def _loop_area(prims: list[Primitive]) -> float:
+    pts = np.concatenate([p.points(np.linspace(0, 1, 9)) if isinstance(p, Bezier)
+                          else p.points(np.linspace(p.t0, p.t1, 9)) for p in prims])
+    q = np.roll(pts, -1, axis=0)
+    return abs(0.5 * float((pts[:, 0] * q[:, 1] - pts[:, 1] * q[:, 0]).sum()))
+
+
+def _extent(prims_list: list[list[Primitive]]) -> float:
+    pts = [np.array([p.start, p.end]) for prims in prims_list for p in prims]
+    if not pts:
+        return 0.0
+    allp = np.concatenate(pts)
+    return float(np.hypot(*np.ptp(allp, axis=0)))
+
+
+def _unique(name: str, used: dict[str, int]) -> str:
+    if name not in used:
+        used[name] = 1
+        return name
+    used[name] += 1
+    return _unique(f"{name}-{used[name]}", used)
+
+
+def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[Piece]:
+    msp = doc.modelspace()
+    blocks = {b.name: b for b in doc.blocks if _is_piece_block(b)}
+    texts = _texts(msp)
+    for b in blocks.values():
+        for k, v in _texts(b).items():
+            if k == "units":
+                texts.setdefault(k, v)
+    scale, unit, how = _units(doc, texts, units, ctx.where)
+    inserts = [e for e in msp.query("INSERT") if e.dxf.name in blocks]
+    jobs: list[tuple[str, list[Any], dict[str, str], str | None]] = []
+    inserted = {e.dxf.name for e in inserts}
+    for ins in inserts:
+        try:
+            ents = list(ins.virtual_entities())
+        except Exception as exc:                      # ezdxf raises several types
+            raise InputError(f"{ctx.where}: cannot place block {ins.dxf.name!r} ({exc})") from None
+        jobs.append((ins.dxf.name, ents, _texts(blocks[ins.dxf.name]), ins.dxf.handle))
+    for name, b in blocks.items():
+        if name not in inserted:
+            jobs.append((name, list(b), _texts(b), None))
+    names = [(t.get("piece name") or bname) for bname, _, t, _ in jobs]
+    dup = {n for n in names if names.count(n) > 1}
+    used: dict[str, int] = {}
+    pieces: list[Piece] = []
+    for (bname, ents, t, handle), pname in zip(jobs, names):
+        where = f"{ctx.where}: block {bname!r}"
+        notes: list[str] = [f"units: {how}"]
+        size = t.get("size")
+        if pname in dup and size:
+            pname = f"{pname}_{size}"
+        pname = _unique(pname, used)
+        chains, closed = [], []
+        for e in ents:
+            if e.dxf.get("layer", "") != "1" or e.dxftype() not in _CURVES:
+                continue
+            prims, is_closed = _entity_prims(e, ctx)
+            if prims:
+                (closed if is_closed else chains).append(prims)
+        tol = 1e-6 * _extent(chains + closed)
+        loops, left_open = _chain(chains, tol)
+        if not loops and not closed and chains:
+            # the standard's boundary is closed by definition: close the gap with a line
+            joined, _ = _chain(chains, float("inf"))
+            if joined:
+                chain = joined[0]
+                chain.append(Bezier(np.array([chain[-1].end, chain[0].start])))
+                loops, left_open = [chain], 0
+                notes.append("the open boundary was closed with a straight segment")
+        loops += closed
+        if not loops:
+            raise InputError(f"{where}: no closed boundary on layer 1")
+        if len(loops) > 1:
+            notes.append(f"{len(loops) - 1} smaller closed loop(s) on layer 1 were ignored")
+        boundary = max(loops, key=_loop_area)
+        turn = [_xy(e.dxf.location) * scale for e in ents
+                if e.dxftype() == "POINT" and e.dxf.get("layer", "") == "2"]
+        grain = None
+        for e in ents:
+            if e.dxftype() == "LINE" and e.dxf.get("layer", "") == "7":
+                grain = np.array([_xy(e.dxf.start), _xy(e.dxf.end)]) * scale
+                break
+        meta = {"block": bname, "insert": handle, "size": size,
+                **{k: v for k, v in t.items() if k in ("quantity", "material", "category",
+                                                       "annotation")}}
+        pieces.append(piece_from_primitives(
+            pname, _scale(boundary, scale), rel_tol=rel_tol, turn_points=turn,
+            where=f"{ctx.where}: ", grain_line=grain, units=unit, source="aama-dxf",
+            notes=tuple(notes + ctx.notes), meta=meta))
+    return pieces
+
+
+def _flatten(entities: Iterable[Any], ctx: _Ctx, depth: int = 0) -> Iterable[Any]:
+    for e in entities:
+        if e.dxftype() == "INSERT":
+            if depth > 16:
+                raise InputError(f"{ctx.where}: blocks nested more than 16 deep")
+            try:
+                yield from _flatten(e.virtual_entities(), ctx, depth + 1)
+            except InputError:
+                raise
+            except Exception as exc:                  # ezdxf raises several types
+                raise InputError(f"{ctx.where}: cannot place block {e.dxf.name!r} ({exc})") from None
+        elif e.dxftype() in _CURVES:
+            yield e
+
+
+def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[Piece]:
+    msp = doc.modelspace()
+    scale, unit, how = _units(doc, {}, units, ctx.where)
+    closed: list[tuple[list[Primitive], Any]] = []
+    chains: list[list[Primitive]] = []
+    for e in _flatten(msp, ctx):
+        prims, is_closed = _entity_prims(e, ctx)
+        if not prims:
+            continue
+        if is_closed:
+            closed.append((prims, e))
+        else:
+            chains.append(prims)
+    tol = 1e-6 * _extent([p for p, _ in closed] + chains)
+    loops, left_open = _chain(chains, tol)
+    if not closed and not loops:
+        extra = (f" ({left_open} open chain{'s' if left_open != 1 else ''} of lines and curves "
+                 "did not close)" if left_open else "")
+        raise InputError(f"{ctx.where}: no closed polyline, spline, circle or chain of lines "
+                         f"and arcs found, so no pattern piece{extra}")
+    notes = [f"units: {how}"]
+    if left_open:
+        notes.append(f"{left_open} open chain(s) of lines and curves were ignored")
+    pieces: list[Piece] = []
+    used: dict[str, int] = {}
+    items = [(p, {"layer": e.dxf.get("layer", ""), "handle": e.dxf.handle, "entity": e.dxftype()})
+             for p, e in closed] + [(p, {"entity": "chain"}) for p in loops]
+    for k, (prims, meta) in enumerate(items, start=1):
+        pieces.append(piece_from_primitives(
+            _unique(f"piece{k}", used), _scale(prims, scale), rel_tol=rel_tol,
+            where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + ctx.notes),
+            meta=meta))
+    return pieces
+
+
+def read_dxf(path: str | Path, *, units: str | None = None,
+             rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
+    """Read the pattern pieces of a DXF file (AAMA/ASTM or plain), in millimetres.
+
+    Parameters
+    ----------
+    path : str or Path
+        The DXF file.
+    units : str, optional
+        Read the coordinates in these units, whatever the file says.
+    rel_tol : float
+        Chord tolerance relative to each piece's size (default ``1e-7``).
+
+    Raises
+    ------
+    InputError
+        Not a DXF, a malformed or truncated DXF, no units, no closed boundary,
+        a piece with fewer than 4 points, or curves outside the xy-plane.
+    """
+    import ezdxf
+    from ezdxf.lldxf.const import DXFError
+
+    path = Path(path)
+    ctx = _Ctx(str(path))
+    try:
+        doc = ezdxf.readfile(str(path))
+    except DXFError as exc:
+        raise InputError(f"{path}: not a valid DXF file (truncated?): {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not a valid DXF file ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: {exc.strerror or exc}") from None
+    if any(_is_piece_block(b) for b in doc.blocks):
+        return _read_aama(doc, ctx, units, rel_tol)
+    return _read_plain(doc, ctx, units, rel_tol)

@@ -1,0 +1,290 @@
+"""Read pattern pieces from GarmentCode's pattern specification JSON.
+
+The format of GarmentCode and its predecessor Garment-Pattern-Generator
+(``*_specification.json``)::
+
+    {"pattern": {"panels": {"front": {"vertices": [[x, y], ...],
+                                      "edges": [{"endpoints": [0, 1]},
+                                                {"endpoints": [1, 2],
+                                                 "curvature": {"type": "cubic",
+                                                               "params": [[0.3, 0.1], [0.7, 0.1]]}},
+                                                ...],
+                                      "translation": [x, y, z], "rotation": [rx, ry, rz]},
+                            ...},
+                 "stitches": [...]},
+     "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}
+
+Every panel is a piece, named by its key, its edges forming one closed loop
+(in any order; each edge may run either way). Edge curvature:
+
+- absent: a straight edge;
+- ``{"type": "quadratic", "params": [[u, v]]}`` or the legacy ``[u, v]``: a
+  quadratic Bézier with that control point;
+- ``{"type": "cubic", "params": [[u1, v1], [u2, v2]]}``: a cubic Bézier;
+- ``{"type": "circle", "params": [radius, large_arc, right]}``: a circular arc
+  as in SVG (``right`` is the sweep flag in the panel's y-up frame: the arc
+  bulges to the right of the edge's direction when it is the short arc).
+
+With ``"curvature_coords": "relative"`` (the default) a control point
+``[u, v]`` is ``start + u (end - start) + v R90 (end - start)``, ``R90`` the
+counter-clockwise quarter turn; with ``"absolute"`` it is a panel point.
+``units_in_meter`` gives the units (100: centimetres, GarmentCode's default
+when missing). The 2D panel outline is read in the panel's own frame;
+``translation`` and ``rotation`` (its 3D placement) are kept in
+:attr:`Piece.meta`. The panel vertices are the piece's turn points.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from .piece import Piece, piece_from_primitives
+from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
+
+__all__ = ["read_garmentcode", "is_garmentcode"]
+
+
+def is_garmentcode(data: Any) -> bool:
+    """Does parsed JSON look like a GarmentCode pattern (a ``pattern`` with ``panels``)?"""
+    return isinstance(data, dict) and isinstance(data.get("pattern"), dict) \
+        and "panels" in data["pattern"]
+
+
+def _point(v: Any, what: str) -> np.ndarray:
+    try:
+        p = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be a point [x, y], not {v!r}") from None
+    if p.shape != (2,) or not np.isfinite(p).all():
+        raise InputError(f"{what} must be a finite point [x, y], not {v!r}")
+    return p
+
+
+def _rel_to_abs(a: np.ndarray, b: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    d = b - a
+    return a + uv[0] * d + uv[1] * np.array([-d[1], d[0]])
+
+
+def _circle(a: np.ndarray, b: np.ndarray, params: Any, what: str) -> Primitive:
+    if not isinstance(params, (list, tuple)) or len(params) != 3:
+        raise InputError(f"{what}: circle params must be [radius, large_arc, right], not {params!r}")
+    try:
+        r = float(params[0])
+    except (TypeError, ValueError):
+        raise InputError(f"{what}: the circle radius must be a number, not {params[0]!r}") from None
+    large, sweep = bool(params[1]), bool(params[2])
+    chord = float(np.hypot(*(b - a)))
+    if not (math.isfinite(r) and r > 0) or chord == 0:
+        raise InputError(f"{what}: a circle edge needs a positive radius and distinct end points")
+    r = max(r, chord / 2)                         # SVG rule: too small a radius is scaled up
+    # SVG arc centre parametrisation (F.6.5) with rx = ry = r, no rotation
+    mid = 0.5 * (a + b)
+    half = 0.5 * (a - b)
+    h = math.sqrt(max(r * r - half @ half, 0.0)) / math.sqrt(half @ half)
+    sign = -1.0 if large == sweep else 1.0
+    c = mid + sign * h * np.array([half[1], -half[0]])
+    t0 = math.atan2(a[1] - c[1], a[0] - c[0])
+    t1 = math.atan2(b[1] - c[1], b[0] - c[0])
+    delta = t1 - t0
+    if sweep and delta < 0:
+        delta += 2 * math.pi
+    elif not sweep and delta > 0:
+        delta -= 2 * math.pi
+    return EllipseArc(c, np.array([r, 0.0]), np.array([0.0, r]), t0, t0 + delta,
+                      start_point=a, end_point=b)
+
+
+def _edge(a: np.ndarray, b: np.ndarray, curv: Any, absolute: bool, what: str) -> Primitive:
+    if curv is None:
+        return Bezier(np.array([a, b]))
+
+    def ctrl(p: Any, k: int) -> np.ndarray:
+        q = _point(p, f"{what}: control point {k}")
+        return q if absolute else _rel_to_abs(a, b, q)
+
+    if isinstance(curv, list):                    # legacy: one quadratic control point
+        return Bezier(np.array([a, ctrl(curv, 0), b]))
+    if not isinstance(curv, dict):
+        raise InputError(f"{what}: 'curvature' must be an object or [x, y], not {curv!r}")
+    kind, params = curv.get("type"), curv.get("params")
+    if kind == "quadratic":
+        if not isinstance(params, list) or len(params) != 1:
+            raise InputError(f"{what}: quadratic params must be one control point [[x, y]]")
+        return Bezier(np.array([a, ctrl(params[0], 0), b]))
+    if kind == "cubic":
+        if not isinstance(params, list) or len(params) != 2:
+            raise InputError(f"{what}: cubic params must be two control points [[x, y], [x, y]]")
+        return Bezier(np.array([a, ctrl(params[0], 0), ctrl(params[1], 1), b]))
+    if kind == "circle":
+        return _circle(a, b, params, what)
+    raise InputError(f"{what}: unknown curvature type {kind!r} (known: quadratic, cubic, circle)")
+
+
+def _loop(edges: list[Any], nverts: int, what: str) -> list[tuple[int, int, Any, bool]]:
+    """Order the edges into one loop: ``(start, end, edge, reversed)``."""
+    items = []
+    for k, e in enumerate(edges):
+        if not isinstance(e, dict) or "endpoints" not in e:
+            raise InputError(f"{what}: edge {k} must be an object with 'endpoints'")
+        ep = e["endpoints"]
+        if not isinstance(ep, list) or len(ep) != 2 or not all(
+                isinstance(i, int) and not isinstance(i, bool) for i in ep):
+            raise InputError(f"{what}: edge {k} 'endpoints' must be two vertex indices, not {ep!r}")
+        if not all(0 <= i < nverts for i in ep) or ep[0] == ep[1]:
+            raise InputError(f"{what}: edge {k} endpoints {ep} must be two different indices "
+                             f"in 0..{nverts - 1}")
+        items.append((ep[0], ep[1], e))
+    loop = [(items[0][0], items[0][1], items[0][2], False)]
+    unused = list(range(1, len(items)))
+    while unused:
+        cur = loop[-1][1]
+        for pos, k in enumerate(unused):
+            s, t, e = items[k]
+            if s == cur:
+                loop.append((s, t, e, False))
+                break
+            if t == cur:
+                loop.append((t, s, e, True))
+                break
+        else:
+            raise InputError(f"{what}: the edges do not form one closed loop (no edge continues "
+                             f"from vertex {cur})")
+        unused.pop(pos)
+    if loop[-1][1] != loop[0][0]:
+        raise InputError(f"{what}: the edges do not close: the loop ends at vertex "
+                         f"{loop[-1][1]}, not at its start {loop[0][0]}")
+    return loop
+
+
+def _reverse_curvature(curv: Any) -> Any:
+    """The curvature of the same edge run from end to start (relative coordinates)."""
+    if curv is None:
+        return None
+    if isinstance(curv, list):
+        return [1.0 - curv[0], -curv[1]] if len(curv) == 2 else curv
+    if isinstance(curv, dict):
+        kind, params = curv.get("type"), curv.get("params")
+        if kind in ("quadratic", "cubic") and isinstance(params, list):
+            rev = [[1.0 - p[0], -p[1]] if isinstance(p, list) and len(p) == 2 else p
+                   for p in params]
+            return {**curv, "params": rev[::-1]}
+        if kind == "circle" and isinstance(params, list) and len(params) == 3:
+            return {**curv, "params": [params[0], params[1], not bool(params[2])]}
+    return curv
+
+
+def read_garmentcode(path: str | Path, *, units: str | None = None,
+                     rel_tol: float = DEFAULT_REL_TOL, data: Any = None) -> list[Piece]:
+    """Read every panel of a GarmentCode pattern JSON as a :class:`Piece` (mm).
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON file.
+    units : str, optional
+        Read the coordinates in these units instead of ``units_in_meter``.
+    rel_tol : float
+        Chord tolerance relative to each piece's size (default ``1e-7``).
+    data : object, optional
+        The already parsed JSON (the file is then not read again).
+
+    Raises
+    ------
+    InputError
+        Invalid JSON, no panels, a malformed panel or edge, edges that do not
+        form a loop, bad units, or a panel with fewer than 4 outline points.
+    """
+    from .units import unit_to_mm
+
+    path = Path(path)
+    where = str(path)
+    if data is None:
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{where}: not a UTF-8 text file ({exc})") from None
+        except OSError as exc:
+            raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{where}: invalid JSON at line {exc.lineno}, column {exc.colno}: "
+                             f"{exc.msg}") from None
+    if not is_garmentcode(data):
+        raise InputError(f"{where}: not a GarmentCode pattern (expected {{\"pattern\": "
+                         "{\"panels\": {...}}}})")
+    props = data.get("properties") or {}
+    if not isinstance(props, dict):
+        raise InputError(f"{where}: 'properties' must be an object")
+    notes: list[str] = []
+    if units is not None:
+        scale, unit = unit_to_mm(units, what="--units"), units
+        notes.append(f"units: {units} (given)")
+    else:
+        uim = props.get("units_in_meter")
+        if uim is None:
+            uim = 100
+            notes.append("units: centimetres (no units_in_meter: GarmentCode's default)")
+        else:
+            notes.append(f"units: units_in_meter {uim}")
+        if isinstance(uim, bool) or not isinstance(uim, (int, float)) or not (
+                math.isfinite(uim) and uim > 0):
+            raise InputError(f"{where}: properties.units_in_meter must be a positive number, "
+                             f"not {uim!r}")
+        scale = 1000.0 / float(uim)
+        unit = {1000: "mm", 100: "cm", 10: "dm", 1: "m"}.get(float(uim), f"1/{uim:g} m")
+    coords = props.get("curvature_coords", "relative")
+    if coords not in ("relative", "absolute"):
+        raise InputError(f"{where}: properties.curvature_coords must be 'relative' or "
+                         f"'absolute', not {coords!r}")
+    panels = data["pattern"]["panels"]
+    if not isinstance(panels, dict) or not panels:
+        raise InputError(f"{where}: the pattern has no panels")
+    order = data["pattern"].get("panel_order")
+    names = [n for n in order if n in panels] if isinstance(order, list) else []
+    names += [n for n in panels if n not in names]
+    pieces: list[Piece] = []
+    for name in names:
+        panel = panels[name]
+        what = f"{where}: panel {name!r}"
+        if panel is None:
+            continue
+        if not isinstance(panel, dict):
+            raise InputError(f"{what} must be an object with 'vertices' and 'edges'")
+        verts = panel.get("vertices")
+        edges = panel.get("edges")
+        if not isinstance(verts, list) or not isinstance(edges, list) or not edges:
+            raise InputError(f"{what} needs a list of 'vertices' and a non-empty list of 'edges'")
+        V = np.array([_point(v, f"{what}: vertex {k}") for k, v in enumerate(verts)]) \
+            if verts else np.zeros((0, 2))
+        prims: list[Primitive] = []
+        for s, t, e, rev in _loop(edges, len(V), what):
+            curv = e.get("curvature")
+            if rev:
+                if coords == "relative":
+                    curv = _reverse_curvature(curv)
+                elif isinstance(curv, dict) and curv.get("type") in ("quadratic", "cubic"):
+                    curv = {**curv, "params": list(curv.get("params") or [])[::-1]}
+                elif isinstance(curv, dict) and curv.get("type") == "circle":
+                    curv = _reverse_curvature(curv)
+            prims.append(_edge(V[s], V[t], curv, coords == "absolute",
+                               f"{what}: edge {e.get('endpoints')}"))
+        prims_mm = []
+        for p in prims:
+            if isinstance(p, Bezier):
+                prims_mm.append(Bezier(p.ctrl * scale))
+            else:
+                prims_mm.append(EllipseArc(p.center * scale, p.a * scale, p.b * scale, p.t0, p.t1,
+                                           p.start_point * scale, p.end_point * scale))
+        corner_pts = [V[s] * scale for s, *_ in _loop(edges, len(V), what)]
+        meta = {k: panel[k] for k in ("translation", "rotation") if k in panel}
+        pieces.append(piece_from_primitives(
+            str(name), prims_mm, rel_tol=rel_tol, turn_points=corner_pts, where=f"{where}: ",
+            units=unit, source="garmentcode", notes=tuple(notes), meta=meta))
+    if not pieces:
+        raise InputError(f"{where}: the pattern has no panels")
+    return pieces

@@ -1,0 +1,187 @@
+"""A pattern piece read from a pattern file: :class:`Piece`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
+
+__all__ = ["Piece", "piece_from_primitives", "piece_from_polygon"]
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Piece:
+    """One pattern piece: a closed outline in millimetres, with what the file says about it.
+
+    Attributes
+    ----------
+    name : str
+        The piece's name (SVG label or id, AAMA ``Piece Name``, GarmentCode panel
+        name, else ``piece1``, ``piece2``, ...).
+    outline : numpy.ndarray
+        ``(N, 2)`` float64 points in millimetres, counter-clockwise (y up), the
+        first point not repeated. Curves are sampled so that every chord lies
+        within :attr:`tolerance` of the true curve; all points lie on it.
+    vertices : numpy.ndarray
+        Sorted indices into :attr:`outline` of the source's own vertices (path
+        segment end points, polyline vertices, panel vertices), kept exactly.
+    turn_points : numpy.ndarray
+        Sorted indices into :attr:`outline` of the corners the file marks itself
+        (AAMA/ASTM layer 2 turn points, GarmentCode panel vertices); empty if the
+        format has none (SVG, plain DXF).
+    grain_line : numpy.ndarray or None
+        ``(2, 2)`` end points of the grain line in millimetres (AAMA layer 7).
+    units : str
+        The units of the file's coordinates (``"mm"``, ``"in"``, ``"px"``, ...);
+        :attr:`outline` is converted to millimetres whatever they are.
+    source : str
+        The reader: ``"svg"``, ``"dxf"``, ``"aama-dxf"`` or ``"garmentcode"``.
+    tolerance : float
+        Bound on the distance of any outline chord from the true curve (mm).
+    notes : tuple of str
+        What the reader assumed or changed (default units, closed a gap, ...).
+    meta : dict
+        Format-specific extras (SVG element id, DXF layer and handle, AAMA size,
+        GarmentCode translation and rotation).
+    """
+
+    name: str
+    outline: np.ndarray
+    vertices: np.ndarray
+    turn_points: np.ndarray
+    grain_line: np.ndarray | None = None
+    units: str = "mm"
+    source: str = ""
+    tolerance: float = 0.0
+    notes: tuple[str, ...] = ()
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def size(self) -> float:
+        """Bounding-box diagonal of the outline (mm)."""
+        return float(np.linalg.norm(self.outline.max(axis=0) - self.outline.min(axis=0)))
+
+    @property
+    def extent(self) -> tuple[float, float]:
+        """Width and height of the outline's bounding box (mm)."""
+        w, h = self.outline.max(axis=0) - self.outline.min(axis=0)
+        return float(w), float(h)
+
+    @property
+    def perimeter(self) -> float:
+        """Length of the closed outline (mm)."""
+        d = np.diff(np.vstack([self.outline, self.outline[:1]]), axis=0)
+        return float(np.hypot(d[:, 0], d[:, 1]).sum())
+
+    @property
+    def area(self) -> float:
+        """Enclosed area (mm², positive: the outline is counter-clockwise)."""
+        return _signed_area(self.outline)
+
+    def __repr__(self) -> str:
+        w, h = self.extent
+        return (f"Piece({self.name!r}, {w:.6g} x {h:.6g} mm, {len(self.outline)} points, "
+                f"{len(self.turn_points)} turn points, source={self.source!r})")
+
+
+def _signed_area(p: np.ndarray) -> float:
+    q = np.roll(p, -1, axis=0)
+    return 0.5 * float((p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]).sum())
+
+
+def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | None = None,
+                       turn_points: np.ndarray | None = None, where: str = "",
+                       **kwargs: Any) -> Piece:
+    """Validate and orient a closed outline (mm) and build a :class:`Piece`.
+
+    Consecutive duplicate points (and a last point equal to the first) are
+    dropped, the outline is made counter-clockwise, and ``vertices`` /
+    ``turn_points`` (indices into ``points``) are carried along.
+
+    Raises
+    ------
+    InputError
+        Non-finite coordinates, fewer than 4 distinct points, or zero area.
+    """
+    label = f"{where}piece {name!r}"
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2 or not np.isfinite(pts).all():
+        raise InputError(f"{label} has a non-finite or malformed coordinate")
+    n0 = len(pts)
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) if n0 else 0.0
+    eps = 1e-12 * size
+    # drop points equal to their predecessor (cyclically), remembering where each went
+    if n0:
+        gap = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1)
+        keep = gap > eps
+        if not keep.any():
+            keep[0] = True
+    else:
+        keep = np.zeros(0, bool)
+    new_index = np.cumsum(keep) - 1           # index of the kept point each point merged into
+    new_index = np.where(new_index < 0, int(keep.sum()) - 1, new_index)
+    pts = pts[keep]
+    n = len(pts)
+    if n < 4:
+        raise InputError(f"{label} has only {n} distinct point{'s' if n != 1 else ''}; a piece "
+                         "needs at least 4 (one per grid corner): add a point where the fourth "
+                         "corner should be")
+
+    def remap(idx: np.ndarray | None) -> np.ndarray:
+        if idx is None or len(idx) == 0:
+            return np.zeros(0, dtype=np.int64)
+        return np.unique(new_index[np.asarray(idx, dtype=np.int64) % n0])
+
+    verts, turns = remap(vertices), remap(turn_points)
+    area = _signed_area(pts)
+    if not abs(area) > 1e-12 * size * size:
+        raise InputError(f"{label} encloses no area (its outline runs back over itself)")
+    if area < 0:                              # make it counter-clockwise, keeping point 0
+        pts = np.roll(pts[::-1], 1, axis=0)
+        verts, turns = np.unique((n - verts) % n), np.unique((n - turns) % n)
+    return Piece(name=name, outline=np.ascontiguousarray(pts), vertices=verts,
+                 turn_points=turns, **kwargs)
+
+
+def piece_from_primitives(name: str, prims: list[Primitive], *, rel_tol: float = DEFAULT_REL_TOL,
+                          turn_points: list[np.ndarray] | None = None, where: str = "",
+                          **kwargs: Any) -> Piece:
+    """Sample a closed chain of curves (mm) into a :class:`Piece`.
+
+    Parameters
+    ----------
+    name : str
+        The piece's name.
+    prims : list of Bezier or EllipseArc
+        The closed chain (each primitive starts where the previous ends).
+    rel_tol : float
+        Chord tolerance relative to the piece's size (default ``1e-7``).
+    turn_points : list of (2,) arrays, optional
+        Points the file marks as corners; each is snapped to the nearest
+        outline point (and must be within ``1e-6`` of the size of it).
+    where : str
+        Prefix for messages (the file name).
+    """
+    if not prims:
+        raise InputError(f"{where}piece {name!r} has no curves")
+    size = loop_extent(prims)
+    if not size > 0:
+        raise InputError(f"{where}piece {name!r} has zero size")
+    tol = rel_tol * size
+    outline, starts = sample_loop(prims, tol)
+    turns = None
+    notes = list(kwargs.pop("notes", ()))
+    if turn_points:
+        tp = np.asarray(turn_points, dtype=np.float64).reshape(-1, 2)
+        d = np.linalg.norm(outline[None, :, :] - tp[:, None, :], axis=2)
+        nearest = d.argmin(axis=1)
+        ok = d[np.arange(len(tp)), nearest] <= 1e-6 * size
+        if not ok.all():
+            notes.append(f"{int((~ok).sum())} turn point(s) not on the outline were ignored")
+        turns = nearest[ok]
+    return piece_from_polygon(name, outline, vertices=starts, turn_points=turns, where=where,
+                              tolerance=tol, notes=tuple(notes), **kwargs)

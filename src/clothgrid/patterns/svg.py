@@ -1,0 +1,354 @@
+"""Read pattern pieces from an SVG file: every closed (sub)path is a piece.
+
+Paths (``<path>``) and the basic shapes ``<rect>``, ``<circle>``, ``<ellipse>``,
+``<polygon>`` and closed ``<polyline>`` are read, with the ``transform`` of
+every element and its groups; ``<defs>``, ``<symbol>``, ``<clipPath>``,
+``<mask>``, ``<marker>``, ``<pattern>`` and elements with ``display="none"``
+are skipped, and ``<use>`` is not followed. A subpath is closed when it ends
+with ``Z`` or at its start point; open ones (grain lines, notches) are
+ignored. Path data is parsed by svgpathtools; lines, quadratic and cubic
+Béziers and elliptical arcs are then sampled exactly (see
+:mod:`clothgrid.patterns.sampling`).
+
+Units: the outermost ``<svg>``'s ``width`` and ``height`` (``mm``, ``cm``,
+``in``, ``pt``, ``pc``, ``px`` at 96 per inch, ``Q``, or no unit = ``px``) and
+its ``viewBox`` (with ``preserveAspectRatio``) give the size of a user unit.
+Without an absolute ``width``/``height`` a user unit is a CSS pixel (1/96
+in), unless ``units`` says otherwise. Other units (``em``, ``ex``, ...) are an
+error. The y axis is flipped (SVG's points down): pieces keep their drawn
+shape, with the origin at the bottom-left of the page.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .piece import Piece, piece_from_primitives
+from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
+from .units import UNITS, unit_to_mm
+
+__all__ = ["read_svg"]
+
+_SVG_NS = "http://www.w3.org/2000/svg"
+_INKSCAPE_LABEL = "{http://www.inkscape.org/namespaces/inkscape}label"
+_SKIP = {"defs", "symbol", "clipPath", "mask", "marker", "pattern", "metadata", "title", "desc",
+         "style", "script", "linearGradient", "radialGradient", "filter", "text", "foreignObject",
+         "namedview"}
+_SHAPES = {"path", "rect", "circle", "ellipse", "polygon", "polyline"}
+_PATH_CHARS = re.compile(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]*")
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_CSS_LENGTH = re.compile(r"\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%]*)\s*")
+
+
+def _local(tag: str) -> str:
+    return tag.rsplit("}", 1)[-1] if isinstance(tag, str) else ""
+
+
+def _css_length(text: str | None, what: str, where: str) -> tuple[float, str] | None:
+    """``(value, unit)`` of an SVG length; None if absent or a percentage."""
+    if text is None or not text.strip():
+        return None
+    m = _CSS_LENGTH.fullmatch(text)
+    if m is None:
+        raise InputError(f"{where}: invalid {what} {text!r} on the <svg> element")
+    value, unit = float(m.group(1)), m.group(2).lower() or "px"
+    if unit == "%":
+        return None
+    if unit not in UNITS or unit in ("um", "dm", "m", "ft", "yd", "mil"):
+        raise InputError(f"{where}: unknown unit {m.group(2)!r} in the <svg> {what} {text!r}: "
+                         "use mm, cm, in, pt, pc, px or Q (an absolute length)")
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{where}: the <svg> {what} {text!r} must be positive")
+    return value, unit
+
+
+def _numbers(text: str, what: str, where: str) -> list[float]:
+    stripped = re.sub(r"[\s,]+", " ", text).strip()
+    nums = _NUMBER.findall(text)
+    if stripped and re.sub(_NUMBER, "", stripped).replace(" ", ""):
+        raise InputError(f"{where}: invalid {what} {text[:60]!r}")
+    return [float(x) for x in nums]
+
+
+def _viewport(root: ET.Element, where: str, units: str | None) -> tuple[np.ndarray, str, str]:
+    """The 3x3 map from user units to mm with y up; the file's unit and how it was found."""
+    width = _css_length(root.get("width"), "width", where)
+    height = _css_length(root.get("height"), "height", where)
+    vb_text = root.get("viewBox")
+    vb = None
+    if vb_text is not None and vb_text.strip():
+        vals = _numbers(vb_text, "viewBox", where)
+        if len(vals) != 4 or not all(math.isfinite(v) for v in vals) or vals[2] <= 0 or vals[3] <= 0:
+            raise InputError(f"{where}: invalid viewBox {vb_text!r}: expected 4 numbers "
+                             "min-x min-y width height, width and height positive")
+        vb = vals
+    if vb is not None:
+        if width is None and height is not None:
+            width = (height[0] * vb[2] / vb[3], height[1])
+        if height is None and width is not None:
+            height = (width[0] * vb[3] / vb[2], width[1])
+    if width is None or height is None:
+        unit = units or "px"
+        s = unit_to_mm(unit, what="--units")
+        how = (f"user units taken as {unit} (given)" if units else
+               "user units taken as px, 1/96 in (the SVG gives no absolute width and height)")
+        m = np.diag([s, -s, 1.0])
+        if vb is not None:
+            m[1, 2] = s * (vb[1] + vb[3])
+        return m, unit, how
+    w_mm = width[0] * UNITS[width[1]]
+    h_mm = height[0] * UNITS[height[1]]
+    unit = width[1] if width[1] == height[1] else "mm"
+    how = f"from the <svg> width and height ({root.get('width')} x {root.get('height')})"
+    if vb is None:
+        s = UNITS["px"]                        # no viewBox: a user unit is a px
+        return np.array([[s, 0, 0], [0, -s, h_mm], [0, 0, 1.0]]), unit, how
+    sx, sy = w_mm / vb[2], h_mm / vb[3]
+    tx = ty = 0.0
+    par = (root.get("preserveAspectRatio") or "xMidYMid meet").split()
+    par = [p for p in par if p != "defer"] or ["xMidYMid"]
+    align = par[0]
+    if align != "none":
+        s = max(sx, sy) if len(par) > 1 and par[1] == "slice" else min(sx, sy)
+        free_x, free_y = w_mm - vb[2] * s, h_mm - vb[3] * s
+        tx = {"xMin": 0.0, "xMid": 0.5, "xMax": 1.0}.get(align[:4], 0.5) * free_x
+        ty = {"YMin": 0.0, "YMid": 0.5, "YMax": 1.0}.get(align[4:], 0.5) * free_y
+        sx = sy = s
+    # x_mm = tx + (x - vbx) sx;  y_up = h - (ty + (y - vby) sy)
+    m = np.array([[sx, 0.0, tx - vb[0] * sx],
+                  [0.0, -sy, h_mm - ty + vb[1] * sy],
+                  [0.0, 0.0, 1.0]])
+    return m, unit, how
+
+
+def _transform(el: ET.Element, where: str) -> np.ndarray:
+    text = el.get("transform")
+    if not text:
+        return np.eye(3)
+    from svgpathtools.parser import parse_transform
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                m = parse_transform(text, strict=True)
+            except TypeError:                         # svgpathtools < 1.7: no strict mode
+                m = parse_transform(text)
+            return np.asarray(m, dtype=np.float64)
+    except (ValueError, TypeError, IndexError) as exc:
+        raise InputError(f"{where}: invalid transform {text!r} on <{_local(el.tag)}> ({exc})") from None
+
+
+def _hidden(el: ET.Element) -> bool:
+    if el.get("display", "").strip() == "none":
+        return True
+    style = el.get("style", "")
+    return bool(re.search(r"(^|;)\s*display\s*:\s*none", style))
+
+
+def _attr(el: ET.Element, name: str, where: str, default: float | None = None) -> float:
+    text = el.get(name)
+    if text is None or not text.strip():
+        if default is None:
+            raise InputError(f"{where}: <{_local(el.tag)}> has no {name}")
+        return default
+    m = _CSS_LENGTH.fullmatch(text)
+    if m is None or (m.group(2) or "px").lower() not in ("px", ""):
+        raise InputError(f"{where}: <{_local(el.tag)}> {name}={text!r}: expected a number in "
+                         "user units")
+    return float(m.group(1))
+
+
+def _shape_d(el: ET.Element, where: str) -> str | None:
+    """Path data of a shape element (None if it draws nothing)."""
+    tag = _local(el.tag)
+    if tag == "path":
+        return el.get("d") or None
+    if tag in ("polygon", "polyline"):
+        nums = _numbers(el.get("points", ""), "points", where)
+        if len(nums) % 2:
+            raise InputError(f"{where}: <{tag}> has an odd number of coordinates in 'points'")
+        pts = list(zip(nums[::2], nums[1::2]))
+        if len(pts) < 2:
+            return None
+        d = "M" + " L".join(f"{x!r},{y!r}" for x, y in pts)
+        return d + (" Z" if tag == "polygon" else "")
+    if tag == "rect":
+        x, y = _attr(el, "x", where, 0.0), _attr(el, "y", where, 0.0)
+        w, h = _attr(el, "width", where, 0.0), _attr(el, "height", where, 0.0)
+        if w <= 0 or h <= 0:
+            return None
+        rx_t, ry_t = el.get("rx"), el.get("ry")
+        rx = _attr(el, "rx", where, 0.0) if rx_t not in (None, "auto") else None
+        ry = _attr(el, "ry", where, 0.0) if ry_t not in (None, "auto") else None
+        rx, ry = (rx if rx is not None else ry or 0.0), (ry if ry is not None else rx or 0.0)
+        rx, ry = min(max(rx, 0.0), w / 2), min(max(ry, 0.0), h / 2)
+        if rx == 0 or ry == 0:
+            return f"M{x!r},{y!r} H{x + w!r} V{y + h!r} H{x!r} Z"
+        return (f"M{x + rx!r},{y!r} H{x + w - rx!r} A{rx!r},{ry!r} 0 0 1 {x + w!r},{y + ry!r} "
+                f"V{y + h - ry!r} A{rx!r},{ry!r} 0 0 1 {x + w - rx!r},{y + h!r} H{x + rx!r} "
+                f"A{rx!r},{ry!r} 0 0 1 {x!r},{y + h - ry!r} V{y + ry!r} "
+                f"A{rx!r},{ry!r} 0 0 1 {x + rx!r},{y!r} Z")
+    if tag in ("circle", "ellipse"):
+        return None                       # handled as one exact ellipse primitive
+    return None
+
+
+def _ellipse_prims(el: ET.Element, m: np.ndarray, where: str) -> list[Primitive] | None:
+    tag = _local(el.tag)
+    cx, cy = _attr(el, "cx", where, 0.0), _attr(el, "cy", where, 0.0)
+    if tag == "circle":
+        rx = ry = _attr(el, "r", where, 0.0)
+    else:
+        rx_t, ry_t = el.get("rx"), el.get("ry")
+        rx = _attr(el, "rx", where, 0.0) if rx_t not in (None, "auto") else None
+        ry = _attr(el, "ry", where, 0.0) if ry_t not in (None, "auto") else None
+        rx, ry = (rx if rx is not None else ry or 0.0), (ry if ry is not None else rx or 0.0)
+    if rx <= 0 or ry <= 0:
+        return None
+    A = m[:2, :2]
+    c = A @ [cx, cy] + m[:2, 2]
+    a, b = A @ [rx, 0.0], A @ [0.0, ry]
+    return [EllipseArc(c, a, b, 0.0, 2 * math.pi)]
+
+
+def _segment_prims(seg, m: np.ndarray) -> Primitive:
+    from svgpathtools import Arc, CubicBezier, Line, QuadraticBezier
+
+    A, t = m[:2, :2], m[:2, 2]
+
+    def pt(z: complex) -> np.ndarray:
+        return A @ [z.real, z.imag] + t
+
+    if isinstance(seg, Line):
+        return Bezier(np.array([pt(seg.start), pt(seg.end)]))
+    if isinstance(seg, QuadraticBezier):
+        return Bezier(np.array([pt(seg.start), pt(seg.control), pt(seg.end)]))
+    if isinstance(seg, CubicBezier):
+        return Bezier(np.array([pt(seg.start), pt(seg.control1), pt(seg.control2), pt(seg.end)]))
+    if isinstance(seg, Arc):
+        rot = complex(math.cos(math.radians(seg.rotation)), math.sin(math.radians(seg.rotation)))
+        av, bv = rot * seg.radius.real, rot * 1j * seg.radius.imag
+        c = pt(seg.center)
+        t0 = math.radians(seg.theta)
+        t1 = math.radians(seg.theta + seg.delta)
+        return EllipseArc(c, A @ [av.real, av.imag], A @ [bv.real, bv.imag], t0, t1,
+                          start_point=pt(seg.start), end_point=pt(seg.end))
+    raise InputError(f"unsupported path segment {type(seg).__name__}")
+
+
+def _name(el: ET.Element, fallback: str) -> str:
+    return (el.get(_INKSCAPE_LABEL) or el.get("id") or fallback).strip() or fallback
+
+
+def read_svg(path: str | Path, *, units: str | None = None,
+             rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
+    """Read every closed path of an SVG file as a :class:`Piece` (mm).
+
+    Parameters
+    ----------
+    path : str or Path
+        The SVG file.
+    units : str, optional
+        Size of a user unit when the file has no absolute ``width``/``height``
+        (default ``"px"``, the CSS pixel).
+    rel_tol : float
+        Chord tolerance relative to each piece's size (default ``1e-7``).
+
+    Raises
+    ------
+    InputError
+        Unreadable or malformed XML (e.g. truncated), not an SVG, invalid path
+        data, unknown units, no closed path, or a piece with fewer than 4
+        points.
+    """
+    path = Path(path)
+    where = str(path)
+    try:
+        tree = ET.parse(path)
+    except ET.ParseError as exc:
+        raise InputError(f"{where}: not a well-formed SVG file (truncated?): {exc}") from None
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
+    root = tree.getroot()
+    if _local(root.tag) != "svg":
+        raise InputError(f"{where}: not an SVG file (the root element is <{_local(root.tag)}>, "
+                         "not <svg>)")
+    view, unit, how = _viewport(root, where, units)
+    from svgpathtools import parse_path
+
+    pieces: list[Piece] = []
+    names: dict[str, int] = {}
+    open_paths = 0
+    counter = 0
+
+    def unique(name: str) -> str:
+        if name not in names:
+            names[name] = 1
+            return name
+        names[name] += 1
+        return unique(f"{name}-{names[name]}")
+
+    def visit(el: ET.Element, m: np.ndarray) -> None:
+        nonlocal open_paths, counter
+        tag = _local(el.tag)
+        if tag in _SKIP or _hidden(el):
+            return
+        m = m @ _transform(el, where)
+        if tag in _SHAPES:
+            counter += 1
+            base = _name(el, f"piece{counter}")
+            label = f"<{tag}> {base!r}"
+            loops: list[list[Primitive]] = []
+            if tag in ("circle", "ellipse"):
+                prims = _ellipse_prims(el, m, f"{where}: {label}")
+                if prims:
+                    loops.append(prims)
+            else:
+                d = _shape_d(el, f"{where}: {label}")
+                if d:
+                    if not _PATH_CHARS.fullmatch(d):
+                        bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
+                        raise InputError(f"{where}: {label}: invalid path data (unexpected "
+                                         f"{bad!r})")
+                    try:
+                        with warnings.catch_warnings():
+                            warnings.simplefilter("ignore")
+                            parsed = parse_path(d)
+                    except Exception as exc:       # svgpathtools raises several types
+                        raise InputError(f"{where}: {label}: invalid path data ({exc})") from None
+                    for sub in parsed.continuous_subpaths():
+                        if len(sub) == 0:
+                            continue
+                        prims = [_segment_prims(seg, m) for seg in sub]
+                        ends = np.array([p.start for p in prims] + [prims[-1].end])
+                        size = float(np.hypot(*np.ptp(ends, axis=0)))
+                        gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
+                        if not size > 0 or gap > 1e-9 * size:
+                            open_paths += 1
+                            continue
+                        loops.append(prims)
+            for k, prims in enumerate(loops):
+                name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
+                pieces.append(piece_from_primitives(
+                    name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
+                    notes=(f"units: {how}",), meta={"element": tag, "id": el.get("id")}))
+            return
+        for child in el:
+            visit(child, m)
+
+    visit(root, view)
+    if not pieces:
+        extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
+                 "piece must be a closed path, ending with Z or at its start point)"
+                 if open_paths else "")
+        raise InputError(f"{where}: no closed path found, so no pattern piece{extra}")
+    return pieces
+

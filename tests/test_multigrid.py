@@ -1,0 +1,179 @@
+"""Multigrid: coarse operators, convergence factor, odd sizes, solver choice.
+
+Accuracy against the independent sparse reference is in test_solvers.py
+(``multigrid`` is in its solver lists); here the multigrid's own parts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import smooth_quad_sides
+from reference import exact_solution, max_rel_error, paper_weights
+
+import clothgrid
+from clothgrid.backends import cpu
+from clothgrid.initial import boundary_grid
+from clothgrid.solvers import choose_solver
+from clothgrid.solvers.multigrid import build_hierarchy, vcycle
+from clothgrid.weights import make_weights
+
+TOL = 2.0**-12
+
+
+def interior_matrix(wu, wv):
+    """The SPD matrix over interior nodes, from edge-incidence matrices (as in reference.py)."""
+    nu, nv = wv.shape[0], wu.shape[1]
+    idx = np.arange(nu * nv).reshape(nu, nv)
+
+    def diff(a, b):
+        m = a.size
+        return sp.csr_matrix((np.tile([-1.0, 1.0], m), (np.repeat(np.arange(m), 2),
+                              np.stack([a.ravel(), b.ravel()], 1).ravel())), shape=(m, nu * nv))
+
+    gu, gv = diff(idx[:-1], idx[1:]), diff(idx[:, :-1], idx[:, 1:])
+    a = (gu.T @ sp.diags(wu.ravel()) @ gu + gv.T @ sp.diags(wv.ravel()) @ gv).tocsr()
+    keep = idx[1:-1, 1:-1].ravel()
+    return a[keep][:, keep]
+
+
+def linear_interpolation(nu, nv):
+    """Interior-to-interior P: coarse rows 0, 2, 4, ..., nv-1; odd rows average their neighbours."""
+    rows = sorted(set(range(0, nv, 2)) | {nv - 1})
+    nc = len(rows)
+    fine = lambda i, j: (i - 1) * (nv - 2) + (j - 1)      # noqa: E731
+    coarse = lambda i, J: (i - 1) * (nc - 2) + (J - 1)    # noqa: E731
+    r, c, v = [], [], []
+    for i in range(1, nu - 1):
+        for J in range(1, nc - 1):
+            j = rows[J]
+            r.append(fine(i, j)), c.append(coarse(i, J)), v.append(1.0)
+            for jj in (j - 1, j + 1):
+                if 0 < jj < nv - 1 and jj not in rows:
+                    r.append(fine(i, jj)), c.append(coarse(i, J)), v.append(0.5)
+    return sp.csr_matrix((v, (r, c)), shape=((nu - 2) * (nv - 2), (nu - 2) * (nc - 2))), nc
+
+
+def stencil_matrix(level):
+    """The interior matrix a Level's stencil arrays describe."""
+    nu, nv = level.shape
+    C, E, N, NE, NW = (np.asarray(a, dtype=np.float64) for a in (level.C, level.E, level.N, level.NE, level.NW))
+    idx = -np.ones((nu, nv), int)
+    idx[1:-1, 1:-1] = np.arange((nu - 2) * (nv - 2)).reshape(nu - 2, nv - 2)
+    r, c, v = [], [], []
+    for i in range(1, nu - 1):
+        for j in range(1, nv - 1):
+            me = idx[i, j]
+            for (di, dj, val) in ((0, 0, C[i, j]), (1, 0, -E[i, j]), (-1, 0, -E[i - 1, j]), (0, 1, -N[i, j]),
+                                  (0, -1, -N[i, j - 1]), (1, 1, -NE[i, j]), (-1, -1, -NE[i - 1, j - 1]),
+                                  (-1, 1, -NW[i, j]), (1, -1, -NW[i + 1, j - 1])):
+                if idx[i + di, j + dj] >= 0:
+                    r.append(me), c.append(idx[i + di, j + dj]), v.append(val)
+    m = (nu - 2) * (nv - 2)
+    return sp.csr_matrix((v, (r, c)), shape=(m, m))
+
+
+def random_weights(rng, nu, nv, spread=3.0):
+    return np.exp(rng.uniform(-spread, spread, (nu - 1, nv))), np.exp(rng.uniform(-spread, spread, (nu, nv - 1)))
+
+
+@pytest.mark.parametrize("shape", [(9, 11), (10, 12), (7, 14), (12, 9)])
+@pytest.mark.parametrize("kind", ["paper", "random"])
+def test_coarse_levels_are_galerkin_products(rng, kind, shape):
+    """Every level's stencil equals (P1..Pl)^T A (P1..Pl), built here independently."""
+    nu, nv = shape
+    wu, wv = paper_weights(nu, nv) if kind == "paper" else random_weights(rng, nu, nv)
+    levels = build_hierarchy(make_weights((wu, wv), nu, nv))
+    assert len(levels) >= 2
+    a = interior_matrix(wu, wv)
+    rows = nv
+    for level in levels[1:]:
+        p, rows = linear_interpolation(nu, rows)
+        a = (p.T @ a @ p).tocsr()
+        assert level.shape == (nu, rows)
+        got = stencil_matrix(level)
+        scale = abs(a).max()
+        assert abs(got - a).max() <= 1e-6 * scale   # float32 coarse stencils
+
+
+def asymptotic_factor(weights, nu, nv, cycles=10, seed=1):
+    levels = build_hierarchy(weights)
+    x = np.random.default_rng(seed).standard_normal((nu, nv, 2))
+    x[0] = x[-1] = 0.0
+    x[:, 0] = x[:, -1] = 0.0
+    ops = cpu.multigrid(levels, x)
+    steps = [ops.max_step()]
+    for _ in range(cycles):
+        vcycle(ops)
+        steps.append(ops.max_step())
+    ratios = np.array(steps[1:]) / np.array(steps[:-1])
+    return float(np.exp(np.log(ratios[-3:]).mean()))
+
+
+@pytest.mark.parametrize("shape", [(65, 65), (129, 129), (100, 77), (65, 129), (129, 40)])
+@pytest.mark.parametrize("kind", ["paper", "uniform"])
+def test_convergence_factor_below_0_2(kind, shape):
+    """Issue 4's bar at small sizes (the benchmark checks up to 4097^2)."""
+    nu, nv = shape
+    f = asymptotic_factor(make_weights(kind, nu, nv), nu, nv)
+    assert f < 0.2, f"{kind} {shape}: convergence factor {f:.3f}"
+
+
+def test_converges_with_rough_random_weights(rng):
+    """Edge weights jumping by e^6 between neighbours: slower, but it converges."""
+    nu, nv = 65, 57
+    f = asymptotic_factor(make_weights(random_weights(rng, nu, nv), nu, nv), nu, nv)
+    assert f < 0.9, f
+
+
+@pytest.mark.parametrize("shape", [(3, 3), (3, 9), (9, 3), (4, 4), (5, 6), (6, 5), (8, 130)])
+def test_any_node_counts(rng, shape):
+    nu, nv = shape
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    g = clothgrid.generate(b, solver="multigrid")
+    ref = exact_solution(boundary_grid(b), *paper_weights(nu, nv))
+    assert max_rel_error(g.points, ref, b.size) <= TOL
+    assert g.info["solver"] == "multigrid" and g.info["converged"]
+
+
+def test_per_edge_weights_bound_is_guaranteed(rng):
+    """Non-separable weights: max z comes from a multigrid solve with a rigorous correction."""
+    nu, nv = 41, 37
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    wu, wv = random_weights(rng, nu, nv, 2.0)
+    g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid", tol=1e-6)
+    err = max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size)
+    assert err <= g.info["error_estimate"] <= 1e-6
+
+
+def test_paper_rule_is_available_and_looser(rng):
+    nu, nv = 65, 65
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    paper = clothgrid.generate(b, solver="multigrid", stop="paper")
+    true = clothgrid.generate(b, solver="multigrid", stop="error")
+    assert paper.info["iterations"] <= true.info["iterations"]
+
+
+def test_auto_picks_by_size_and_weights():
+    assert choose_solver(True, 65, 65) == "fdm"
+    assert choose_solver(True, 2049, 2049) == "multigrid"
+    assert choose_solver(False, 33, 33) == "direct"
+    assert choose_solver(False, 1025, 1025) == "multigrid"
+
+
+def test_auto_uses_multigrid_on_large_grids(rng, monkeypatch):
+    import clothgrid.solvers as solvers
+
+    monkeypatch.setattr(solvers, "FDM_MAX_NODES", 100)
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 30, 20))
+    g = clothgrid.generate(b)
+    assert g.info["solver"] == "multigrid"
+    ref = exact_solution(boundary_grid(b), *paper_weights(30, 20))
+    assert max_rel_error(g.points, ref, b.size) <= TOL
+
+
+def test_memory_estimate_covers_multigrid():
+    from clothgrid.memory import estimate_bytes
+
+    assert estimate_bytes("fdm", 4096, 4096) > estimate_bytes("multigrid", 4096, 4096) > estimate_bytes("jacobi", 4096, 4096)

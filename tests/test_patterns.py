@@ -1,0 +1,684 @@
+"""Tests of the pattern-file readers (:mod:`clothgrid.patterns`) and the CLI on them.
+
+Every reader is checked end to end: the grid's boundary nodes must lie on the
+piece's true outline (lines, circular arcs, cubic Béziers computed here
+independently) within 1e-6 of the piece's size.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clothgrid import InputError, generate, load_boundary
+from clothgrid.cli import main
+from clothgrid.patterns import (Piece, choose_corners, corner_candidates, generate_piece,
+                                nodes_for_edge_length, parse_length, piece_boundary, read_pieces)
+from clothgrid.patterns.piece import piece_from_polygon
+from clothgrid.patterns.sampling import Bezier, EllipseArc, bspline_to_beziers, sample_loop
+
+ezdxf = pytest.importorskip("ezdxf")
+pytest.importorskip("svgpathtools")
+
+DATA = Path(__file__).parent / "data" / "patterns"
+NODES = (17, 17)
+ACC = 1e-6          # boundary nodes on the true outline, relative to the piece's size
+
+
+# --------------------------------------------------------------------------- geometry helpers
+
+
+def boundary_nodes(grid) -> np.ndarray:
+    p = grid.points[..., :2]
+    return np.concatenate([p[:, 0], p[:, -1], p[0, :], p[-1, :]])
+
+
+def dist_segment(p: np.ndarray, a, b) -> np.ndarray:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = b - a
+    t = np.clip(((p - a) @ d) / (d @ d), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * d), axis=1)
+
+
+def dist_arc(p: np.ndarray, center, r: float, contains) -> np.ndarray:
+    """Distance to a circular arc; ``contains(angle)`` says which angles belong to it."""
+    c = np.asarray(center, float)
+    v = p - c
+    ang = np.arctan2(v[:, 1], v[:, 0])
+    on = np.abs(np.hypot(v[:, 0], v[:, 1]) - r)
+    return np.where(contains(ang), on, np.inf)
+
+
+def dist_bezier(p: np.ndarray, ctrl) -> np.ndarray:
+    """Distance to a polynomial Bézier curve: dense search, then Newton steps."""
+    ctrl = np.asarray(ctrl, float)
+    k = len(ctrl) - 1
+    binom = np.array([math.comb(k, i) for i in range(k + 1)], float)
+
+    def curve(t):
+        t = np.asarray(t, float)[..., None]
+        i = np.arange(k + 1)
+        basis = binom * t ** i * (1 - t) ** (k - i)
+        return basis @ ctrl
+
+    ts = np.linspace(0, 1, 4001)
+    pts = curve(ts)
+    d = np.linalg.norm(p[:, None] - pts[None], axis=2)
+    t = ts[d.argmin(axis=1)]
+    h = 1e-7
+    for _ in range(30):       # Newton on f(t) = (B(t) - p) . B'(t)
+        b0, bp, bm = curve(t), curve(np.clip(t + h, 0, 1)), curve(np.clip(t - h, 0, 1))
+        d1 = (bp - bm) / (2 * h)
+        d2 = (bp - 2 * b0 + bm) / h ** 2
+        f = ((b0 - p) * d1).sum(1)
+        fp = (d1 * d1).sum(1) + ((b0 - p) * d2).sum(1)
+        t = np.clip(t - np.where(np.abs(fp) > 0, f / fp, 0), 0, 1)
+    return np.linalg.norm(curve(t) - p, axis=1)
+
+
+def dist_polyline(p: np.ndarray, poly: np.ndarray, closed: bool = False) -> np.ndarray:
+    """Upper bound of the distance to a dense polyline: its segments next to the nearest vertex."""
+    from scipy.spatial import cKDTree
+
+    n = len(poly)
+    _, i = cKDTree(poly).query(p)
+    best = np.full(len(p), np.inf)
+    for lo in (i - 1, i):
+        ok = np.ones(len(p), bool) if closed else (lo >= 0) & (lo + 1 < n)
+        a, b = poly[lo % n], poly[(lo + 1) % n]
+        d = b - a
+        t = np.clip(((p - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0, 1)
+        dist = np.linalg.norm(p - (a + t[:, None] * d), axis=1)
+        best = np.where(ok, np.minimum(best, dist), best)
+    return best
+
+
+def dist_polyline_exact(p: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance to an open polyline, by brute force (for curves that may cross themselves)."""
+    a, b = poly[:-1], poly[1:]
+    d = b - a
+    dd = np.maximum((d * d).sum(-1), 1e-300)
+    out = []
+    for chunk in np.array_split(p, max(1, len(p) * len(a) // 2_000_000)):
+        t = np.clip(((chunk[:, None] - a[None]) * d[None]).sum(-1) / dd, 0, 1)
+        out.append(np.linalg.norm(chunk[:, None] - (a[None] + t[..., None] * d[None]), axis=2).min(1))
+    return np.concatenate(out)
+
+
+def in_sweep(ang: np.ndarray, start: float, delta: float) -> np.ndarray:
+    """Are the angles (radians) on the arc from ``start`` turning by ``delta``?"""
+    rel = (ang - start) % (2 * np.pi) if delta >= 0 else (start - ang) % (2 * np.pi)
+    return rel <= abs(delta) + 1e-9
+
+
+def on_outline(nodes: np.ndarray, parts: list) -> np.ndarray:
+    """Smallest distance of each node to any of the outline's parts (callables)."""
+    return np.min([f(nodes) for f in parts], axis=0)
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def files(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.rglob("*") if p.is_file())
+
+
+# --------------------------------------------------------------------------- SVG
+
+# 1 user unit = 0.01 in = 0.254 mm; y flipped: Y = 101.6 - 0.254 y
+S = 0.254
+SVG = """<svg xmlns="http://www.w3.org/2000/svg" xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"
+     width="8in" height="4in" viewBox="0 0 800 400">
+  <path id="p1" inkscape:label="front" d="M 100 300 L 300 300 A 100 100 0 0 0 300 100 C 250 50 150 150 100 100 Z"/>
+  <g transform="translate(500,200) scale(1.5)">
+    <circle id="disc" cx="100" cy="0" r="50"/>
+  </g>
+  <path id="grain" d="M 0 0 L 50 50"/>
+  <defs><rect id="hidden" x="0" y="0" width="10" height="10"/></defs>
+</svg>
+"""
+
+
+def _svg_user(nodes_mm: np.ndarray) -> np.ndarray:
+    return np.column_stack([nodes_mm[:, 0] / S, (101.6 - nodes_mm[:, 1]) / S])
+
+
+@pytest.fixture
+def svg_file(tmp_path: Path) -> Path:
+    path = tmp_path / "pattern.svg"
+    path.write_text(SVG)
+    return path
+
+
+def test_svg_pieces_units_and_names(svg_file):
+    pieces = read_pieces(svg_file)
+    assert [p.name for p in pieces] == ["front", "disc"]
+    front, disc = pieces
+    assert front.units == "in" and front.source == "svg"
+    # front: x from 100 to 400 user units, y from ~87 to 300
+    w, h = front.extent
+    assert w == pytest.approx(300 * S, rel=1e-9)
+    assert front.area > 0                              # counter-clockwise
+    # the segment end points are kept exactly
+    corners_mm = np.array([[100 * S, 101.6 - 300 * S], [300 * S, 101.6 - 300 * S],
+                           [300 * S, 101.6 - 100 * S], [100 * S, 101.6 - 100 * S]])
+    for c in corners_mm:
+        assert np.min(np.linalg.norm(front.outline[front.vertices] - c, axis=1)) < 1e-12
+    assert disc.extent == pytest.approx((150 * S, 150 * S), rel=1e-6)
+    assert front.tolerance <= 1e-7 * front.size * (1 + 1e-9)
+
+
+def test_svg_grid_nodes_on_true_outline(svg_file):
+    front, disc = read_pieces(svg_file)
+    grid = generate_piece(front, NODES)
+    assert grid.shape == NODES
+    user = _svg_user(boundary_nodes(grid))
+    parts = [lambda p: dist_segment(p, (100, 300), (300, 300)),
+             lambda p: dist_arc(p, (300, 200), 100.0, lambda a: np.abs(a) <= np.pi / 2 + 1e-9),
+             lambda p: dist_bezier(p, [(300, 100), (250, 50), (150, 150), (100, 100)]),
+             lambda p: dist_segment(p, (100, 100), (100, 300))]
+    err = on_outline(user, parts).max() * S
+    assert err <= ACC * front.size, err
+    info = grid.info["piece"]
+    assert info["name"] == "front" and info["units"] == "mm" and info["file_units"] == "in"
+    assert info["corners"]["method"] in ("split", "scored", "candidates")
+
+    g2 = generate_piece(disc, NODES)
+    user = _svg_user(boundary_nodes(g2))
+    err = np.abs(np.hypot(user[:, 0] - 650, user[:, 1] - 200) - 75).max() * S
+    assert err <= ACC * disc.size, err
+    assert g2.info["piece"]["corners"]["method"] == "equal-sides"
+
+
+def test_svg_sheared_arc_and_cubic(tmp_path):
+    # a general affine transform (shear, rotation, unequal scales) on a path with an arc:
+    # mapped back through its inverse, the nodes lie on the original circle and cubic
+    tf = np.array([[1.2, -0.2, 5.0], [0.3, 0.8, 7.0], [0, 0, 1]])
+    path = tmp_path / "shear.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="100mm" '
+                    'viewBox="0 0 100 100"><path transform="matrix(1.2 0.3 -0.2 0.8 5 7)" '
+                    'd="M 10 40 A 30 30 0 1 1 70 40 C 60 60 20 60 10 40 Z"/></svg>')
+    (piece,) = read_pieces(path)
+    grid = generate_piece(piece, NODES)
+    nodes = boundary_nodes(grid)
+    user = np.column_stack([nodes[:, 0], 100.0 - nodes[:, 1], np.ones(len(nodes))])
+    local = (np.linalg.inv(tf) @ user.T).T[:, :2]
+    # (the upper half circle in SVG's y-down frame is y <= 40)
+    parts = [lambda p: dist_arc(p, (40, 40), 30.0, lambda a: a <= 1e-9),
+             lambda p: dist_bezier(p, [(70, 40), (60, 60), (20, 60), (10, 40)])]
+    err = on_outline(local, parts) * np.linalg.norm(tf[:2, :2], 2)
+    assert err.max() <= ACC * piece.size, err.max()
+
+
+def test_svg_load_boundary_single_piece(tmp_path):
+    path = tmp_path / "one.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" '
+                    'viewBox="0 0 100 50"><rect x="10" y="10" width="60" height="30"/></svg>')
+    b = load_boundary(path)
+    assert b.side_lengths == pytest.approx((60, 30, 60, 30))
+    assert np.allclose(b.bottom[0, :2], [10, 10]) and np.allclose(b.top[-1, :2], [70, 40])
+
+
+# --------------------------------------------------------------------------- plain DXF
+
+
+def _plain_dxf(path: Path, units: int = 5) -> dict:
+    """A closed LWPOLYLINE with a bulge, a closed SPLINE-free chain of LINEs and an ARC."""
+    doc = ezdxf.new("R2010")
+    doc.units = units
+    msp = doc.modelspace()
+    msp.add_lwpolyline([(0, 0, 0), (40, 0, 0), (40, 30, 0.4), (0, 30, 0)], format="xyb",
+                       close=True)
+    # a chain: two lines and a half circle, drawn in mixed directions
+    msp.add_line((60, 0), (100, 0))
+    msp.add_line((60, 30), (60, 0))
+    msp.add_arc(center=(100, 15), radius=15, start_angle=-90, end_angle=90)
+    msp.add_line((100, 30), (60, 30))
+    msp.add_line((200, 200), (210, 210))           # open: ignored
+    doc.saveas(path)
+    return {"scale": {4: 1.0, 5: 10.0}[units]}
+
+
+def test_plain_dxf_pieces_and_accuracy(tmp_path):
+    from ezdxf.math import bulge_to_arc
+
+    path = tmp_path / "plain.dxf"
+    s = _plain_dxf(path)["scale"]
+    pieces = read_pieces(path)
+    assert [p.name for p in pieces] == ["piece1", "piece2"]
+    poly, chain = pieces
+    assert poly.units == "cm" and poly.source == "dxf"
+    c, a0, a1, r = bulge_to_arc((40, 30), (0, 30), 0.4)
+    grid = generate_piece(poly, NODES)
+    nodes = boundary_nodes(grid) / s
+    parts = [lambda p: dist_segment(p, (0, 0), (40, 0)),
+             lambda p: dist_segment(p, (40, 0), (40, 30)),
+             lambda p: np.where(p[:, 1] >= 30 - 1e-9, np.abs(np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) - r),
+                                np.inf),
+             lambda p: dist_segment(p, (0, 30), (0, 0))]
+    err = on_outline(nodes, parts).max() * s
+    assert err <= ACC * poly.size, err
+    # the chain of lines and an arc closes into the second piece
+    g2 = generate_piece(chain, NODES)
+    nodes = boundary_nodes(g2) / s
+    parts = [lambda p: dist_segment(p, (60, 0), (100, 0)), lambda p: dist_segment(p, (60, 30), (60, 0)),
+             lambda p: dist_segment(p, (100, 30), (60, 30)),
+             lambda p: dist_arc(p, (100, 15), 15.0, lambda a: np.abs(a) <= np.pi / 2 + 1e-9)]
+    err = on_outline(nodes, parts).max() * s
+    assert err <= ACC * chain.size, err
+    assert chain.extent == pytest.approx((550.0, 300.0), abs=chain.tolerance)
+
+
+def test_dxf_spline_matches_ezdxf(tmp_path):
+    doc = ezdxf.new("R2010")
+    doc.units = 4
+    ctrl = [(0, 0), (30, -10), (60, 0), (70, 40), (30, 60), (-10, 40), (0, 0)]
+    doc.modelspace().add_open_spline([(x, y, 0) for x, y in ctrl], degree=3)
+    path = tmp_path / "spline.dxf"
+    doc.saveas(path)
+    (piece,) = read_pieces(path)
+    spline = ezdxf.readfile(path).modelspace().query("SPLINE")[0].construction_tool()
+    knots = spline.knots()
+    dense = np.array([list(v)[:2] for v in spline.points(np.linspace(knots[3], knots[-4], 200001))])
+    # every outline point lies on the spline (up to the dense reference's own chord error)
+    assert dist_polyline(piece.outline, dense).max() < 1e-8 * piece.size
+    # and every point of the spline is within the sampling tolerance of the outline
+    assert dist_polyline(dense[::7], piece.outline, closed=True).max() <= piece.tolerance * (1 + 1e-6)
+    grid = generate_piece(piece, NODES)
+    assert grid.info["piece"]["corners"]["method"] in ("equal-sides", "split", "scored", "candidates")
+
+
+def test_bspline_decomposition_matches_ezdxf():
+    from ezdxf.math import BSpline
+
+    rng = np.random.default_rng(7)
+    for trial in range(12):
+        p = 1 + trial % 4
+        n = p + 1 + trial % 5
+        ctrl = rng.normal(size=(n, 2))
+        w = rng.random(n) + 0.2 if trial % 2 else None
+        knots = (np.arange(n + p + 1, dtype=float) if trial % 3 == 0
+                 else np.r_[[0.0] * (p + 1), np.sort(rng.random(n - p - 1)), [1.0] * (p + 1)])
+        ref = BSpline([(x, y, 0) for x, y in ctrl], order=p + 1, knots=knots.tolist(),
+                      weights=None if w is None else w.tolist())
+        pieces = bspline_to_beziers(p, knots, ctrl, w)
+        span = np.unique(knots[(knots >= knots[p]) & (knots <= knots[n])])
+        assert len(pieces) == len(span) - 1
+        for bz, u0, u1 in zip(pieces, span[:-1], span[1:]):
+            t = np.linspace(0, 1, 5)
+            want = np.array([list(ref.point(float(u0 + x * (u1 - u0))))[:2] for x in t])
+            assert np.abs(bz.points(t) - want).max() < 1e-9
+
+
+# --------------------------------------------------------------------------- AAMA / ASTM DXF
+
+FRONT = [(0, 0), (20, 0), (21, 10), (22, 20), (20, 28), (12, 30), (6, 26), (0, 30)]
+FRONT_TURNS = [0, 1, 5, 7]      # the file's turn points (indices into FRONT)
+BACK = [(0, 0), (18, 0), (18, 25), (0, 25)]
+
+
+def _aama(path: Path, units_text: str = "ENGLISH", closed: bool = False) -> None:
+    doc = ezdxf.new("R12")
+    for name, pts, turns, grain in (("B1", FRONT, FRONT_TURNS, [(10, 5), (10, 25)]),
+                                    ("B2", BACK, [0, 1, 2, 3], [(3, 12), (15, 12)])):
+        blk = doc.blocks.new(name=name)
+        blk.add_polyline2d(pts + ([] if closed else [pts[0]]), close=closed,
+                           dxfattribs={"layer": "1"})
+        for i in turns:
+            blk.add_point(pts[i], dxfattribs={"layer": "2"})
+        blk.add_line(*grain, dxfattribs={"layer": "7"})
+        blk.add_text(f"Piece Name: {'FRONT' if name == 'B1' else 'BACK'}", dxfattribs={"layer": "1"})
+        blk.add_text("Size: M", dxfattribs={"layer": "1"})
+    msp = doc.modelspace()
+    msp.add_text(f"Units: {units_text}", dxfattribs={"layer": "1"})
+    msp.add_blockref("B1", (100, 0))
+    msp.add_blockref("B2", (0, 0), dxfattribs={"rotation": 90})
+    doc.saveas(path)
+
+
+def test_aama_dxf_turn_points_grain_and_accuracy(tmp_path):
+    path = tmp_path / "style.dxf"
+    _aama(path)
+    front, back = read_pieces(path)
+    assert (front.name, back.name) == ("FRONT", "BACK")
+    assert front.source == "aama-dxf" and front.units == "in"
+    assert len(front.turn_points) == 4
+    # the turn points are the corners, even though (20, 28) turns more sharply than (6, 26)
+    choice = choose_corners(front)
+    assert choice.method == "turn-points"
+    want = (np.array(FRONT)[FRONT_TURNS] + [100, 0]) * 25.4
+    assert np.allclose(np.sort(choice.points, axis=0), np.sort(want, axis=0))
+    assert np.allclose(choice.points[0], want[0])            # bottom-left at the origin corner
+    assert np.allclose(front.grain_line, np.array([[110, 5], [110, 25]]) * 25.4)
+    grid = generate_piece(front, NODES)
+    poly = (np.array(FRONT) + [100, 0]) * 25.4
+    nodes = boundary_nodes(grid)
+    parts = [lambda p, a=a, b=b: dist_segment(p, a, b) for a, b in zip(poly, np.roll(poly, -1, 0))]
+    assert on_outline(nodes, parts).max() <= ACC * front.size
+    # the back piece is rotated 90 degrees by its INSERT; its grain line then runs along y,
+    # so the bottom side is the one across it
+    assert np.allclose(back.grain_line, np.array([[-12, 3], [-12, 15]]) * 25.4)
+    bchoice = choose_corners(back)
+    bl, br = bchoice.points[0], bchoice.points[1]
+    assert abs(br[1] - bl[1]) < 1e-9 and br[0] > bl[0]
+
+
+def test_aama_metric_and_closed_polyline(tmp_path):
+    path = tmp_path / "metric.dxf"
+    _aama(path, units_text="METRIC", closed=True)
+    front, _ = read_pieces(path)
+    assert front.units == "mm"
+    assert front.extent == pytest.approx((22.0, 30.0))
+
+
+# --------------------------------------------------------------------------- GarmentCode
+
+GC = {
+    "pattern": {
+        "panels": {
+            "skirt_front": {
+                "translation": [0, 80, 20], "rotation": [0, 0, 0],
+                "vertices": [[0, 0], [50, 0], [45, 60], [5, 60]],
+                "edges": [
+                    {"endpoints": [0, 1], "curvature": {"type": "quadratic", "params": [[0.5, -0.1]]}},
+                    {"endpoints": [1, 2]},
+                    {"endpoints": [2, 3], "curvature": {"type": "circle", "params": [40, 0, 0]}},
+                    {"endpoints": [3, 0], "curvature": {"type": "cubic",
+                                                         "params": [[0.3, 0.05], [0.7, 0.05]]}},
+                ]},
+            "band": {"vertices": [[0, 0], [60, 0], [60, 5], [0, 5]],
+                     "edges": [{"endpoints": [0, 1]}, {"endpoints": [2, 1]},
+                               {"endpoints": [2, 3]}, {"endpoints": [3, 0]}]},
+        },
+        "stitches": []},
+    "properties": {"units_in_meter": 100, "curvature_coords": "relative"},
+}
+
+
+def _rel(a, b, uv):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = b - a
+    return a + uv[0] * d + uv[1] * np.array([-d[1], d[0]])
+
+
+def test_garmentcode_pieces_and_accuracy(tmp_path):
+    from svgpathtools import Arc
+
+    path = tmp_path / "skirt_specification.json"
+    path.write_text(json.dumps(GC))
+    pieces = read_pieces(path)
+    assert [p.name for p in pieces] == ["skirt_front", "band"]
+    skirt, band = pieces
+    assert skirt.units == "cm" and skirt.meta["translation"] == [0, 80, 20]
+    assert len(skirt.turn_points) == 4
+    assert band.extent == pytest.approx((600.0, 50.0))
+    grid = generate_piece(skirt, NODES)
+    nodes = boundary_nodes(grid) / 10.0                       # back to cm
+    v = np.array(GC["pattern"]["panels"]["skirt_front"]["vertices"], float)
+    # GarmentCode's own reading: svgpathtools Arc with sweep = "right" in the panel's frame
+    arc = Arc(complex(*v[2]), complex(40, 40), 0, False, False, complex(*v[3]))
+
+    def dist_gc_arc(p):
+        return dist_arc(p, (arc.center.real, arc.center.imag), 40.0,
+                        lambda a: in_sweep(a, np.radians(arc.theta), np.radians(arc.delta)))
+
+    parts = [lambda p: dist_bezier(p, [v[0], _rel(v[0], v[1], [0.5, -0.1]), v[1]]),
+             lambda p: dist_segment(p, v[1], v[2]),
+             dist_gc_arc,
+             lambda p: dist_bezier(p, [v[3], _rel(v[3], v[0], [0.3, 0.05]),
+                                       _rel(v[3], v[0], [0.7, 0.05]), v[0]])]
+    err = on_outline(nodes, parts).max() * 10.0
+    assert err <= ACC * skirt.size, err
+    # the circle edge bulges into the panel ("right" = 0 on an edge running right to left)
+    assert skirt.outline[:, 1].max() == pytest.approx(600.0)
+    assert grid.info["piece"]["corners"]["method"] == "turn-points"
+
+
+# --------------------------------------------------------------------------- corners and units
+
+
+def _poly_piece(points, name="p", **kw) -> Piece:
+    pts = np.asarray(points, float)
+    return piece_from_polygon(name, pts, vertices=np.arange(len(pts)), **kw)
+
+
+def test_corners_scored_when_more_than_four():
+    # a pentagon-ish house: four right angles and a shallow roof apex (turn 2 x 15 deg)
+    house = [(0, 0), (40, 0), (40, 30), (20, 35), (0, 30)]
+    piece = _poly_piece(house)
+    choice = choose_corners(piece, min_turn=5)
+    assert choice.method == "scored"
+    assert sorted(choice.corners) == [0, 1, 2, 4]
+    assert "left out outline indices 3" in choice.message
+
+
+def test_corners_split_and_equal_sides():
+    # a triangle with a dense hypotenuse: 3 corners, the fourth in the middle of the longest side
+    t = np.linspace(0, 1, 41)[1:-1]
+    tri = np.vstack([[0, 0], [30, 0], np.column_stack([30 - 30 * t, 40 * t]), [0, 40]])
+    choice = choose_corners(_poly_piece(tri))
+    assert choice.method == "split" and len(set(choice.corners)) == 4
+    mid = choice.outline[[i for i in choice.corners if i not in (0, 1, len(tri) - 1)][0]]
+    assert np.allclose(mid, [15, 20])
+    # a straight-sided quad with only two sharp turns gets inserted points
+    sliver = _poly_piece([(0, 0), (50, -1), (100, 0), (50, 1)])
+    c2 = choose_corners(sliver)
+    assert len(set(c2.corners)) == 4
+    b = piece_boundary(sliver, choice=c2)
+    assert min(b.side_lengths) > 0
+
+
+def test_corners_given_and_near():
+    piece = _poly_piece([(0, 0), (10, 0), (20, 0), (20, 10), (0, 10)])
+    c = choose_corners(piece, corners=[0, 2, 3, 4])
+    assert c.corners == (0, 2, 3, 4) and c.method == "given"
+    c = choose_corners(piece, near=[(0.1, 0.1), (19, 1), (21, 11), (-1, 9)])
+    assert c.corners == (0, 2, 3, 4) and c.method == "near"
+    with pytest.raises(InputError, match="out of range"):
+        choose_corners(piece, corners=[0, 2, 3, 9])
+    with pytest.raises(InputError, match="not both"):
+        choose_corners(piece, corners=[0, 2, 3, 4], near=[(0, 0)] * 4)
+    cands = corner_candidates(piece)
+    assert [x.index for x in cands] == [0, 2, 3, 4]
+
+
+@pytest.mark.parametrize("text, mm", [("5mm", 5.0), ("0.5 cm", 5.0), ("1in", 25.4), ("12", 12.0),
+                                      ("72pt", 25.4), ("96px", 25.4)])
+def test_parse_length(text, mm):
+    assert parse_length(text) == pytest.approx(mm)
+
+
+@pytest.mark.parametrize("text", ["5 furlongs", "-3mm", "0", "mm", "5e999mm"])
+def test_parse_length_rejects(text):
+    with pytest.raises(InputError):
+        parse_length(text)
+
+
+def test_edge_length_node_counts():
+    piece = _poly_piece([(0, 0), (100, 0), (100, 50), (0, 50)])
+    b = piece_boundary(piece)
+    assert nodes_for_edge_length(b, 5.0) == (21, 11)
+    assert nodes_for_edge_length(b, 7.0) == (16, 9)
+    g = generate_piece(piece, edge_length="0.5cm")
+    assert g.shape == (21, 11) and g.info["piece"]["edge_length"] == 5.0
+
+
+def test_sampling_bound_holds():
+    from clothgrid.patterns.sampling import sample_bezier, sample_ellipse_arc
+
+    rng = np.random.default_rng(3)
+    tol = 1e-3
+    for _ in range(3):
+        ctrl = rng.normal(size=(4, 2)) * 50
+        w = rng.random(4) + 0.3
+        ell = EllipseArc(rng.normal(size=2), rng.normal(size=2) * 30, rng.normal(size=2) * 10,
+                         0.3, 4.0)
+        cases = [(Bezier(ctrl), sample_bezier(Bezier(ctrl), tol),
+                  Bezier(ctrl).points(np.linspace(0, 1, 2001))),
+                 (Bezier(ctrl, w), sample_bezier(Bezier(ctrl, w), tol),
+                  Bezier(ctrl, w).points(np.linspace(0, 1, 2001))),
+                 (ell, sample_ellipse_arc(ell, tol), ell.points(np.linspace(0.3, 4.0, 2001)))]
+        for prim, pts, dense in cases:
+            poly = np.vstack([pts, prim.end])
+            assert np.array_equal(pts[0], prim.start)
+            # every sample is on the curve, every curve point within tol of the polyline
+            assert dist_polyline_exact(pts, dense).max() < 1e-4      # the reference's own chord error
+            assert dist_polyline_exact(dense, poly).max() <= tol * (1 + 1e-6)
+    outline, starts = sample_loop([Bezier(np.array([[0.0, 0.0], [1.0, 0.0]])), ell], tol)
+    assert starts.tolist() == [0, 1]
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def test_cli_pieces_lists_candidates(capsys, svg_file):
+    code, out, err = run(capsys, "pieces", svg_file, "--candidates")
+    assert code == 0, err
+    assert "front:" in out and "disc:" in out and "corner candidates" in out
+    assert "turn +90.0" in out
+    code, out, _ = run(capsys, "pieces", svg_file, "--json")
+    data = json.loads(out)
+    assert [p["name"] for p in data["pieces"]] == ["front", "disc"]
+
+
+def test_cli_generate_every_piece(capsys, svg_file, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    code, stdout, err = run(capsys, "generate", svg_file, "-o", out / "g.obj", "-o", out / "g.npz",
+                            "--nodes", "17", "-q")
+    assert code == 0, err
+    assert files(out) == ["g_disc.npz", "g_disc.obj", "g_front.npz", "g_front.obj"]
+    assert "piece front:" in stdout and "piece disc:" in stdout
+    with np.load(out / "g_front.npz") as z:
+        info = json.loads(str(z["info"]))
+    assert info["piece"]["name"] == "front" and info["piece"]["units"] == "mm"
+
+
+def test_cli_generate_one_piece_and_placeholder(capsys, svg_file, tmp_path):
+    code, _, err = run(capsys, "generate", svg_file, "-o", tmp_path / "one.obj", "--piece", "disc",
+                       "--edge-length", "5mm", "-q")
+    assert code == 0, err
+    assert (tmp_path / "one.obj").exists()
+    sub = tmp_path / "m"
+    sub.mkdir()
+    code, _, err = run(capsys, "generate", svg_file, "-o", sub / "{piece}.npz", "--nodes", "9", "-q")
+    assert code == 0, err
+    assert files(sub) == ["disc.npz", "front.npz"]
+
+
+def test_cli_generate_given_corners(capsys, tmp_path):
+    path = tmp_path / "plain.dxf"
+    _plain_dxf(path, units=4)
+    code, out, err = run(capsys, "generate", path, "--piece", "piece1", "--corners", "0,1,2,3",
+                         "-o", tmp_path / "a.npz", "--nodes", "9")
+    assert code == 0, err
+    assert "corners given by outline index" in out
+    code, _, err = run(capsys, "generate", path, "--corners", "0,1,2,3", "-o", tmp_path / "b.npz")
+    assert code == 2 and "--piece" in err
+    assert not (tmp_path / "b_piece1.npz").exists()
+
+
+def test_cli_boundary_json_edge_length(capsys, tmp_path):
+    t = np.linspace(0, 1, 5)
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps({"bottom": [[x, 0] for x in t], "right": [[1, y] for y in t],
+                               "top": [[x, 1] for x in t], "left": [[0, y] for y in t]}))
+    code, _, err = run(capsys, "generate", src, "-o", tmp_path / "g.npz", "--edge-length", "0.1", "-q")
+    assert code == 0, err
+    with np.load(tmp_path / "g.npz") as z:
+        assert z["points"].shape[:2] == (11, 11)
+    code, _, err = run(capsys, "generate", src, "-o", tmp_path / "h.npz", "--edge-length", "5mm")
+    assert code == 2 and "no units" in err
+    code, _, err = run(capsys, "generate", src, "-o", tmp_path / "h.npz", "--piece", "x")
+    assert code == 2 and "pattern files" in err
+    assert not (tmp_path / "h.npz").exists()
+
+
+def _bad_files() -> dict[str, tuple[str, str | bytes, tuple[str, ...]]]:
+    good_dxf = DATA / "square.dxf"
+    return {
+        "svg-truncated": ("p.svg", SVG[: len(SVG) // 2], ("well-formed", "truncated")),
+        "svg-no-closed-path": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                               'height="10mm"><path d="M0 0 L5 5 L9 1"/></svg>',
+                               ("no closed path",)),
+        "svg-three-points": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                             'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0 0,9"/></svg>',
+                             ("only 3", "at least 4")),
+        "svg-unknown-units": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10em" '
+                              'height="10em"><rect width="5" height="5"/></svg>',
+                              ("unknown unit", "em")),
+        "svg-bad-path": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                         'height="10mm"><path d="M0 0 L5 x5 Z"/></svg>', ("path data",)),
+        "dxf-truncated": ("p.dxf", good_dxf.read_text()[:150], ("dxf", "truncated")),
+        "dxf-no-units": ("p.dxf", good_dxf.read_text().replace("$INSUNITS\n70\n4\n",
+                                                                 "$INSUNITS\n70\n0\n"),
+                         ("$insunits is 0", "--units")),
+        "dxf-not-a-dxf": ("p.dxf", "hello\n", ("dxf",)),
+        "garmentcode-open-loop": ("p.json", json.dumps(
+            {"pattern": {"panels": {"a": {"vertices": [[0, 0], [1, 0], [1, 1], [0, 1]],
+                                          "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]},
+                                                    {"endpoints": [2, 3]}]}}}}),
+            ("do not close", "loop")),
+        "garmentcode-bad-curvature": ("p.json", json.dumps(
+            {"pattern": {"panels": {"a": {"vertices": [[0, 0], [1, 0], [1, 1], [0, 1]],
+                                          "edges": [{"endpoints": [0, 1], "curvature": {"type": "spiral"}},
+                                                    {"endpoints": [1, 2]}, {"endpoints": [2, 3]},
+                                                    {"endpoints": [3, 0]}]}}}}),
+            ("curvature type",)),
+    }
+
+
+@pytest.mark.parametrize("case", sorted(_bad_files()))
+def test_bad_pattern_files_exit_2(capsys, tmp_path, case):
+    name, content, words = _bad_files()[case]
+    src = tmp_path / name
+    src.write_text(content)
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, err = run(capsys, "generate", src, "-o", out / "g.obj", "--plot", out / "g.png",
+                       "--nodes", "9")
+    assert code == 2, err
+    assert "clothgrid: error:" in err
+    low = err.lower()
+    assert any(w.lower() in low for w in words), err
+    assert files(out) == []
+    code, _, err = run(capsys, "pieces", src)
+    assert code == 2 and "clothgrid: error:" in err
+
+
+def test_unknown_piece_and_duplicate_outputs(capsys, svg_file, tmp_path):
+    code, _, err = run(capsys, "generate", svg_file, "-o", tmp_path / "g.obj", "--piece", "sleeve")
+    assert code == 2 and "sleeve" in err and "front" in err
+    assert files(tmp_path) == ["pattern.svg"]
+
+
+def test_failed_write_leaves_nothing(capsys, svg_file, tmp_path, monkeypatch):
+    from clothgrid import cli
+
+    calls = {"n": 0}
+    real = cli._write_all
+
+    def flaky(grid, outputs, plot, **kw):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise InputError("cannot write: disk full (simulated)")
+        return real(grid, outputs, plot, **kw)
+
+    monkeypatch.setattr(cli, "_write_all", flaky)
+    code, _, err = run(capsys, "generate", svg_file, "-o", tmp_path / "g.obj", "--nodes", "9", "-q")
+    assert code == 2 and "disk full" in err
+    assert files(tmp_path) == ["pattern.svg"]
+
+
+def test_data_files_read():
+    pieces = read_pieces(DATA / "square.dxf")
+    assert len(pieces) == 1 and pieces[0].extent == pytest.approx((100.0, 60.0))
+    grid = generate(piece_boundary(pieces[0]), NODES)
+    assert grid.shape == NODES
