@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -45,13 +45,17 @@ def cli_runs(piece: Path, n: int, runs: int, out: Path) -> list[float]:
     print("command: clothgrid " + " ".join(cmd[3:]).replace(str(out), "g.npz").replace(str(ROOT) + "/", ""))
     times = []
     for r in range(runs):
+        u0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         res = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
+        u1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (u1.ru_utime - u0.ru_utime) + (u1.ru_stime - u0.ru_stime)
         if res.returncode != 0:
             sys.exit(f"command failed ({res.returncode}):\n{res.stderr}")
         line = next((s for s in res.stdout.splitlines() if s.startswith("solver ")), "")
-        print(f"  run {r + 1}: {wall:.2f} s wall, load {os.getloadavg()[0]:.2f}; {line}")
+        print(f"  run {r + 1}: {wall:.2f} s wall, {cpu:.2f} s CPU (all threads), load {os.getloadavg()[0]:.2f}; "
+              f"{line}")
         times.append(wall)
     return times
 
@@ -59,16 +63,17 @@ def cli_runs(piece: Path, n: int, runs: int, out: Path) -> list[float]:
 class _Timed:
     """A GLMultigrid whose every operation is drained and timed."""
 
-    def __init__(self, ops, times):
-        self.ops, self.times, self.levels = ops, times, ops.levels
+    def __init__(self, ops, times, cpu):
+        self.ops, self.times, self.cpu, self.levels = ops, times, cpu, ops.levels
         self.ctx = ops.dev.ctx
 
     def _call(self, name, *args):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = getattr(self.ops, name)(*args)
         if name != "solution":
             self.ctx.finish()
         self.times[name] += time.perf_counter() - t0
+        self.cpu[name] += time.process_time() - c0
         self.times["n_" + name] += 1
         return out
 
@@ -88,16 +93,27 @@ class _Timed:
         return self._call("solution")
 
 
+def _clock() -> tuple[float, float]:
+    """(wall, CPU of this process's threads, llvmpipe's included)."""
+    return time.perf_counter(), time.process_time()
+
+
 def breakdown(piece: Path, n: int, out: Path) -> None:
-    steps: list[tuple[str, float]] = []
+    steps: list[tuple[str, float, float]] = []
 
     def step(name, t0):
-        steps.append((name, time.perf_counter() - t0))
-        return time.perf_counter()
+        now = _clock()
+        steps.append((name, now[0] - t0[0], now[1] - t0[1]))
+        return _clock()
 
-    t = time.perf_counter()
-    res = subprocess.run([sys.executable, "-c", "import clothgrid.cli, clothgrid.generate"], check=True)
-    t = step("Python start-up and imports (a fresh interpreter)", t)
+    t = _clock()
+    u0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", "import clothgrid.cli, clothgrid.generate"], check=True)
+    u1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    wall = time.perf_counter() - t[0]
+    steps.append(("Python start-up and imports (a fresh interpreter)", wall,
+                  u1.ru_utime - u0.ru_utime + u1.ru_stime - u0.ru_stime))
+    t = _clock()
     import clothgrid
     from clothgrid.backends import gl
     from clothgrid.backends.gl import _device
@@ -109,12 +125,13 @@ def breakdown(piece: Path, n: int, out: Path) -> None:
     from clothgrid.weights import make_weights
     from clothgrid.grid import Grid
 
-    t = time.perf_counter()
+    t = _clock()
     dev = _device.device()
     t = step(f"EGL context ({dev.renderer})", t)
     clothgrid.generate(clothgrid.load_boundary(piece), (5, 5), backend="gl")
     clothgrid.generate(clothgrid.load_boundary(piece), (5, 5), backend="gl", solver="jacobi")
-    t = step("shader compile (Mesa compiles at the first draw: one 5x5 solve)", t)
+    t = step("first (5x5) solves: shader compile at the first draw (Mesa's disk cache), "
+             "Numba kernels of the hierarchy loaded", t)
     b = clothgrid.load_boundary(piece).resampled(n, n)
     t = step("load the piece and resample its sides", t)
     gl.check_size(n, n, "multigrid")
@@ -127,13 +144,15 @@ def breakdown(piece: Path, n: int, out: Path) -> None:
     t = step(f"multigrid hierarchy on the CPU ({len(levels)} levels, Galerkin operators)", t)
 
     times: dict = defaultdict(float)
+    cpu: dict = defaultdict(float)
 
     def make(levels_, x0, rhs=None):
-        t0 = time.perf_counter()
+        t0 = _clock()
         ops = GLMultigrid(levels_, x0, rhs)
         dev.ctx.finish()
-        times["upload"] += time.perf_counter() - t0
-        return _Timed(ops, times)
+        times["upload"] += time.perf_counter() - t0[0]
+        cpu["upload"] += time.process_time() - t0[1]
+        return _Timed(ops, times, cpu)
 
     proxy = SimpleNamespace(name="gl", multigrid=make)
     build = [levels]
@@ -142,20 +161,23 @@ def breakdown(piece: Path, n: int, out: Path) -> None:
     real_build = mgmod.build_hierarchy
     mgmod.build_hierarchy = lambda weights, *a, **k: build[0]   # reuse the hierarchy timed above
     try:
-        t = time.perf_counter()
+        t = _clock()
         result = solve_multigrid(problem, backend=proxy, tol=TOL)
-        total = time.perf_counter() - t
+        total = (time.perf_counter() - t[0], time.process_time() - t[1])
     finally:
         mgmod.build_hierarchy = real_build
-    steps.append(("textures: upload, Thomas factors, first float64 residual", times["upload"]))
-    steps.append((f"line smoothing, {times['n_smooth']} zebra sweeps (compute shaders)", times["smooth"]))
-    steps.append((f"residual + restriction, {times['n_restrict']} times (fragment shaders)", times["restrict"]))
-    steps.append((f"prolongation, {times['n_prolong']} times (fragment shader)", times["prolong"]))
-    steps.append((f"float64 fold + residual + max-reduction, {times['n_max_step']} times", times["max_step"]))
-    steps.append(("download the float64 grid", times["solution"]))
-    rest = total - sum(times[k] for k in ("upload", "smooth", "restrict", "prolong", "max_step", "solution"))
-    steps.append(("solver bookkeeping (Python)", rest))
-    t = time.perf_counter()
+    keys = ("upload", "smooth", "restrict", "prolong", "max_step", "solution")
+    names = ("textures: upload, Thomas factors, first float64 residual",
+             f"line smoothing: {times['n_smooth']:.0f} zebra sweeps (compute shaders)",
+             f"restriction: {times['n_restrict']:.0f} times (fragment shaders)",
+             f"prolongation: {times['n_prolong']:.0f} times (fragment shader)",
+             f"float64 fold, residual and max-reduction: {times['n_max_step']:.0f} times",
+             "download the float64 grid")
+    for key, name in zip(keys, names):
+        steps.append((name, times[key], cpu[key]))
+    steps.append(("solver bookkeeping (Python)", total[0] - sum(times[k] for k in keys),
+                  total[1] - sum(cpu[k] for k in keys)))
+    t = _clock()
     grid = Grid.from_points(result.points, info={}, dim=b.dim)
     q = quality(grid)
     t = step("quality table", t)
@@ -163,11 +185,11 @@ def breakdown(piece: Path, n: int, out: Path) -> None:
     t = step("write the NPZ", t)
     print(f"\nin-process breakdown ({result.iterations} V-cycles, error bound {result.error_estimate:.2e}, "
           f"load {os.getloadavg()[0]:.2f}):\n")
-    print("| step | seconds |")
-    print("|---|---|")
-    for name, secs in steps:
-        print(f"| {name} | {secs:.3f} |")
-    print(f"| **total** | **{sum(s for _, s in steps):.3f}** |")
+    print("| step | wall s | CPU s (all threads) |")
+    print("|---|---|---|")
+    for name, secs, cpus in steps:
+        print(f"| {name} | {secs:.3f} | {cpus:.3f} |")
+    print(f"| **total** | **{sum(s[1] for s in steps):.3f}** | **{sum(s[2] for s in steps):.3f}** |")
     del q
 
 

@@ -14,10 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clothgrid import InputError, generate, load_boundary
+from clothgrid import InputError, generate
 from clothgrid.cli import main
 from clothgrid.patterns import (Piece, choose_corners, corner_candidates, generate_piece,
-                                nodes_for_edge_length, parse_length, piece_boundary, read_pieces)
+                                load_single_boundary, nodes_for_edge_length, parse_length,
+                                piece_boundary, read_pieces)
 from clothgrid.patterns.piece import piece_from_polygon
 from clothgrid.patterns.sampling import Bezier, EllipseArc, bspline_to_beziers, sample_loop
 
@@ -217,13 +218,15 @@ def test_svg_sheared_arc_and_cubic(tmp_path):
     assert err.max() <= ACC * piece.size, err.max()
 
 
-def test_svg_load_boundary_single_piece(tmp_path):
+def test_svg_load_single_boundary(tmp_path, svg_file):
     path = tmp_path / "one.svg"
     path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" '
                     'viewBox="0 0 100 50"><rect x="10" y="10" width="60" height="30"/></svg>')
-    b = load_boundary(path)
+    b = load_single_boundary(path)
     assert b.side_lengths == pytest.approx((60, 30, 60, 30))
     assert np.allclose(b.bottom[0, :2], [10, 10]) and np.allclose(b.top[-1, :2], [70, 40])
+    with pytest.raises(InputError, match="has 2 pieces"):
+        load_single_boundary(svg_file)
 
 
 # --------------------------------------------------------------------------- plain DXF

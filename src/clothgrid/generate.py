@@ -82,8 +82,9 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         Edge weights (:func:`clothgrid.weights.make_weights`).
     k : float
         The paper's ``k`` for ``weights="paper"``.
-    solver : {"auto", "direct", "fdm", "jacobi"}
-        ``auto`` picks the fastest solver that meets ``tol`` for the weights.
+    solver : {"auto", "direct", "fdm", "jacobi", "multigrid"}
+        ``auto`` picks the fastest solver that meets ``tol`` for the size and
+        weights (:func:`clothgrid.solvers.choose_solver`).
     backend : {"auto", "cpu", "gl"}
         Where the array operations run: ``gl`` is OpenGL through headless EGL
         (the GPU's driver, or Mesa's llvmpipe), for solvers ``multigrid``
@@ -97,7 +98,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         Jacobi's stopping rule: the true ``error`` bound, or the paper's
         "last step < tol" (not an error bound; for reproducing the paper).
     max_iter : int, optional
-        Sweep limit of iterative solvers (default: enough for Jacobi in theory).
+        Sweep (Jacobi) or V-cycle (multigrid) limit of iterative solvers
+        (default: enough for Jacobi in theory; 100 cycles for multigrid).
     allow_unconverged : bool
         Return an unconverged grid (``info["converged"]`` False) instead of
         raising :class:`NotConvergedError`.

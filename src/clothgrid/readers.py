@@ -76,22 +76,13 @@ def read_json(path: str | Path) -> Boundary:
             return Boundary.from_sides(*(data[s] for s in SIDES), name=name)
     except BoundaryError as exc:
         raise BoundaryError(f"{path}: {exc}") from None
-    if "pattern" in data:   # a GarmentCode pattern: one piece, automatic corners
-        return _read_pattern(path)
     keys = ", ".join(repr(k) for k in data) or "none"
     raise InputError(f"{path}: expected the keys 'bottom', 'right', 'top', 'left' (four sides) or "
                      f"'outline' and 'corners' (a region); found {keys}")
 
 
 #: file extension (lower case, with the dot) -> reader
-def _read_pattern(path: Path) -> Boundary:
-    """A one-piece pattern file (SVG, DXF, GarmentCode) with automatic corners (clothgrid.patterns)."""
-    from .patterns import load_single_boundary
-
-    return load_single_boundary(path)
-
-
-READERS: dict[str, Reader] = {".json": read_json, ".svg": _read_pattern, ".dxf": _read_pattern}
+READERS: dict[str, Reader] = {".json": read_json}
 
 
 def register_reader(ext: str, func: Reader) -> None:

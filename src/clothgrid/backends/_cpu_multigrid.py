@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 _BLOCK = 16   # rows j per line-solve block
+_PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
 
 
 def _nlines(nv: int, first: int) -> int:
@@ -78,10 +79,16 @@ def _relax9(x, b, C, E, N, NE, NW, first):
                 e_lo = E[i - 1, j]
                 inv = 1.0 / (C[i, j] - e_lo * g[i - 1, l])
                 g[i, l] = E[i, j] * inv
+                n_lo = N[i, j - 1]
+                n_hi = N[i, j]
+                ne_hi = NE[i, j]
+                ne_lo = NE[i - 1, j - 1]
+                nw_hi = NW[i, j]
+                nw_lo = NW[i + 1, j - 1]
                 for c in range(k):
-                    r = (b[i, j, c] + N[i, j - 1] * x[i, j - 1, c] + N[i, j] * x[i, j + 1, c]
-                         + NE[i, j] * x[i + 1, j + 1, c] + NE[i - 1, j - 1] * x[i - 1, j - 1, c]
-                         + NW[i, j] * x[i - 1, j + 1, c] + NW[i + 1, j - 1] * x[i + 1, j - 1, c])
+                    r = (b[i, j, c] + n_lo * x[i, j - 1, c] + n_hi * x[i, j + 1, c]
+                         + ne_hi * x[i + 1, j + 1, c] + ne_lo * x[i - 1, j - 1, c]
+                         + nw_hi * x[i - 1, j + 1, c] + nw_lo * x[i + 1, j - 1, c])
                     x[i, j, c] = (r + e_lo * x[i - 1, j, c]) * inv
         for i in range(nu - 2, 0, -1):
             for l in range(nb):
@@ -261,6 +268,20 @@ def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
             NWc[i, J] = -(0.5 * lo1[f] + 0.25 * c1[f - 1] + 0.5 * lo1[f - 1])
 
 
+def _serial(kernel):
+    """The same kernel compiled without threads (``prange`` runs as ``range``)."""
+    return numba.njit(cache=True, nogil=True)(kernel.py_func)
+
+
+_KERNELS = {name: (globals()[name], _serial(globals()[name]))
+            for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong_even", "_max_step5")}
+
+
+def _pick(name: str, shape) -> callable:
+    par, ser = _KERNELS[name]
+    return par if shape[0] * shape[1] >= _PARALLEL_NODES else ser
+
+
 class CpuMultigrid:
     """The CPU backend's :class:`~clothgrid.solvers.multigrid.MultigridOps`.
 
@@ -293,23 +314,23 @@ class CpuMultigrid:
         lv, x, b = self._lv[level], self.x[level], self.b[level]
         for first in ((1, 2) if reverse else (2, 1)):
             if level == 0:
-                _relax5(x, b, lv.E, lv.N, first, self._has_b)
+                _pick("_relax5", x.shape)(x, b, lv.E, lv.N, first, self._has_b)
             else:
-                _relax9(x, b, lv.C, lv.E, lv.N, lv.NE, lv.NW, first)
+                _pick("_relax9", x.shape)(x, b, lv.C, lv.E, lv.N, lv.NE, lv.NW, first)
 
     def restrict(self, level: int) -> None:
         lv, x, b = self._lv[level], self.x[level], self.b[level]
         if level == 0:
-            _restrict5(x, b, lv.E, lv.N, self._has_b, self.b[1], self.x[1])
+            _pick("_restrict5", x.shape)(x, b, lv.E, lv.N, self._has_b, self.b[1], self.x[1])
         else:
-            _restrict9(x, b, lv.C, lv.E, lv.N, lv.NE, lv.NW, self.b[level + 1], self.x[level + 1])
+            _pick("_restrict9", x.shape)(x, b, lv.C, lv.E, lv.N, lv.NE, lv.NW, self.b[level + 1], self.x[level + 1])
 
     def prolong(self, level: int) -> None:
-        _prolong_even(self.x[level], self.x[level + 1])
+        _pick("_prolong_even", self.x[level].shape)(self.x[level], self.x[level + 1])
 
     def max_step(self) -> float:
         lv = self._lv[0]
-        return float(_max_step5(self.x[0], self.b[0], lv.E, lv.N, self._has_b))
+        return float(_pick("_max_step5", self.x[0].shape)(self.x[0], self.b[0], lv.E, lv.N, self._has_b))
 
     def solution(self) -> np.ndarray:
         return self.x[0]

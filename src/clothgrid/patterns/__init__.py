@@ -92,7 +92,10 @@ def is_pattern_file(path: str | Path) -> bool:
     if ext != ".json":
         return True
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+        if '"pattern"' not in text:          # cheap: most boundary files never parse twice
+            return False
+        data = json.loads(text)
     except (OSError, ValueError):
         return False
     return isinstance(data, dict) and "pattern" in data
@@ -251,8 +254,9 @@ def generate_piece(piece: Piece, nodes: Any = None, *, edge_length: float | str 
 def load_single_boundary(path: str | Path, **kwargs: Any) -> Boundary:
     """The :class:`~clothgrid.Boundary` of a pattern file with exactly one piece (automatic corners).
 
-    Used by :func:`clothgrid.load_boundary` for ``.svg``, ``.dxf`` and
-    GarmentCode files.
+    (:func:`clothgrid.load_boundary` reads boundary JSON only; register this
+    function with :func:`clothgrid.readers.register_reader` for ``.svg`` /
+    ``.dxf`` to make it read single-piece pattern files too.)
 
     Raises
     ------

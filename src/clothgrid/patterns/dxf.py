@@ -472,7 +472,9 @@ def read_dxf(path: str | Path, *, units: str | None = None,
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not a valid DXF file ({exc})") from None
     except OSError as exc:
-        raise InputError(f"{path}: {exc.strerror or exc}") from None
+        if exc.strerror is None and "not a DXF" in str(exc):   # ezdxf's own check
+            raise InputError(f"{path}: not a DXF file (no DXF header or section found)") from None
+        raise InputError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
     if any(_is_piece_block(b) for b in doc.blocks):
         return _read_aama(doc, ctx, units, rel_tol)
     return _read_plain(doc, ctx, units, rel_tol)

@@ -48,8 +48,10 @@ def available() -> tuple[bool, str]:
 
 
 def describe() -> dict:
-    """The device's renderer, vendor, version and texture size limit (``gl_*`` keys of a grid's info)."""
-    return require().describe()
+    """``gl_*`` keys of a grid's info: renderer, vendor, version, texture size limit, and where
+    the float64 steps run (``gl_fp64``: ``device`` with GL doubles, else ``host``)."""
+    dev = require()
+    return {**dev.describe(), "gl_fp64": "device" if dev.fp64 and not HOST_FP64 else "host"}
 
 
 info = describe
@@ -67,7 +69,7 @@ def device_bytes(solver: str, nu: int, nv: int) -> int:
     base = 16 * n * 4 + 16 * n // 15 + 2          # w32, e (2), f, snapshot or residual; reduction pyramid
     base += (32 + 2 * 32) * n                      # float64 weights, float64 iterate (2 x 2 uint textures)
     if solver == "jacobi":
-        return base
+        return base + 16 * n                        # the chunk's snapshot
     if solver == "multigrid":
         # level 0: residual and stencil textures; coarse levels (about nu * nv nodes in all):
         # iterate (2), right-hand side, residual and three stencil textures

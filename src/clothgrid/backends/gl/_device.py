@@ -10,6 +10,7 @@ answers the size questions asked before a grid is allocated.
 from __future__ import annotations
 
 import ctypes
+import os
 import threading
 import time
 from contextlib import contextmanager
@@ -59,20 +60,47 @@ def device() -> "Device":
 
 
 def _create_context():
+    """A standalone OpenGL 4.3 context through EGL, on a hardware device when there is one.
+
+    EGL lists its devices in no particular order and Mesa's software device may come
+    first, so a software renderer at index 0 is kept only if no later device has a
+    hardware one. ``CLOTHGRID_GL_DEVICE=N`` picks EGL device ``N`` instead.
+    """
     try:
         import moderngl
     except ImportError as exc:
         raise BackendUnavailableError(
             f"backend 'gl' needs the moderngl package ({exc}): pip install 'clothgrid[gl]'") from None
+
+    def create(index: int):
+        return moderngl.create_context(standalone=True, backend="egl", require=REQUIRED_GL, device_index=index)
+
+    wanted = os.environ.get("CLOTHGRID_GL_DEVICE", "").strip()
     try:
-        ctx = moderngl.create_context(standalone=True, backend="egl", require=REQUIRED_GL)
+        ctx = create(int(wanted) if wanted else 0)
     except Exception as exc:  # moderngl/glcontext raise plain Exceptions with the EGL reason
         raise BackendUnavailableError(
             f"backend 'gl' could not create a headless OpenGL {REQUIRED_GL // 100}.{REQUIRED_GL % 100 // 10} "
             f"context through EGL ({type(exc).__name__}: {exc}). Without a GPU, install Mesa's llvmpipe "
             "(Debian/Ubuntu: apt-get install libegl1 libgl1 libgl1-mesa-dri); with one, its driver's EGL "
             "library") from None
+    if not wanted and _is_software(ctx):
+        for index in range(1, 8):
+            try:
+                other = create(index)
+            except Exception:
+                break
+            if _is_software(other):
+                other.release()
+            else:
+                ctx.release()
+                ctx = other
+                break
     return ctx
+
+
+def _is_software(ctx) -> bool:
+    return any(s in str(ctx.info.get("GL_RENDERER", "")).lower() for s in _SOFTWARE)
 
 
 def _gl_get_integers(pname: int, count: int) -> list[int] | None:
@@ -109,7 +137,7 @@ class Device:
         self.max_size = min(d for d in dims if d > 0)
         ext = ctx.extensions
         self.fp64 = ctx.version_code >= 400 or "GL_ARB_gpu_shader_fp64" in ext
-        self.software = any(s in self.renderer.lower() for s in _SOFTWARE)
+        self.software = _is_software(ctx)
         self._programs: dict[str, tuple] = {}
         self._compute: dict[str, object] = {}
         self.lock = threading.Lock()
@@ -210,11 +238,20 @@ class Device:
 
     # ------------------------------------------------------------------ programs
 
+    def _build(self, name: str, make):
+        try:
+            return make()
+        except self.mgl.Error as exc:
+            raise BackendUnavailableError(
+                f"backend 'gl': the OpenGL driver ({self.renderer}, {self.version}) rejected shader "
+                f"{name}: {exc}") from None
+
     def program(self, name: str):
         """``(program, vertex array, {sampler: unit})`` of the fragment shader ``_shaders.<name>``."""
         got = self._programs.get(name)
         if got is None:
-            prog = self.ctx.program(vertex_shader=_shaders.VERTEX, fragment_shader=getattr(_shaders, name))
+            prog = self._build(name, lambda: self.ctx.program(vertex_shader=_shaders.VERTEX,
+                                                               fragment_shader=getattr(_shaders, name)))
             units = {}
             for uname in prog:
                 member = prog[uname]
@@ -229,7 +266,7 @@ class Device:
         """The compute shader ``_shaders.<name>``."""
         got = self._compute.get(name)
         if got is None:
-            cs = self.ctx.compute_shader(getattr(_shaders, name))
+            cs = self._build(name, lambda: self.ctx.compute_shader(getattr(_shaders, name)))
             units = {}
             for uname in cs:
                 member = cs[uname]
@@ -350,11 +387,12 @@ class Level0:
         t0 = time.perf_counter()
         w = _edge_weights(wu, wv)
         self.w32 = self._tex(4, "f4", w.astype(np.float32))
-        z = np.zeros((nu, nv, 4), np.float32)
-        self.e = [self._tex(4, "f4", z), self._tex(4, "f4", z)]
+        self.e = [self._tex(4, "f4", None), self._tex(4, "f4", None)]
         self.e_fbo = [self._fbo(t) for t in self.e]
-        self.f = self._tex(4, "f4", z)
+        self.f = self._tex(4, "f4", None)
         self.f_fbo = self._fbo(self.f)
+        for fbo in self.e_fbo + [self.f_fbo]:     # new textures are undefined: zero them on the device
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.reducer = Reducer(dev, nv, nu)
         if self.device_fp64:
             wbits = w.view(np.uint32)                                  # (nu, nv, 8): lo, hi per double
@@ -367,8 +405,8 @@ class Level0:
                 self.ba = self.bb = self.wa       # bound but unused (has_b false)
             self.xa, self.xb, self.x_fbo = [], [], []
             xa, xb = self._split(np.ascontiguousarray(r0, np.float64))
-            for _ in range(2):
-                ta, tb = self._tex(4, "u4", xa), self._tex(4, "u4", xb)
+            for data in ((xa, xb), (None, None)):
+                ta, tb = self._tex(4, "u4", data[0]), self._tex(4, "u4", data[1])
                 self.xa.append(ta)
                 self.xb.append(tb)
                 self.x_fbo.append(self._fbo(ta, tb, self.f))
@@ -379,8 +417,7 @@ class Level0:
 
     # -- helpers
     def _tex(self, comps: int, dtype: str, data: np.ndarray | None):
-        tex = self.dev.texture(self.nv, self.nu, comps, dtype,
-                               None if data is None else np.ascontiguousarray(data).tobytes())
+        tex = self.dev.texture(self.nv, self.nu, comps, dtype, None if data is None else np.ascontiguousarray(data))
         self._objects.append(tex)
         return tex
 
@@ -411,7 +448,7 @@ class Level0:
         if self.device_fp64:
             self.dev.draw("FOLD_RESIDUAL", self.x_fbo[1],
                           {"xa": self.xa[0], "xb": self.xb[0], "e": self.e[0], "wa": self.wa, "wb": self.wb,
-                           "ba": self.ba, "bb": self.bb}, {"has_b": self.b is not None})
+                           "ba": self.ba, "bb": self.bb}, {"has_b": self.b is not None, "has_z": self.k == 3})
             for pair in (self.xa, self.xb, self.x_fbo):
                 pair.reverse()
             self.clear_correction()
@@ -429,7 +466,7 @@ class Level0:
             f = np.zeros((self.nu, self.nv, 4), np.float32)
             f[1:-1, 1:-1, :3] = r
             f[1:-1, 1:-1, 3] = s
-            self.f.write(f.tobytes())
+            self.f.write(f)
             self.clear_correction()
             s = float(s.max()) if s.size else 0.0
         self.timings["fold"] += time.perf_counter() - t0

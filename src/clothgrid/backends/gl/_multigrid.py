@@ -31,25 +31,6 @@ __all__ = ["GLMultigrid", "stencil_textures"]
 _LOCAL = 32   # LINE_SOLVE's local_size_x
 
 
-def thomas_factors(C: np.ndarray, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``inv, g`` of the row systems ``C x[i] - E[i-1] x[i-1] - E[i] x[i+1]`` (float64, all rows at once).
-
-    Forward elimination along ``i``: ``den = C[i] - E[i-1] g[i-1]``, ``inv = 1/den``,
-    ``g[i] = E[i] inv`` for interior ``i``; zero elsewhere.
-    """
-    nu = C.shape[0]
-    inv = np.zeros_like(C)
-    g = np.zeros_like(C)
-    prev = np.zeros(C.shape[1])
-    for i in range(1, nu - 1):
-        den = C[i] - E[i - 1] * prev
-        with np.errstate(divide="ignore"):
-            inv[i] = np.where(den != 0, 1.0 / den, 0.0)
-        g[i] = E[i] * inv[i]
-        prev = g[i]
-    return inv, g
-
-
 def full_stencil(level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``C, E, N`` of a :class:`~clothgrid.solvers.multigrid.Level` as float64 ``(nu, nv)`` arrays.
 
@@ -72,32 +53,28 @@ def full_stencil(level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return C, E, N
 
 
-def stencil_textures(level, with_t1: bool = True) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
-    """``t1, t2, t3`` float32 ``(nu, nv, 4)`` arrays of one :class:`~clothgrid.solvers.multigrid.Level`.
+def stencil_textures(level) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """``t1, t2, t3`` float32 ``(nu, nv, 4)`` arrays of one coarse :class:`~clothgrid.solvers.multigrid.Level`.
 
-    ``t1`` is skipped (None) unless ``with_t1``: level 0's is the weight texture of
-    :class:`~clothgrid.backends.gl._device.Level0`; ``t2`` is None on a 5-point level.
+    ``t3`` holds only ``C``; the THOMAS pass adds the factors on the device. ``t2`` is
+    None on a 5-point level.
     """
     C, E, N = full_stencil(level)
     nu, nv = C.shape
-    t1 = t2 = None
-    if with_t1:
-        t1 = np.zeros((nu, nv, 4), np.float32)
-        t1[1:, :, 0] = E[:-1]
-        t1[:, :, 1] = E
-        t1[:, 1:, 2] = N[:, :-1]
-        t1[:, :, 3] = N
+    t1 = np.zeros((nu, nv, 4), np.float32)
+    t1[1:, :, 0] = E[:-1]
+    t1[:, :, 1] = E
+    t1[:, 1:, 2] = N[:, :-1]
+    t1[:, :, 3] = N
+    t2 = None
     if level.NE is not None:
         t2 = np.zeros((nu, nv, 4), np.float32)
         t2[:, :, 0] = level.NE
         t2[1:, 1:, 1] = level.NE[:-1, :-1]
         t2[:, :, 2] = level.NW
         t2[:-1, 1:, 3] = level.NW[1:, :-1]
-    inv, g = thomas_factors(C, E)
     t3 = np.zeros((nu, nv, 4), np.float32)
     t3[..., 0] = C
-    t3[..., 1] = inv
-    t3[..., 2] = g
     return t1, t2, t3
 
 
@@ -106,19 +83,35 @@ class _Level:
 
     def __init__(self, owner, shape, t1, t2, t3, x=None, x_fbo=None, b=None):
         self.nu, self.nv = shape
+        self.owner = owner
         tex, fbo = owner._tex, owner._fbo
         self.t1 = t1 if not isinstance(t1, np.ndarray) else tex(shape, t1)
         self.nine = t2 is not None
         self.t2 = tex(shape, t2) if self.nine else self.t1
         self.t3 = tex(shape, t3)
+        owner.dev.dispatch("THOMAS", -(-self.nv // _LOCAL), {0: self.t3}, {"t1": self.t1}, {"nine": self.nine})
         if x is None:
             x = [tex(shape), tex(shape)]
             x_fbo = [fbo(t) for t in x]
+            x_fbo[0].clear(0.0, 0.0, 0.0, 0.0)
         self.x, self.x_fbo = x, x_fbo
         self.b = b if b is not None else tex(shape)
         self.b_fbo = None if b is not None else fbo(self.b)
-        self.r = tex(shape)
-        self.r_fbo = fbo(self.r)
+        self._r = None
+
+    @property
+    def r_fbo(self):
+        """A residual texture's framebuffer (made on first use: the V-cycle's restriction after a
+        sweep ending on odd rows does without)."""
+        if self._r is None:
+            self._r = self.owner._tex((self.nu, self.nv))
+            self._r_fbo = self.owner._fbo(self._r)
+        return self._r_fbo
+
+    @property
+    def r(self):
+        self.r_fbo
+        return self._r
 
     def stencil(self) -> dict:
         return {"t1": self.t1, "t2": self.t2, "t3": self.t3, "b": self.b}
@@ -148,11 +141,11 @@ class GLMultigrid:
         wu, wv = E[:-1], N[:, :-1]
         self._objects: list = []
         self.counts = {"smooth": 0, "restrict": 0, "prolong": 0, "fold": 0}
+        self.odd_last = [False] * len(levels)   # was the level's last operation a sweep ending on odd rows?
         self.seconds = {"smooth": 0.0, "restrict": 0.0, "prolong": 0.0, "fold": 0.0}
         with dev.current():
             self.l0 = Level0(dev, np.asarray(x0, np.float64), wu, wv, host_fp64=host_fp64, rhs=rhs)
-            _, _, t3 = stencil_textures(fine, with_t1=False)
-            self.lv = [_Level(self, fine.shape, self.l0.w32, None, t3, x=self.l0.e, x_fbo=self.l0.e_fbo,
+            self.lv = [_Level(self, fine.shape, self.l0.w32, None, None, x=self.l0.e, x_fbo=self.l0.e_fbo,
                               b=self.l0.f)]
             for level in levels[1:]:
                 self.lv.append(_Level(self, level.shape, *stencil_textures(level)))
@@ -163,7 +156,7 @@ class GLMultigrid:
     # -- allocation helpers (released with the level 0 objects)
     def _tex(self, shape, data: np.ndarray | None = None):
         nu, nv = shape
-        t = self.dev.texture(nv, nu, 4, "f4", None if data is None else np.ascontiguousarray(data, np.float32).tobytes())
+        t = self.dev.texture(nv, nu, 4, "f4", None if data is None else np.ascontiguousarray(data, np.float32))
         self._objects.append(t)
         return t
 
@@ -183,6 +176,7 @@ class GLMultigrid:
                 if rows > 0:
                     dev.dispatch("LINE_SOLVE", -(-rows // _LOCAL), {0: lv.x[0]}, lv.stencil(),
                                  {"first": first, "nine": lv.nine})
+        self.odd_last[level] = not reverse
         self.clean = False
         self.counts["smooth"] += 1
         self.seconds["smooth"] += time.perf_counter() - t0
@@ -192,8 +186,12 @@ class GLMultigrid:
         lv, lc = self.lv[level], self.lv[level + 1]
         dev = self.dev
         with dev.current():
-            dev.draw("RESIDUAL", lv.r_fbo, {"x": lv.x[0], **lv.stencil()}, {"nine": lv.nine})
-            dev.draw("RESTRICT", lc.b_fbo, {"r": lv.r})
+            if self.odd_last[level]:
+                dev.draw("RESTRICT_SMOOTHED", lc.b_fbo, {"x": lv.x[0], **lv.stencil()},
+                         {"nine": lv.nine, "nc": lc.nv})
+            else:
+                dev.draw("RESIDUAL", lv.r_fbo, {"x": lv.x[0], **lv.stencil()}, {"nine": lv.nine})
+                dev.draw("RESTRICT", lc.b_fbo, {"r": lv.r})
             lc.x_fbo[0].clear(0.0, 0.0, 0.0, 0.0)
         self.counts["restrict"] += 1
         self.seconds["restrict"] += time.perf_counter() - t0
@@ -206,6 +204,7 @@ class GLMultigrid:
             dev.draw("PROLONG", lv.x_fbo[1], {"x": lv.x[0], "xc": lc.x[0]})
             lv.x.reverse()
             lv.x_fbo.reverse()
+        self.odd_last[level] = False
         self.counts["prolong"] += 1
         self.seconds["prolong"] += time.perf_counter() - t0
 
@@ -216,15 +215,18 @@ class GLMultigrid:
             with self.dev.current():
                 self.cert = self.l0.fold()
             self.clean = True
+            self.odd_last[0] = False      # x and b of level 0 changed
             self.counts["fold"] += 1
         self.seconds["fold"] += time.perf_counter() - t0
         return self.cert
 
     def solution(self) -> np.ndarray:
-        """Level 0's float64 iterate (after a fold); unbinds the context from this thread."""
+        """Level 0's float64 iterate (after a fold). This ends the solve: the textures are freed
+        and the context is unbound from this thread (so that another thread may use the device)."""
         self.max_step()
         with self.dev.current():
             x = self.l0.points()
+        self.release()
         self.dev.release_thread()
         return x
 
@@ -233,17 +235,18 @@ class GLMultigrid:
                 "gl_passes": dict(self.counts), "gl_seconds": {**self.seconds, **self.l0.timings}}
 
     def release(self) -> None:
-        """Free the textures (also done when the object is garbage collected)."""
+        """Free the textures (done by :meth:`solution`, or when a solve that stopped early is
+        garbage collected)."""
+        if not self._objects and not self.l0._objects:
+            return
         with self.dev.current():
             for obj in reversed(self._objects):
                 obj.release()
             self._objects = []
             self.l0.release()
-        self.dev.release_thread()
 
     def __del__(self):
         try:
-            if self._objects or self.l0._objects:
-                self.release()
-        except Exception:
+            self.release()
+        except Exception:   # the context is busy in another thread, or already gone at exit
             pass

@@ -93,10 +93,12 @@ layout(location = 0) out uvec4 oxa;
 layout(location = 1) out uvec4 oxb;
 layout(location = 2) out vec4 of;
 
+uniform bool has_z;        // false for planar grids (z = 0 throughout): xb is not read
+
 dvec3 node(ivec2 q) {
     uvec4 a = texelFetch(xa, q, 0);
-    uvec2 b = texelFetch(xb, q, 0).xy;
-    dvec3 x = dvec3(packDouble2x32(a.xy), packDouble2x32(a.zw), packDouble2x32(b));
+    double z = has_z ? packDouble2x32(texelFetch(xb, q, 0).xy) : 0.0lf;
+    dvec3 x = dvec3(packDouble2x32(a.xy), packDouble2x32(a.zw), z);
     return x + dvec3(texelFetch(e, q, 0).xyz);
 }
 
@@ -156,7 +158,8 @@ void main() {
     ivec2 n = imageSize(x);
     int j = first + 2 * int(gl_GlobalInvocationID.x);
     if (j > n.x - 2) return;
-    for (int i = 1; i < n.y - 1; i++) {
+    vec3 prev = imageLoad(x, ivec2(j, 0)).xyz;             // the boundary node i = 0
+    for (int i = 1; i < n.y - 1; i++) {                    // forward elimination
         ivec2 p = ivec2(j, i);
         vec4 k = texelFetch(t1, p, 0);
         vec3 r = k.z * imageLoad(x, p + VM).xyz + k.w * imageLoad(x, p + VP).xyz + texelFetch(b, p, 0).xyz;
@@ -165,33 +168,81 @@ void main() {
             r += q.x * imageLoad(x, p + ivec2(1, 1)).xyz + q.y * imageLoad(x, p + ivec2(-1, -1)).xyz
                + q.z * imageLoad(x, p + ivec2(1, -1)).xyz + q.w * imageLoad(x, p + ivec2(-1, 1)).xyz;
         }
-        imageStore(x, p, vec4((r + k.x * imageLoad(x, p + UM).xyz) * texelFetch(t3, p, 0).y, 0.0));
+        prev = (r + k.x * prev) * texelFetch(t3, p, 0).y;
+        imageStore(x, p, vec4(prev, 0.0));
     }
-    for (int i = n.y - 2; i >= 1; i--) {
+    vec3 next = imageLoad(x, ivec2(j, n.y - 1)).xyz;       // the boundary node i = nu - 1
+    for (int i = n.y - 2; i >= 1; i--) {                   // back substitution
         ivec2 p = ivec2(j, i);
-        float g = texelFetch(t3, p, 0).z;
-        imageStore(x, p, vec4(imageLoad(x, p).xyz + g * imageLoad(x, p + UP).xyz, 0.0));
+        next = imageLoad(x, p).xyz + texelFetch(t3, p, 0).z * next;
+        imageStore(x, p, vec4(next, 0.0));
     }
 }
 """
 
-# r = b - A x on one level (zero on the boundary).
-RESIDUAL = _HEAD + _STENCIL + """
-uniform sampler2D x;
-layout(location = 0) out vec4 o;
-vec3 at(ivec2 q) { return texelFetch(x, q, 0).xyz; }
+# The Thomas factors of every row's tridiagonal system in i, on the device: one invocation per
+# row j, forward elimination along i. t3 holds C in .x on entry (coarse levels; on a 5-point level
+# C is the sum of the four weights) and (C, inv, g, 0) on exit, with den = C[i] - E[i-1] g[i-1],
+# inv = 1 / den, g[i] = E[i] inv.
+THOMAS = """
+#version 430
+layout(local_size_x = 32) in;
+layout(rgba32f, binding = 0) uniform image2D t3;
+uniform sampler2D t1;
+uniform bool nine;
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    if (on_boundary(p, textureSize(x, 0))) { o = vec4(0.0); return; }
+    ivec2 n = imageSize(t3);
+    int j = int(gl_GlobalInvocationID.x);
+    if (j < 1 || j > n.x - 2) return;
+    float g = 0.0;
+    for (int i = 1; i < n.y - 1; i++) {
+        ivec2 p = ivec2(j, i);
+        vec4 k = texelFetch(t1, p, 0);
+        float c = nine ? imageLoad(t3, p).x : (k.x + k.y) + (k.z + k.w);
+        float inv = 1.0 / (c - k.x * g);
+        g = k.y * inv;
+        imageStore(t3, p, vec4(c, inv, g, 0.0));
+    }
+}
+"""
+
+# r = b - A x at node p of one level (a 5-point level's diagonal is the sum of its four weights).
+_RESIDUAL_AT = """
+uniform sampler2D x;
+vec3 at(ivec2 q) { return texelFetch(x, q, 0).xyz; }
+vec3 residual(ivec2 p) {
     vec4 k = texelFetch(t1, p, 0);
-    vec3 r = texelFetch(b, p, 0).xyz - texelFetch(t3, p, 0).x * at(p)
+    float c = nine ? texelFetch(t3, p, 0).x : (k.x + k.y) + (k.z + k.w);
+    vec3 r = texelFetch(b, p, 0).xyz - c * at(p)
            + k.x * at(p + UM) + k.y * at(p + UP) + k.z * at(p + VM) + k.w * at(p + VP);
     if (nine) {
         vec4 q = texelFetch(t2, p, 0);
         r += q.x * at(p + ivec2(1, 1)) + q.y * at(p + ivec2(-1, -1))
            + q.z * at(p + ivec2(1, -1)) + q.w * at(p + ivec2(-1, 1));
     }
-    o = vec4(r, 0.0);
+    return r;
+}
+"""
+
+# r = b - A x on one level (zero on the boundary).
+RESIDUAL = _HEAD + _STENCIL + _RESIDUAL_AT + """
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    o = on_boundary(p, textureSize(x, 0)) ? vec4(0.0) : vec4(residual(p), 0.0);
+}
+"""
+
+# Restriction right after a zebra sweep that ended with the odd rows (drawn over the coarse grid):
+# those rows were just solved exactly, so their residual is zero (to rounding) and P^T r is the
+# residual of the even rows alone: one residual per coarse node, no fine residual pass.
+RESTRICT_SMOOTHED = _HEAD + _STENCIL + _RESIDUAL_AT + """
+uniform int nc;
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 P = ivec2(gl_FragCoord.xy);
+    if (P.x == 0 || P.y == 0 || P.x >= nc - 1 || P.y == textureSize(x, 0).y - 1) { o = vec4(0.0); return; }
+    o = vec4(residual(ivec2(2 * P.x, P.y)), 0.0);
 }
 """
 
