@@ -185,6 +185,11 @@ def test_oversize_refused_before_allocating(rng, monkeypatch):
         clothgrid.generate(b, (20, 30), backend="gl")
 
 
+def test_size_check_passes_a_large_grid_after_a_solve(rng):
+    clothgrid.generate(quad(rng, 9, 9), backend="gl")
+    gl.check_size(2048, 2048, "multigrid")      # probes a 64 MiB texture; allocates nothing else
+
+
 def test_oversize_cli_exit_2(capsys, tmp_path):
     from clothgrid.cli import main
 

@@ -23,157 +23,230 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-_BLOCK = 16   # rows j per line-solve block
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
 
 
-def _nlines(nv: int, first: int) -> int:
-    return (nv - first) // 2 if first <= nv - 2 else 0
+# Layout. A level's iterate is split by row parity into two coordinate-plane
+# arrays, ``xe[c, i, m]`` = x[i, 2m, c] and ``xo[c, i, m]`` = x[i, 2m+1, c],
+# and so are its stencil arrays. A zebra half-sweep then reads one parity's
+# coefficients and writes one array, and its inner loops run over ``m``
+# through contiguous memory, where the compiler vectorises them.
+#
+# For a row of parity ``p`` ("own"), the rows below and above belong to the
+# other parity, at index ``m + ob`` and ``m + ob + 1``, ``ob = 0`` for odd
+# rows and ``-1`` for even rows. Couplings owned by the row below (``N`` to
+# it, ``NE`` and ``NW`` from it) are read from the other parity's arrays.
 
-
-@numba.njit(parallel=True, cache=True, nogil=True)
-def _relax5(x, b, wu, wv, first, has_b):
-    """Level 0: solve rows ``j = first, first+2, ...`` exactly along ``i``."""
-    nu, nv, k = x.shape
-    nl = (nv - first) // 2 if first <= nv - 2 else 0
-    nblk = (nl + _BLOCK - 1) // _BLOCK
-    for blk in numba.prange(nblk):
-        l0 = blk * _BLOCK
-        nb = min(_BLOCK, nl - l0)
-        g = np.zeros((nu, _BLOCK))
-        for i in range(1, nu - 1):
-            for l in range(nb):
-                j = first + 2 * (l0 + l)
-                e_lo = wu[i - 1, j]
-                e_hi = wu[i, j]
-                n_lo = wv[i, j - 1]
-                n_hi = wv[i, j]
-                inv = 1.0 / (e_lo + e_hi + n_lo + n_hi - e_lo * g[i - 1, l])
-                g[i, l] = e_hi * inv
-                for c in range(k):
-                    r = n_lo * x[i, j - 1, c] + n_hi * x[i, j + 1, c] + e_lo * x[i - 1, j, c]
-                    if has_b:
-                        r += b[i, j, c]
-                    x[i, j, c] = r * inv
-        for i in range(nu - 2, 0, -1):
-            for l in range(nb):
-                j = first + 2 * (l0 + l)
-                gi = g[i, l]
-                for c in range(k):
-                    x[i, j, c] += gi * x[i + 1, j, c]
-
-
-@numba.njit(parallel=True, cache=True, nogil=True)
-def _relax9(x, b, C, E, N, NE, NW, first):
-    """Coarse levels: the same line solves for a 9-point stencil."""
-    nu, nv, k = x.shape
-    nl = (nv - first) // 2 if first <= nv - 2 else 0
-    nblk = (nl + _BLOCK - 1) // _BLOCK
-    for blk in numba.prange(nblk):
-        l0 = blk * _BLOCK
-        nb = min(_BLOCK, nl - l0)
-        g = np.zeros((nu, _BLOCK), dtype=x.dtype)
-        for i in range(1, nu - 1):
-            for l in range(nb):
-                j = first + 2 * (l0 + l)
-                e_lo = E[i - 1, j]
-                inv = 1.0 / (C[i, j] - e_lo * g[i - 1, l])
-                g[i, l] = E[i, j] * inv
-                n_lo = N[i, j - 1]
-                n_hi = N[i, j]
-                ne_hi = NE[i, j]
-                ne_lo = NE[i - 1, j - 1]
-                nw_hi = NW[i, j]
-                nw_lo = NW[i + 1, j - 1]
-                for c in range(k):
-                    r = (b[i, j, c] + n_lo * x[i, j - 1, c] + n_hi * x[i, j + 1, c]
-                         + ne_hi * x[i + 1, j + 1, c] + ne_lo * x[i - 1, j - 1, c]
-                         + nw_hi * x[i - 1, j + 1, c] + nw_lo * x[i + 1, j - 1, c])
-                    x[i, j, c] = (r + e_lo * x[i - 1, j, c]) * inv
-        for i in range(nu - 2, 0, -1):
-            for l in range(nb):
-                j = first + 2 * (l0 + l)
-                gi = g[i, l]
-                for c in range(k):
-                    x[i, j, c] += gi * x[i + 1, j, c]
+_MB = 64   # lines per block of a half-sweep
+# Inner loops index 1D row slices with a loop counter from 0: Numba then emits
+# no negative-index wrap-around and LLVM vectorises them (AVX2/AVX-512).
 
 
 @numba.njit(inline="always")
-def _res5(x, b, wu, wv, i, j, c, has_b):
-    xc = x[i, j, c]
-    r = (wu[i - 1, j] * (x[i - 1, j, c] - xc) + wu[i, j] * (x[i + 1, j, c] - xc)
-         + wv[i, j - 1] * (x[i, j - 1, c] - xc) + wv[i, j] * (x[i, j + 1, c] - xc))
+def _line_range(nv, p):
+    """Interior rows of parity p as a range of m: j = 2m + p in 1 .. nv-2."""
+    if p == 1:
+        return 0, (nv - 3) // 2 + 1
+    return 1, (nv - 2) // 2 + 1
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b):
+    """Level 0: solve the interior rows of parity ``p`` exactly along ``i``."""
+    k, nu = xo.shape[0], xo.shape[1]
+    ob = 0 if p == 1 else -1
+    m_lo, m_hi = _line_range(nv, p)
+    nblk = (m_hi - m_lo + _MB - 1) // _MB if m_hi > m_lo else 0
+    for blk in numba.prange(nblk):
+        m0 = m_lo + blk * _MB
+        nb = min(_MB, m_hi - m0)
+        a, z = m0, m0 + nb          # own rows
+        ta, tz = m0 + ob, m0 + ob + nb   # rows below, in the other parity
+        g = np.zeros((nu, _MB))
+        iv = np.zeros((nu, _MB))
+        for i in range(1, nu - 1):
+            elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, ta:tz], No[i, a:z]
+            gp, gi, ivi = g[i - 1], g[i], iv[i]
+            for q in range(nb):
+                d = elo[q] + ehi[q] + nlo[q] + nhi[q] - elo[q] * gp[q]
+                ivi[q] = 1.0 / d
+                gi[q] = ehi[q] * ivi[q]
+        for c in range(k):
+            x, t = xo[c], xt[c]
+            for i in range(1, nu - 1):
+                elo, nlo, nhi = Eo[i - 1, a:z], Nt[i, ta:tz], No[i, a:z]
+                tlo, thi, xp, xi, ivi = t[i, ta:tz], t[i, ta + 1:tz + 1], x[i - 1, a:z], x[i, a:z], iv[i]
+                if has_b:
+                    bi = bo[c, i, a:z]
+                    for q in range(nb):
+                        xi[q] = (bi[q] + nlo[q] * tlo[q] + nhi[q] * thi[q] + elo[q] * xp[q]) * ivi[q]
+                else:
+                    for q in range(nb):
+                        xi[q] = (nlo[q] * tlo[q] + nhi[q] * thi[q] + elo[q] * xp[q]) * ivi[q]
+            for i in range(nu - 2, 0, -1):
+                xi, xn, gi = x[i, a:z], x[i + 1, a:z], g[i]
+                for q in range(nb):
+                    xi[q] += gi[q] * xn[q]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv):
+    """Coarse levels: the same line solves for a 9-point stencil."""
+    k, nu = xo.shape[0], xo.shape[1]
+    ob = 0 if p == 1 else -1
+    m_lo, m_hi = _line_range(nv, p)
+    nblk = (m_hi - m_lo + _MB - 1) // _MB if m_hi > m_lo else 0
+    for blk in numba.prange(nblk):
+        m0 = m_lo + blk * _MB
+        nb = min(_MB, m_hi - m0)
+        a, z = m0, m0 + nb
+        ta, tz = m0 + ob, m0 + ob + nb
+        g = np.zeros((nu, _MB), dtype=xo.dtype)
+        iv = np.zeros((nu, _MB), dtype=xo.dtype)
+        for i in range(1, nu - 1):
+            ci, elo, ehi = Co[i, a:z], Eo[i - 1, a:z], Eo[i, a:z]
+            gp, gi, ivi = g[i - 1], g[i], iv[i]
+            for q in range(nb):
+                d = ci[q] - elo[q] * gp[q]
+                ivi[q] = 1.0 / d
+                gi[q] = ehi[q] * ivi[q]
+        for c in range(k):
+            x, t = xo[c], xt[c]
+            for i in range(1, nu - 1):
+                bi, elo, xp, xi, ivi = bo[c, i, a:z], Eo[i - 1, a:z], x[i - 1, a:z], x[i, a:z], iv[i]
+                nlo, nhi = Nt[i, ta:tz], No[i, a:z]
+                ne_o, ne_t, nw_o, nw_t = NEo[i, a:z], NEt[i - 1, ta:tz], NWo[i, a:z], NWt[i + 1, ta:tz]
+                t0lo, t0hi = t[i, ta:tz], t[i, ta + 1:tz + 1]
+                tmlo, tmhi = t[i - 1, ta:tz], t[i - 1, ta + 1:tz + 1]
+                tplo, tphi = t[i + 1, ta:tz], t[i + 1, ta + 1:tz + 1]
+                for q in range(nb):
+                    r = (bi[q] + nlo[q] * t0lo[q] + nhi[q] * t0hi[q] + ne_o[q] * tphi[q] + ne_t[q] * tmlo[q]
+                         + nw_o[q] * tmhi[q] + nw_t[q] * tplo[q] + elo[q] * xp[q])
+                    xi[q] = r * ivi[q]
+            for i in range(nu - 2, 0, -1):
+                xi, xn, gi = x[i, a:z], x[i + 1, a:z], g[i]
+                for q in range(nb):
+                    xi[q] += gi[q] * xn[q]
+
+
+@numba.njit(inline="always")
+def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
+    """Residual of level 0 at own-parity node (i, row m) for coordinate c."""
+    xc = x[c, i, m]
+    r = (Eo[i - 1, m] * (x[c, i - 1, m] - xc) + Eo[i, m] * (x[c, i + 1, m] - xc)
+         + Nt[i, m + ob] * (t[c, i, m + ob] - xc) + No[i, m] * (t[c, i, m + ob + 1] - xc))
     if has_b:
-        r += b[i, j, c]
+        r += b[c, i, m]
     return r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _restrict5(x, b, wu, wv, has_b, bc, xc):
-    """``bc[:, J] = r[:, 2J]`` (odd rows' residual is zero after pre-smoothing), ``xc = 0``."""
-    nu, nv, k = x.shape
-    nc = bc.shape[1]
+def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
+    """Coarse right-hand side from level 0's even rows (the odd rows' residual is zero
+    after pre-smoothing); coarse row J is fine row 2J, stored by J's parity."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nc = bce.shape[2] + bco.shape[2]
     for i in numba.prange(nu):
-        for J in range(nc):
-            for c in range(k):
-                xc[i, J, c] = 0.0
-                bc[i, J, c] = 0.0
+        for c in range(k):
+            for q in range(bce.shape[2]):
+                bce[c, i, q] = 0.0
+                xce[c, i, q] = 0.0
+            for q in range(bco.shape[2]):
+                bco[c, i, q] = 0.0
+                xco[c, i, q] = 0.0
         if i == 0 or i == nu - 1:
             continue
-        for J in range(1, nc - 1):
-            for c in range(k):
-                bc[i, J, c] = _res5(x, b, wu, wv, i, 2 * J, c, has_b)
+        for c in range(k):
+            for J in range(1, nc - 1):
+                r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _restrict9(x, b, C, E, N, NE, NW, bc, xc):
-    nu, nv, k = x.shape
-    nc = bc.shape[1]
+def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco):
+    k, nu = xe.shape[0], xe.shape[1]
+    nc = bce.shape[2] + bco.shape[2]
     for i in numba.prange(nu):
-        for J in range(nc):
-            for c in range(k):
-                xc[i, J, c] = 0.0
-                bc[i, J, c] = 0.0
+        for c in range(k):
+            for q in range(bce.shape[2]):
+                bce[c, i, q] = 0.0
+                xce[c, i, q] = 0.0
+            for q in range(bco.shape[2]):
+                bco[c, i, q] = 0.0
+                xco[c, i, q] = 0.0
         if i == 0 or i == nu - 1:
             continue
-        for J in range(1, nc - 1):
-            j = 2 * J
-            for c in range(k):
-                bc[i, J, c] = (b[i, j, c] - C[i, j] * x[i, j, c]
-                               + E[i - 1, j] * x[i - 1, j, c] + E[i, j] * x[i + 1, j, c]
-                               + N[i, j - 1] * x[i, j - 1, c] + N[i, j] * x[i, j + 1, c]
-                               + NE[i, j] * x[i + 1, j + 1, c] + NE[i - 1, j - 1] * x[i - 1, j - 1, c]
-                               + NW[i, j] * x[i - 1, j + 1, c] + NW[i + 1, j - 1] * x[i + 1, j - 1, c])
+        for c in range(k):
+            x = xe[c]
+            t = xo[c]
+            for J in range(1, nc - 1):
+                m = J
+                mb = m - 1
+                r = (be[c, i, m] - Ce[i, m] * x[i, m] + Ee[i - 1, m] * x[i - 1, m] + Ee[i, m] * x[i + 1, m]
+                     + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
+                     + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
+                     + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _prolong_even(x, xc):
-    """``x[:, 2J] += xc[:, J]`` (odd rows are re-solved by the next sweep)."""
-    nu, nv, k = x.shape
-    nc = xc.shape[1]
+def _prolong(xe, xce, xco):
+    """Add the coarse correction to the even rows (odd rows are re-solved next)."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nc = xce.shape[2] + xco.shape[2]
     for i in numba.prange(1, nu - 1):
-        for J in range(1, nc - 1):
-            for c in range(k):
-                x[i, 2 * J, c] += xc[i, J, c]
+        for c in range(k):
+            for J in range(1, nc - 1):
+                if J % 2 == 0:
+                    xe[c, i, J] += xce[c, i, J // 2]
+                else:
+                    xe[c, i, J] += xco[c, i, J // 2]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _max_step5(x, b, wu, wv, has_b):
+def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     """``max |D^-1 (b - A x)|`` (Euclidean per node) on level 0."""
-    nu, nv, k = x.shape
+    k, nu = xe.shape[0], xe.shape[1]
     rowmax = np.zeros(nu)
     for i in numba.prange(1, nu - 1):
-        m = 0.0
-        for j in range(1, nv - 1):
-            s2 = 0.0
+        best = 0.0
+        for p in range(2):
+            m_lo, m_hi = _line_range(nv, p)
+            n = m_hi - m_lo
+            if n <= 0:
+                continue
+            ob = 0 if p == 1 else -1
+            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
+            Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
+            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+            elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
+            s2 = np.zeros(n)
             for c in range(k):
-                r = _res5(x, b, wu, wv, i, j, c, has_b)
-                s2 += r * r
-            d = wu[i - 1, j] + wu[i, j] + wv[i, j - 1] + wv[i, j]
-            s2 /= d * d
-            if s2 > m:
-                m = s2
-        rowmax[i] = m
+                x, t = xown[c], xoth[c]
+                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
+                if has_b:
+                    bi = (be if p == 0 else bo)[c, i, a:z]
+                    for q in range(n):
+                        r = (bi[q] + elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                             + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+                        s2[q] += r * r
+                else:
+                    for q in range(n):
+                        r = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                             + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+                        s2[q] += r * r
+            for q in range(n):
+                d = elo[q] + ehi[q] + nlo[q] + nhi[q]
+                v = s2[q] / (d * d)
+                if v > best:
+                    best = v
+        rowmax[i] = best
     return np.sqrt(rowmax.max())
 
 
@@ -274,12 +347,18 @@ def _serial(kernel):
 
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
-            for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong_even", "_max_step5")}
+            for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong", "_max_step5")}
 
 
-def _pick(name: str, shape) -> callable:
+def _pick(name: str, nodes: int):
     par, ser = _KERNELS[name]
-    return par if shape[0] * shape[1] >= _PARALLEL_NODES else ser
+    return par if nodes >= _PARALLEL_NODES else ser
+
+
+def _split(a: np.ndarray, p: int) -> np.ndarray:
+    """Rows ``j = p, p+2, ...`` of a ``(n, nv)`` stencil array; stride-0 views stay views."""
+    v = a[:, p::2]
+    return v if 0 in v.strides else np.ascontiguousarray(v)
 
 
 class CpuMultigrid:
@@ -290,50 +369,79 @@ class CpuMultigrid:
     levels : list of Level
         The hierarchy, finest first (:func:`~clothgrid.solvers.multigrid.build_hierarchy`).
     x0 : numpy.ndarray
-        ``(nu, nv, k)`` float64 level-0 iterate (boundary nodes hold the data); updated in place.
+        ``(nu, nv, k)`` level-0 iterate (boundary nodes hold the data).
     rhs : numpy.ndarray, optional
         ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
     """
 
     def __init__(self, levels, x0: np.ndarray, rhs: np.ndarray | None = None):
-        self._lv = levels
         self.levels = len(levels)
+        self._shape = x0.shape
         k = x0.shape[2]
-        self.x = [x0]
-        self.b = [np.zeros((1, 1, k))]
         self._has_b = rhs is not None
+        self.nv = [lv.shape[1] for lv in levels]
+        self.nodes = [lv.shape[0] * lv.shape[1] for lv in levels]
+        planes = np.moveaxis(x0, 2, 0)
+        self.x = [(np.ascontiguousarray(planes[:, :, 0::2], dtype=np.float64),
+                   np.ascontiguousarray(planes[:, :, 1::2], dtype=np.float64))]
         if rhs is not None:
-            b0 = np.zeros_like(x0)
+            b0 = np.zeros(x0.shape)
             b0[1:-1, 1:-1] = rhs
-            self.b[0] = b0
+            b0 = np.moveaxis(b0, 2, 0)
+            self.b = [(np.ascontiguousarray(b0[:, :, 0::2]), np.ascontiguousarray(b0[:, :, 1::2]))]
+        else:
+            self.b = [(np.zeros((k, 1, 1)), np.zeros((k, 1, 1)))]
+        fine = levels[0]
+        self.st = [tuple(_split(a, p) for a in (fine.E, fine.N) for p in (0, 1))]   # Ee, Eo, Ne, No
         for lv in levels[1:]:
-            self.x.append(np.zeros(lv.shape + (k,), dtype=lv.C.dtype))
-            self.b.append(np.zeros(lv.shape + (k,), dtype=lv.C.dtype))
+            nu, nv = lv.shape
+            dt = lv.C.dtype
+            self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
+            self.b.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
+            self.st.append(tuple(_split(a, p) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW) for p in (0, 1)))
 
     def smooth(self, level: int, reverse: bool = False) -> None:
-        lv, x, b = self._lv[level], self.x[level], self.b[level]
-        for first in ((1, 2) if reverse else (2, 1)):
+        (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
+        for p in ((1, 0) if reverse else (0, 1)):
+            own, other = (xe, xo) if p == 0 else (xo, xe)
+            b = be if p == 0 else bo
             if level == 0:
-                _pick("_relax5", x.shape)(x, b, lv.E, lv.N, first, self._has_b)
+                Ee, Eo, Ne, No = st
+                _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
+                                                    p, nv, self._has_b)
             else:
-                _pick("_relax9", x.shape)(x, b, lv.C, lv.E, lv.N, lv.NE, lv.NW, first)
+                Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
+                q = 1 - p
+                _pick("_relax9", self.nodes[level])(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
+                                                    (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
+                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv)
 
     def restrict(self, level: int) -> None:
-        lv, x, b = self._lv[level], self.x[level], self.b[level]
+        (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
+        (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
         if level == 0:
-            _pick("_restrict5", x.shape)(x, b, lv.E, lv.N, self._has_b, self.b[1], self.x[1])
+            Ee, _, Ne, No = st
+            _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco)
         else:
-            _pick("_restrict9", x.shape)(x, b, lv.C, lv.E, lv.N, lv.NE, lv.NW, self.b[level + 1], self.x[level + 1])
+            Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
+            _pick("_restrict9", self.nodes[level])(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
+                                                   bce, bco, xce, xco)
 
     def prolong(self, level: int) -> None:
-        _pick("_prolong_even", self.x[level].shape)(self.x[level], self.x[level + 1])
+        xce, xco = self.x[level + 1]
+        _pick("_prolong", self.nodes[level])(self.x[level][0], xce, xco)
 
     def max_step(self) -> float:
-        lv = self._lv[0]
-        return float(_pick("_max_step5", self.x[0].shape)(self.x[0], self.b[0], lv.E, lv.N, self._has_b))
+        (xe, xo), (be, bo) = self.x[0], self.b[0]
+        Ee, Eo, Ne, No = self.st[0]
+        return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
 
     def solution(self) -> np.ndarray:
-        return self.x[0]
+        out = np.empty(self._shape)
+        xe, xo = self.x[0]
+        out[:, 0::2] = np.moveaxis(xe, 0, 2)
+        out[:, 1::2] = np.moveaxis(xo, 0, 2)
+        return out
 
 
 def coarsen(level, dtype=np.float32):

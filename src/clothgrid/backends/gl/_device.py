@@ -227,8 +227,10 @@ class Device:
             tex = fbo = None
             try:
                 tex = self.ctx.texture((width, height), 4, dtype="f4")
-                fbo = self.ctx.framebuffer([tex])
-                return self.ctx.error == "GL_NO_ERROR"
+                if self.ctx.error != "GL_NO_ERROR":     # GL_OUT_OF_MEMORY, GL_INVALID_VALUE
+                    return False
+                fbo = self.ctx.framebuffer([tex])       # raises if the attachment is incomplete
+                return True
             except Exception:
                 return False
             finally:

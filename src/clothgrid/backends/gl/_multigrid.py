@@ -1,14 +1,18 @@
 """The multigrid operations of :mod:`clothgrid.solvers.multigrid` as GL passes.
 
 :func:`~clothgrid.solvers.multigrid.vcycle` drives these operations exactly as
-it drives the CPU's; the hierarchy (coarse operators, built once on the CPU in
-float64) is uploaded as float32 textures, with each level's Thomas factors. Per
-level: the iterate (two RGBA32F textures, ping-pong for the prolongation), its
-right-hand side, a residual texture and three stencil textures.
+it drives the CPU's. The hierarchy (Galerkin coarse operators, built once on the
+CPU) is uploaded as float32 textures; each level's Thomas factors are computed on
+the device (the THOMAS compute pass). Per level: the iterate (two RGBA32F
+textures, ping-pong for the prolongation), its right-hand side and three stencil
+textures (a residual texture only if the general restriction is ever needed).
 
 - ``smooth``: zebra line Gauss-Seidel along u, one compute dispatch per colour
   (one invocation per row ``j``, Thomas algorithm along ``i`` on an image);
-- ``restrict``: a residual pass and a restriction pass (fragment shaders);
+- ``restrict``: after a sweep that ended on the odd rows (the V-cycle's
+  pre-smoothing), those rows' residual is zero to rounding, so ``P^T r`` is the
+  residual of the even rows: one fragment pass over the coarse grid. Otherwise a
+  residual pass and a restriction pass;
 - ``prolong``: a prolongation pass (fragment shader) into the other texture;
 - ``max_step``: the fold of :class:`~clothgrid.backends.gl._device.Level0`:
   level 0's float32 iterate is the correction of a float64 iterate; the fold
