@@ -153,6 +153,20 @@ def test_multigrid_3d_and_host_fp64(rng, fp64, init):
     assert max_rel_error(g.points, c.points, b.size) <= F32
 
 
+def test_driver_rejecting_the_float64_shader_falls_back_to_the_host(rng, monkeypatch):
+    from clothgrid.backends.gl import _shaders
+
+    dev = _device.device()
+    monkeypatch.setattr(_shaders, "FOLD_RESIDUAL", "#version 430\nthis is not GLSL")
+    monkeypatch.setattr(dev, "_programs", {k: v for k, v in dev._programs.items() if k != "FOLD_RESIDUAL"})
+    monkeypatch.setattr(dev, "fp64", True)
+    b = quad(rng, 20, 15)
+    g = clothgrid.generate(b, backend="gl")
+    assert g.info["gl_fp64"] == "host"
+    err = max_rel_error(g.points, reference(b), b.size)
+    assert err <= TOL and err <= g.info["error_estimate"] * (1 + 1e-9) + 1e-14
+
+
 def test_multigrid_per_edge_weights(rng):
     nu, nv = 23, 19
     b = quad(rng, nu, nv)

@@ -172,13 +172,16 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     # Exact solvers read only the boundary nodes: the initial grid matters to iterative ones.
     r0 = initial_grid(boundary, init) if name in ("jacobi", "multigrid") else boundary_grid(boundary)
     problem = Problem(r0, w, boundary.size)
+    t_solve = time.perf_counter()
     name, res = solve(problem, name, backend=be, tol=tol, stop=stop, max_iter=max_iter, progress=progress)
     seconds = time.perf_counter() - t0
+    solve_seconds = time.perf_counter() - t_solve
     info = {
         "solver": name, "backend": be.name, "init": init, "weights": w.kind,
         "k": float(k) if w.kind == "paper" else None, "tol": float(tol), "stop": stop,
         "iterations": int(res.iterations), "error_estimate": float(res.error_estimate),
         "error_bound": bool(res.bound), "converged": bool(res.converged), "seconds": seconds,
+        "solve_seconds": solve_seconds,
         "nodes": nu * nv, "shape": [nu, nv], "memory_estimate": estimate_bytes(name, nu, nv),
     }
     if res.extra:

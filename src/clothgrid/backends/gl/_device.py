@@ -384,6 +384,11 @@ class Level0:
             self.b[1:-1, 1:-1, :self.k] = rhs
         self.wu, self.wv = wu, wv
         self.device_fp64 = dev.fp64 and not host_fp64
+        if self.device_fp64:
+            try:
+                dev.program("FOLD_RESIDUAL")
+            except BackendUnavailableError:   # a driver that rejects the float64 shader: fold on the host
+                dev.fp64 = self.device_fp64 = False
         self.timings = {"upload": 0.0, "fold": 0.0, "download": 0.0}
         self._objects: list = []
         t0 = time.perf_counter()
