@@ -209,11 +209,13 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
             last_report = now
     out[..., active] = ops.solution()
     factors = [b / a for a, b in zip(steps, steps[1:]) if a > 0]
+    extra = {"levels": len(levels), "setup_seconds": setup,
+             "convergence_factor": float(np.exp(np.mean(np.log(factors[-3:])))) if factors else None,
+             "steps": [s / problem.scale for s in steps]}
+    if hasattr(ops, "extra"):
+        extra.update(ops.extra())   # e.g. the gl backend's pass counts and timings
     return SolveResult(out, iterations=len(steps), error_estimate=step * zmax / problem.scale,
-                       converged=step <= limit,
-                       extra={"levels": len(levels), "setup_seconds": setup,
-                              "convergence_factor": float(np.exp(np.mean(np.log(factors[-3:])))) if factors else None,
-                              "steps": [s / problem.scale for s in steps]})
+                       converged=step <= limit, extra=extra)
 
 
 def _barrier_solver(problem: Problem, backend, levels: list[Level]):

@@ -66,13 +66,14 @@ def summary() -> str:
 def device_bytes(solver: str, nu: int, nv: int) -> int:
     """Bytes of textures a solve of an ``nu x nv`` grid allocates on the device."""
     n = nu * nv
-    base = 16 * n * 4 + 16 * n // 15 + 2          # w32, e (2), f, snapshot or residual; reduction pyramid
-    base += (32 + 2 * 32) * n                      # float64 weights, float64 iterate (2 x 2 uint textures)
+    base = 16 * 4 * n + 16 * n // 15 + 2          # RGBA32F weights, correction (2), right-hand side; reduction
+    base += (32 + 2 * 32) * n                      # float64 weights, float64 iterate (2 x 2 RGBA32UI)
     if solver == "jacobi":
         return base + 16 * n                        # the chunk's snapshot
     if solver == "multigrid":
-        # level 0: residual and stencil textures; coarse levels (about nu * nv nodes in all):
-        # iterate (2), right-hand side, residual and three stencil textures
+        # level 0: Thomas factors and a residual; coarse levels (about nu * nv nodes in all):
+        # iterate (2), right-hand side, residual and three stencil textures (the residual
+        # textures are made only if needed: an upper estimate)
         return base + 2 * 16 * n + 7 * 16 * n
     raise InputError(f"solver {solver!r} does not run on backend 'gl': use one of {', '.join(solvers)}")
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import re
 import threading
 import time
 from contextlib import contextmanager
@@ -252,15 +253,9 @@ class Device:
         """``(program, vertex array, {sampler: unit})`` of the fragment shader ``_shaders.<name>``."""
         got = self._programs.get(name)
         if got is None:
-            prog = self._build(name, lambda: self.ctx.program(vertex_shader=_shaders.VERTEX,
-                                                               fragment_shader=getattr(_shaders, name)))
-            units = {}
-            for uname in prog:
-                member = prog[uname]
-                if getattr(member, "gl_type", None) in _SAMPLER_TYPES:
-                    units[uname] = len(units)
-                    member.value = units[uname]
-            got = (prog, self.ctx.vertex_array(prog, []), units)
+            source = getattr(_shaders, name)
+            prog = self._build(name, lambda: self.ctx.program(vertex_shader=_shaders.VERTEX, fragment_shader=source))
+            got = (prog, self.ctx.vertex_array(prog, []), _assign_units(prog, source))
             self._programs[name] = got
         return got
 
@@ -268,14 +263,9 @@ class Device:
         """The compute shader ``_shaders.<name>``."""
         got = self._compute.get(name)
         if got is None:
-            cs = self._build(name, lambda: self.ctx.compute_shader(getattr(_shaders, name)))
-            units = {}
-            for uname in cs:
-                member = cs[uname]
-                if getattr(member, "gl_type", None) in _SAMPLER_TYPES:
-                    units[uname] = len(units)
-                    member.value = units[uname]
-            got = self._compute[name] = (cs, units)
+            source = getattr(_shaders, name)
+            cs = self._build(name, lambda: self.ctx.compute_shader(source))
+            got = self._compute[name] = (cs, _assign_units(cs, source))
         return got
 
     def dispatch(self, name: str, groups: int, images: dict, inputs: dict, uniforms: dict | None = None) -> None:
@@ -316,8 +306,21 @@ class Device:
         vao.render(self.mgl.TRIANGLES, vertices=3)
 
 
-# GL_SAMPLER_2D, GL_INT_SAMPLER_2D, GL_UNSIGNED_INT_SAMPLER_2D
-_SAMPLER_TYPES = {0x8B5E, 0x8DCA, 0x8DD2}
+_SAMPLER = re.compile(r"uniform\s+[iu]?sampler2D\s+(\w+)\s*;")
+
+
+def _assign_units(program, source: str) -> dict[str, int]:
+    """Give each sampler the shader declares its own texture unit: ``{name: unit}``.
+
+    Every declared sampler gets a unit, so that binding a texture to one the
+    compiler dropped (unused in this shader) is harmless.
+    """
+    units = {}
+    for uname in _SAMPLER.findall(source):
+        units[uname] = len(units)
+        if uname in program:
+            program[uname].value = units[uname]
+    return units
 
 
 class Reducer:
@@ -484,9 +487,10 @@ class Level0:
         t0 = time.perf_counter()
         if self.device_fp64:
             a = np.frombuffer(self.xa[0].read(), np.uint32).reshape(self.nu, self.nv, 4)
-            b = np.frombuffer(self.xb[0].read(), np.uint32).reshape(self.nu, self.nv, 4)
-            bits = np.concatenate([a, b[..., :2]], axis=-1)
-            out = np.ascontiguousarray(bits).view(np.float64).reshape(self.nu, self.nv, 3)
+            if self.k == 3:
+                b = np.frombuffer(self.xb[0].read(), np.uint32).reshape(self.nu, self.nv, 4)
+                a = np.concatenate([a, b[..., :2]], axis=-1)
+            out = np.ascontiguousarray(a).view(np.float64).reshape(self.nu, self.nv, -1)
         else:
             out = self.x
         out = np.ascontiguousarray(out[..., :self.k])
