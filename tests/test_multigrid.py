@@ -13,10 +13,9 @@ from conftest import smooth_quad_sides
 from reference import exact_solution, max_rel_error, paper_weights
 
 import clothgrid
-from clothgrid.backends import cpu
 from clothgrid.initial import boundary_grid
 from clothgrid.solvers import choose_solver
-from clothgrid.solvers.multigrid import build_hierarchy, vcycle
+from clothgrid.solvers.multigrid import build_hierarchy, convergence_factor
 from clothgrid.weights import make_weights
 
 TOL = 2.0**-12
@@ -97,18 +96,8 @@ def test_coarse_levels_are_galerkin_products(rng, kind, shape):
         assert abs(got - a).max() <= 1e-6 * scale   # float32 coarse stencils
 
 
-def asymptotic_factor(weights, nu, nv, cycles=10, seed=1):
-    levels = build_hierarchy(weights)
-    x = np.random.default_rng(seed).standard_normal((nu, nv, 2))
-    x[0] = x[-1] = 0.0
-    x[:, 0] = x[:, -1] = 0.0
-    ops = cpu.multigrid(levels, x)
-    steps = [ops.max_step()]
-    for _ in range(cycles):
-        vcycle(ops)
-        steps.append(ops.max_step())
-    ratios = np.array(steps[1:]) / np.array(steps[:-1])
-    return float(np.exp(np.log(ratios[-3:]).mean()))
+def asymptotic_factor(weights):
+    return convergence_factor(weights, cycles=10, seed=1)[0]
 
 
 @pytest.mark.parametrize("shape", [(65, 65), (129, 129), (100, 77), (65, 129), (129, 40)])
@@ -116,14 +105,14 @@ def asymptotic_factor(weights, nu, nv, cycles=10, seed=1):
 def test_convergence_factor_below_0_2(kind, shape):
     """Issue 4's bar at small sizes (the benchmark checks up to 4097^2)."""
     nu, nv = shape
-    f = asymptotic_factor(make_weights(kind, nu, nv), nu, nv)
+    f = asymptotic_factor(make_weights(kind, nu, nv))
     assert f < 0.2, f"{kind} {shape}: convergence factor {f:.3f}"
 
 
 def test_converges_with_rough_random_weights(rng):
     """Edge weights jumping by e^6 between neighbours: slower, but it converges."""
     nu, nv = 65, 57
-    f = asymptotic_factor(make_weights(random_weights(rng, nu, nv), nu, nv), nu, nv)
+    f = asymptotic_factor(make_weights(random_weights(rng, nu, nv), nu, nv))
     assert f < 0.9, f
 
 

@@ -37,9 +37,7 @@ _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up
 # rows and ``-1`` for even rows. Couplings owned by the row below (``N`` to
 # it, ``NE`` and ``NW`` from it) are read from the other parity's arrays.
 
-_MB = 64   # lines per block of a half-sweep
-# Inner loops index 1D row slices with a loop counter from 0: Numba then emits
-# no negative-index wrap-around and LLVM vectorises them (AVX2/AVX-512).
+_MB = 128   # lines per block of a half-sweep (long inner loops amortise the row slicing)
 
 
 @numba.njit(inline="always")
@@ -51,31 +49,29 @@ def _line_range(nv, p):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b):
-    """Level 0: solve the interior rows of parity ``p`` exactly along ``i``."""
+def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
+    """Level 0: solve the interior rows of parity ``p`` exactly along ``i``, ``mb`` rows a block."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
     m_lo, m_hi = _line_range(nv, p)
-    nblk = (m_hi - m_lo + _MB - 1) // _MB if m_hi > m_lo else 0
+    nblk = (m_hi - m_lo + mb - 1) // mb if m_hi > m_lo else 0
     for blk in numba.prange(nblk):
-        m0 = m_lo + blk * _MB
-        nb = min(_MB, m_hi - m0)
+        m0 = m_lo + blk * mb
+        nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb          # own rows
         ta, tz = m0 + ob, m0 + ob + nb   # rows below, in the other parity
-        g = np.zeros((nu, _MB))
-        iv = np.zeros((nu, _MB))
-        for i in range(1, nu - 1):
+        g = np.zeros((nu, mb))
+        iv = np.zeros((nu, mb))
+        for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, ta:tz], No[i, a:z]
             gp, gi, ivi = g[i - 1], g[i], iv[i]
             for q in range(nb):
                 d = elo[q] + ehi[q] + nlo[q] + nhi[q] - elo[q] * gp[q]
                 ivi[q] = 1.0 / d
                 gi[q] = ehi[q] * ivi[q]
-        for c in range(k):
-            x, t = xo[c], xt[c]
-            for i in range(1, nu - 1):
-                elo, nlo, nhi = Eo[i - 1, a:z], Nt[i, ta:tz], No[i, a:z]
-                tlo, thi, xp, xi, ivi = t[i, ta:tz], t[i, ta + 1:tz + 1], x[i - 1, a:z], x[i, a:z], iv[i]
+            for c in range(k):
+                t = xt[c]
+                tlo, thi, xp, xi = t[i, ta:tz], t[i, ta + 1:tz + 1], xo[c, i - 1, a:z], xo[c, i, a:z]
                 if has_b:
                     bi = bo[c, i, a:z]
                     for q in range(nb):
@@ -83,39 +79,40 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b):
                 else:
                     for q in range(nb):
                         xi[q] = (nlo[q] * tlo[q] + nhi[q] * thi[q] + elo[q] * xp[q]) * ivi[q]
-            for i in range(nu - 2, 0, -1):
-                xi, xn, gi = x[i, a:z], x[i + 1, a:z], g[i]
+        for i in range(nu - 2, 0, -1):
+            gi = g[i]
+            for c in range(k):
+                xi, xn = xo[c, i, a:z], xo[c, i + 1, a:z]
                 for q in range(nb):
                     xi[q] += gi[q] * xn[q]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
-def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv):
+def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
     """Coarse levels: the same line solves for a 9-point stencil."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
     m_lo, m_hi = _line_range(nv, p)
-    nblk = (m_hi - m_lo + _MB - 1) // _MB if m_hi > m_lo else 0
+    nblk = (m_hi - m_lo + mb - 1) // mb if m_hi > m_lo else 0
     for blk in numba.prange(nblk):
-        m0 = m_lo + blk * _MB
-        nb = min(_MB, m_hi - m0)
+        m0 = m_lo + blk * mb
+        nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb
         ta, tz = m0 + ob, m0 + ob + nb
-        g = np.zeros((nu, _MB), dtype=xo.dtype)
-        iv = np.zeros((nu, _MB), dtype=xo.dtype)
-        for i in range(1, nu - 1):
+        g = np.zeros((nu, mb), dtype=xo.dtype)
+        iv = np.zeros((nu, mb), dtype=xo.dtype)
+        for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             ci, elo, ehi = Co[i, a:z], Eo[i - 1, a:z], Eo[i, a:z]
             gp, gi, ivi = g[i - 1], g[i], iv[i]
             for q in range(nb):
                 d = ci[q] - elo[q] * gp[q]
                 ivi[q] = 1.0 / d
                 gi[q] = ehi[q] * ivi[q]
-        for c in range(k):
-            x, t = xo[c], xt[c]
-            for i in range(1, nu - 1):
-                bi, elo, xp, xi, ivi = bo[c, i, a:z], Eo[i - 1, a:z], x[i - 1, a:z], x[i, a:z], iv[i]
-                nlo, nhi = Nt[i, ta:tz], No[i, a:z]
-                ne_o, ne_t, nw_o, nw_t = NEo[i, a:z], NEt[i - 1, ta:tz], NWo[i, a:z], NWt[i + 1, ta:tz]
+            nlo, nhi = Nt[i, ta:tz], No[i, a:z]
+            ne_o, ne_t, nw_o, nw_t = NEo[i, a:z], NEt[i - 1, ta:tz], NWo[i, a:z], NWt[i + 1, ta:tz]
+            for c in range(k):
+                t = xt[c]
+                bi, xp, xi = bo[c, i, a:z], xo[c, i - 1, a:z], xo[c, i, a:z]
                 t0lo, t0hi = t[i, ta:tz], t[i, ta + 1:tz + 1]
                 tmlo, tmhi = t[i - 1, ta:tz], t[i - 1, ta + 1:tz + 1]
                 tplo, tphi = t[i + 1, ta:tz], t[i + 1, ta + 1:tz + 1]
@@ -123,8 +120,10 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv):
                     r = (bi[q] + nlo[q] * t0lo[q] + nhi[q] * t0hi[q] + ne_o[q] * tphi[q] + ne_t[q] * tmlo[q]
                          + nw_o[q] * tmhi[q] + nw_t[q] * tplo[q] + elo[q] * xp[q])
                     xi[q] = r * ivi[q]
-            for i in range(nu - 2, 0, -1):
-                xi, xn, gi = x[i, a:z], x[i + 1, a:z], g[i]
+        for i in range(nu - 2, 0, -1):
+            gi = g[i]
+            for c in range(k):
+                xi, xn = xo[c, i, a:z], xo[c, i + 1, a:z]
                 for q in range(nb):
                     xi[q] += gi[q] * xn[q]
 
@@ -140,6 +139,15 @@ def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
     return r
 
 
+@numba.njit(inline="always")
+def _zero_rows(i, a, b, c, d):
+    """Zero column ``i`` of the coarse right-hand sides and corrections."""
+    a[:, i, :] = 0.0
+    b[:, i, :] = 0.0
+    c[:, i, :] = 0.0
+    d[:, i, :] = 0.0
+
+
 @numba.njit(parallel=True, cache=True, nogil=True)
 def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
     """Coarse right-hand side from level 0's even rows (the odd rows' residual is zero
@@ -147,13 +155,7 @@ def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
     k, nu = xe.shape[0], xe.shape[1]
     nc = bce.shape[2] + bco.shape[2]
     for i in numba.prange(nu):
-        for c in range(k):
-            for q in range(bce.shape[2]):
-                bce[c, i, q] = 0.0
-                xce[c, i, q] = 0.0
-            for q in range(bco.shape[2]):
-                bco[c, i, q] = 0.0
-                xco[c, i, q] = 0.0
+        _zero_rows(i, bce, bco, xce, xco)
         if i == 0 or i == nu - 1:
             continue
         for c in range(k):
@@ -170,13 +172,7 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xc
     k, nu = xe.shape[0], xe.shape[1]
     nc = bce.shape[2] + bco.shape[2]
     for i in numba.prange(nu):
-        for c in range(k):
-            for q in range(bce.shape[2]):
-                bce[c, i, q] = 0.0
-                xce[c, i, q] = 0.0
-            for q in range(bco.shape[2]):
-                bco[c, i, q] = 0.0
-                xco[c, i, q] = 0.0
+        _zero_rows(i, bce, bco, xce, xco)
         if i == 0 or i == nu - 1:
             continue
         for c in range(k):
@@ -207,6 +203,62 @@ def _prolong(xe, xce, xco):
                     xe[c, i, J] += xce[c, i, J // 2]
                 else:
                     xe[c, i, J] += xco[c, i, J // 2]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xco):
+    """``P^T (b - A x)`` from level 0 with every row's residual (for the full multigrid start)."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nc = bce.shape[2] + bco.shape[2]
+    for i in numba.prange(nu):
+        _zero_rows(i, bce, bco, xce, xco)
+        if i == 0 or i == nu - 1:
+            continue
+        for c in range(k):
+            for J in range(1, nc - 1):
+                r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
+                r += 0.5 * _res5(xo, xe, bo, Eo, No, Ne, c, i, J - 1, 0, has_b)
+                if 2 * J + 1 <= nv - 2:
+                    r += 0.5 * _res5(xo, xe, bo, Eo, No, Ne, c, i, J, 0, has_b)
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
+    """``b_c = P^T b`` and ``x_c = 0`` (the full multigrid start's coarse right-hand sides)."""
+    k, nu = be.shape[0], be.shape[1]
+    nc = bce.shape[2] + bco.shape[2]
+    for i in numba.prange(nu):
+        _zero_rows(i, bce, bco, xce, xco)
+        if i == 0 or i == nu - 1:
+            continue
+        for c in range(k):
+            for J in range(1, nc - 1):
+                r = be[c, i, J] + 0.5 * bo[c, i, J - 1]
+                if 2 * J + 1 <= nv - 2:
+                    r += 0.5 * bo[c, i, J]
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _prolong_full(xe, xo, xce, xco, nv):
+    """``x += P x_c`` on every interior row (odd rows take the mean of their neighbours)."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nc = xce.shape[2] + xco.shape[2]
+    for i in numba.prange(1, nu - 1):
+        for c in range(k):
+            for J in range(1, nc - 1):
+                xe[c, i, J] += xce[c, i, J // 2] if J % 2 == 0 else xco[c, i, J // 2]
+            for m in range(0, (nv - 3) // 2 + 1):   # odd row 2m+1 between coarse rows m and m+1
+                lo = xce[c, i, m // 2] if m % 2 == 0 else xco[c, i, m // 2]
+                hi = xce[c, i, (m + 1) // 2] if (m + 1) % 2 == 0 else xco[c, i, (m + 1) // 2]
+                xo[c, i, m] += 0.5 * (lo + hi)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -341,13 +393,56 @@ def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
             NWc[i, J] = -(0.5 * lo1[f] + 0.25 * c1[f - 1] + 0.5 * lo1[f - 1])
 
 
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _split_grid(x, xe, xo):
+    """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""
+    nu, nv, k = x.shape
+    for i in numba.prange(nu):
+        for j in range(nv):
+            for c in range(k):
+                if j % 2 == 0:
+                    xe[c, i, j // 2] = x[i, j, c]
+                else:
+                    xo[c, i, j // 2] = x[i, j, c]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _merge_grid(xe, xo, x):
+    """The inverse of :func:`_split_grid`."""
+    nu, nv, k = x.shape
+    for i in numba.prange(nu):
+        for j in range(nv):
+            for c in range(k):
+                x[i, j, c] = xe[c, i, j // 2] if j % 2 == 0 else xo[c, i, j // 2]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True)
+def _split_rows(a, ae, ao):
+    """Rows ``j`` even / odd of a ``(n, nv)`` stencil array into two contiguous arrays."""
+    n, nv = a.shape
+    for i in numba.prange(n):
+        for j in range(nv):
+            if j % 2 == 0:
+                ae[i, j // 2] = a[i, j]
+            else:
+                ao[i, j // 2] = a[i, j]
+
+
+def _parity_planes(x: np.ndarray, dtype=np.float64):
+    nu, nv, k = x.shape
+    xe, xo = np.empty((k, nu, (nv + 1) // 2), dtype=dtype), np.empty((k, nu, nv // 2), dtype=dtype)
+    _split_grid(x, xe, xo)
+    return xe, xo
+
+
 def _serial(kernel):
     """The same kernel compiled without threads (``prange`` runs as ``range``)."""
     return numba.njit(cache=True, nogil=True)(kernel.py_func)
 
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
-            for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong", "_max_step5")}
+            for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong", "_max_step5",
+                         "_restrict5_full", "_restrict_rhs", "_prolong_full")}
 
 
 def _pick(name: str, nodes: int):
@@ -355,10 +450,14 @@ def _pick(name: str, nodes: int):
     return par if nodes >= _PARALLEL_NODES else ser
 
 
-def _split(a: np.ndarray, p: int) -> np.ndarray:
-    """Rows ``j = p, p+2, ...`` of a ``(n, nv)`` stencil array; stride-0 views stay views."""
-    v = a[:, p::2]
-    return v if 0 in v.strides else np.ascontiguousarray(v)
+def _split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``j`` even and odd of a ``(n, nv)`` stencil array; stride-0 views stay views."""
+    if 0 in a.strides:
+        return a[:, 0::2], a[:, 1::2]
+    n, nv = a.shape
+    ae, ao = np.empty((n, (nv + 1) // 2), dtype=a.dtype), np.empty((n, nv // 2), dtype=a.dtype)
+    _split_rows(a, ae, ao)
+    return ae, ao
 
 
 class CpuMultigrid:
@@ -381,24 +480,22 @@ class CpuMultigrid:
         self._has_b = rhs is not None
         self.nv = [lv.shape[1] for lv in levels]
         self.nodes = [lv.shape[0] * lv.shape[1] for lv in levels]
-        planes = np.moveaxis(x0, 2, 0)
-        self.x = [(np.ascontiguousarray(planes[:, :, 0::2], dtype=np.float64),
-                   np.ascontiguousarray(planes[:, :, 1::2], dtype=np.float64))]
+        self.mb = _MB
+        self.x = [_parity_planes(x0)]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
             b0[1:-1, 1:-1] = rhs
-            b0 = np.moveaxis(b0, 2, 0)
-            self.b = [(np.ascontiguousarray(b0[:, :, 0::2]), np.ascontiguousarray(b0[:, :, 1::2]))]
+            self.b = [_parity_planes(b0)]
         else:
             self.b = [(np.zeros((k, 1, 1)), np.zeros((k, 1, 1)))]
         fine = levels[0]
-        self.st = [tuple(_split(a, p) for a in (fine.E, fine.N) for p in (0, 1))]   # Ee, Eo, Ne, No
+        self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
         for lv in levels[1:]:
             nu, nv = lv.shape
             dt = lv.C.dtype
             self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
             self.b.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
-            self.st.append(tuple(_split(a, p) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW) for p in (0, 1)))
+            self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
 
     def smooth(self, level: int, reverse: bool = False) -> None:
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
@@ -408,13 +505,13 @@ class CpuMultigrid:
             if level == 0:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
-                                                    p, nv, self._has_b)
+                                                    p, nv, self._has_b, self.mb)
             else:
                 Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
                 q = 1 - p
                 _pick("_relax9", self.nodes[level])(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
                                                     (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
-                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv)
+                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, self.mb)
 
     def restrict(self, level: int) -> None:
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
@@ -431,6 +528,24 @@ class CpuMultigrid:
         xce, xco = self.x[level + 1]
         _pick("_prolong", self.nodes[level])(self.x[level][0], xce, xco)
 
+    def restrict_full(self, level: int) -> None:
+        """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
+        (level 0), or ``b[l+1] = P^T b[l]`` (coarser levels); ``x[l+1] = 0``."""
+        (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
+        if level == 0:
+            (xe, xo), (be, bo) = self.x[0], self.b[0]
+            Ee, Eo, Ne, No = self.st[0]
+            _pick("_restrict5_full", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self._has_b, self.nv[0],
+                                                    bce, bco, xce, xco)
+        else:
+            be, bo = self.b[level]
+            _pick("_restrict_rhs", self.nodes[level])(be, bo, self.nv[level], bce, bco, xce, xco)
+
+    def prolong_full(self, level: int) -> None:
+        """``x[l] += P x[l+1]`` on every row (full-multigrid start)."""
+        xe, xo = self.x[level]
+        _pick("_prolong_full", self.nodes[level])(xe, xo, *self.x[level + 1], self.nv[level])
+
     def max_step(self) -> float:
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         Ee, Eo, Ne, No = self.st[0]
@@ -438,9 +553,7 @@ class CpuMultigrid:
 
     def solution(self) -> np.ndarray:
         out = np.empty(self._shape)
-        xe, xo = self.x[0]
-        out[:, 0::2] = np.moveaxis(xe, 0, 2)
-        out[:, 1::2] = np.moveaxis(xo, 0, 2)
+        _merge_grid(*self.x[0], out)
         return out
 
 
