@@ -106,6 +106,11 @@ class MultigridOps(Protocol):
         """Level 0's iterate as a float64 ``(nu, nv, k)`` array."""
 
 
+# Start with a full-multigrid pass where the backend supplies its operations
+# (the CPU backend does; the gl backend starts its V-cycles from the initial grid).
+FULL_MULTIGRID_START = True
+
+
 def coarse_rows(nv: int) -> np.ndarray:
     """Rows a coarse level keeps: ``0, 2, 4, ...`` and ``nv - 1``."""
     return np.unique(np.r_[np.arange(0, nv, 2), nv - 1])
@@ -238,7 +243,7 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
                        _barrier_solver(problem, backend, levels))
     limit = tol * problem.scale / (zmax if stop == "error" else 1.0)
-    if hasattr(ops, "prolong_full"):
+    if FULL_MULTIGRID_START and hasattr(ops, "prolong_full"):
         fmg(ops)
     steps = []
     step = math.inf
