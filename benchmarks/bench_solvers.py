@@ -7,8 +7,9 @@
 Each (solver, backend, size) runs in a fresh subprocess on the bundled T-shirt
 front with the paper's weights (eq. 2), ``tol = 2^-12``: the subprocess warms
 up (Numba's cached kernels, GL shader compilation) on a 33x33 grid, then times
-one ``clothgrid.generate`` call and reports its wall time, the solver's own
-time, and the process's peak resident memory (``ru_maxrss``, which includes
+``clothgrid.generate`` (best of three up to 2048 a side, else once) and reports
+its wall time, the solver's own time (``info["solve_seconds"]``), and the
+process's peak resident memory (``ru_maxrss``, which includes
 the warm-up and the interpreter: ~150 MB). The true error is measured against
 an exact reference computed in its own subprocess: SciPy's sparse direct
 solve up to ``--direct-max`` nodes a side; above, a grid whose a-posteriori
@@ -62,17 +63,20 @@ try:
     for m in (33, 300):  # load every kernel (serial ones for small levels, threaded for large)
         clothgrid.generate(b, (m, m), solver=solver, backend=backend, stop=stop, weights="paper",
                            allow_unconverged=True)
-    t = time.perf_counter()
-    g = clothgrid.generate(b, (n, n), solver=solver, backend=backend, stop=stop, weights="paper",
-                           allow_unconverged=True)
-    wall = time.perf_counter() - t
+    wall = solve = float("inf")
+    for _ in range(3 if n <= 2048 else 1):   # best of three where that is cheap
+        t = time.perf_counter()
+        g = clothgrid.generate(b, (n, n), solver=solver, backend=backend, stop=stop, weights="paper",
+                               allow_unconverged=True)
+        wall = min(wall, time.perf_counter() - t)
+        solve = min(solve, g.info.get("solve_seconds", wall))
 except clothgrid.ClothgridError as e:
     print(json.dumps({"skipped": str(e)}))
     sys.exit(0)
 if out != "-":
     np.save(out, g.points)
 info = g.info
-print(json.dumps({"wall": wall, "solve": info.get("solve_seconds", wall), "iterations": info["iterations"],
+print(json.dumps({"wall": wall, "solve": solve, "iterations": info["iterations"],
                   "bound": info["error_estimate"], "converged": info["converged"],
                   "factor": info.get("convergence_factor"), "renderer": info.get("gl_renderer") or info.get("device"),
                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
@@ -204,7 +208,7 @@ def main(argv=None) -> int:
                 else:
                     row.update(r)
                     row["error"] = true_error(pts, ref)
-                    print(f"{n}x{n} {label}: {r['wall']:.3f} s, {r['iterations']} it, error {row['error']:.2e} "
+                    print(f"{n}x{n} {label}: solve {r['solve']:.3f} s, generate {r['wall']:.3f} s, {r['iterations']} it, error {row['error']:.2e} "
                           f"(bound {r['bound']:.2e}), peak {r['peak_mb']:.0f} MB", flush=True)
                 results.append(row)
     write(results, args.out)
@@ -212,7 +216,7 @@ def main(argv=None) -> int:
 
 
 def write(results: list[dict], out: Path) -> None:
-    keys = ["solver", "side", "nodes", "wall", "iterations", "error", "bound", "converged", "peak_mb", "factor",
+    keys = ["solver", "side", "nodes", "wall", "solve", "iterations", "error", "bound", "converged", "peak_mb", "factor",
             "renderer", "note"]
     with open(out / "solvers.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
@@ -223,7 +227,8 @@ def write(results: list[dict], out: Path) -> None:
         by_size.setdefault(r["side"], {})[r["solver"]] = r
     labels = [lab for lab, *_ in RUNS if any(lab in d for d in by_size.values())]
     with open(out / "solvers.md", "w") as f:
-        f.write("Wall time of `generate` in seconds (true max error / tol in brackets; peak MB below).\n\n")
+        f.write("Solve time in seconds, then the wall time of the whole `generate` call, the true max error "
+                "as a fraction of tol, and the peak resident memory.\n\n")
         f.write("| nodes | " + " | ".join(labels) + " |\n|---|" + "---|" * len(labels) + "\n")
         for side in sorted(by_size):
             cells = []
@@ -234,7 +239,8 @@ def write(results: list[dict], out: Path) -> None:
                 elif "wall" not in r:
                     cells.append("n/a")
                 else:
-                    cells.append(f"{r['wall']:.3g} ({r['error'] / 2**-12:.2g}) {r['peak_mb']:.0f} MB")
+                    cells.append(f"{r['solve']:.3g} / {r['wall']:.3g} s, {r['error'] / 2**-12:.2g} tol, "
+                                 f"{r['peak_mb']:.0f} MB")
             f.write(f"| {side}x{side} | " + " | ".join(cells) + " |\n")
     try:
         import matplotlib
@@ -245,11 +251,11 @@ def write(results: list[dict], out: Path) -> None:
         return
     fig, ax = plt.subplots(figsize=(7, 5))
     for lab in labels:
-        pts = sorted((r["nodes"], r["wall"]) for r in results if r["solver"] == lab and "wall" in r)
+        pts = sorted((r["nodes"], r["solve"]) for r in results if r["solver"] == lab and "solve" in r)
         if pts:
             ax.loglog(*zip(*pts), "o-", label=lab)
     ax.set_xlabel("nodes")
-    ax.set_ylabel("wall time of generate (s)")
+    ax.set_ylabel("solve time (s)")
     ax.set_title(f"clothgrid solvers, paper weights, tol 2^-12 ({os.cpu_count()} cores)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)

@@ -30,7 +30,7 @@ SOLVERS = {"direct": solve_direct, "fdm": solve_fdm, "jacobi": solve_jacobi, "mu
 # Largest grids (nodes) where the exact solvers beat multigrid on the CPU:
 # measured with benchmarks/bench_solvers.py (docs/performance.md).
 FDM_MAX_NODES = 384 * 384
-DIRECT_MAX_NODES = 160 * 160
+DIRECT_MAX_NODES = 128 * 128
 
 
 def choose_solver(separable: bool, nu: int, nv: int) -> str:

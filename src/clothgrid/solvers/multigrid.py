@@ -234,9 +234,8 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
     t0 = time.perf_counter()
     nu, nv = problem.shape
     active = problem.active_coords
-    out = problem.r0.copy()
     if nu < 3 or nv < 3 or not active:
-        return SolveResult(out, iterations=0, error_estimate=0.0, converged=True)
+        return SolveResult(problem.r0.copy(), iterations=0, error_estimate=0.0, converged=True)
     levels = build_hierarchy(problem.weights)
     ops = backend.multigrid(levels, problem.r0[..., active])
     setup = time.perf_counter() - t0
@@ -257,6 +256,7 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
         if progress and (now := time.perf_counter()) - last_report >= progress_seconds:
             progress(f"multigrid: {len(steps)} cycles, error bound {step * zmax / problem.scale:.3g} (tol {tol:.3g})")
             last_report = now
+    out = problem.r0.copy()
     out[..., active] = ops.solution()
     factors = [b / a for a, b in zip(steps, steps[1:]) if a > 0]
     extra = {"levels": len(levels), "setup_seconds": setup,
