@@ -60,8 +60,9 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb          # own rows
         ta, tz = m0 + ob, m0 + ob + nb   # rows below, in the other parity
-        g = np.zeros((nu, mb))
-        iv = np.zeros((nu, mb))
+        g = np.empty((nu, mb))
+        iv = np.empty((nu, mb))
+        g[0] = 0.0
         for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, ta:tz], No[i, a:z]
             gp, gi, ivi = g[i - 1], g[i], iv[i]
@@ -99,8 +100,9 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb
         ta, tz = m0 + ob, m0 + ob + nb
-        g = np.zeros((nu, mb), dtype=xo.dtype)
-        iv = np.zeros((nu, mb), dtype=xo.dtype)
+        g = np.empty((nu, mb), dtype=xo.dtype)
+        iv = np.empty((nu, mb), dtype=xo.dtype)
+        g[0] = 0.0
         for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             ci, elo, ehi = Co[i, a:z], Eo[i - 1, a:z], Eo[i, a:z]
             gp, gi, ivi = g[i - 1], g[i], iv[i]
@@ -205,21 +207,38 @@ def _prolong(xe, xce, xco):
                     xe[c, i, J] += xco[c, i, J // 2]
 
 
+@numba.njit(inline="always")
+def _res5_row(x, t, b, Eo, No, Nt, c, i, a, z, ob, has_b, out):
+    """``out[q]`` = residual of level 0 at own-parity rows ``m = a + q`` (``m < z``) of column ``i``."""
+    elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, a + ob:z + ob], No[i, a:z]
+    xm, x0, xp = x[c, i - 1, a:z], x[c, i, a:z], x[c, i + 1, a:z]
+    tlo, thi = t[c, i, a + ob:z + ob], t[c, i, a + ob + 1:z + ob + 1]
+    for q in range(z - a):
+        out[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                  + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+    if has_b:
+        bi = b[c, i, a:z]
+        for q in range(z - a):
+            out[q] += bi[q]
+
+
 @numba.njit(parallel=True, cache=True, nogil=True)
 def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xco):
     """``P^T (b - A x)`` from level 0 with every row's residual (for the full multigrid start)."""
     k, nu = xe.shape[0], xe.shape[1]
     nc = bce.shape[2] + bco.shape[2]
+    n_odd = (nv - 3) // 2 + 1          # interior odd rows m = 0 .. n_odd-1
     for i in numba.prange(nu):
         _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        if i == 0 or i == nu - 1 or nc < 3:
             continue
+        re = np.empty(nc)              # even rows J = 1 .. nc-2 at re[J]
+        ro = np.zeros(nc)              # odd rows m at ro[m]; zero where there is none
         for c in range(k):
+            _res5_row(xe, xo, be, Ee, Ne, No, c, i, 1, nc - 1, -1, has_b, re[1:])
+            _res5_row(xo, xe, bo, Eo, No, Ne, c, i, 0, n_odd, 0, has_b, ro)
             for J in range(1, nc - 1):
-                r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
-                r += 0.5 * _res5(xo, xe, bo, Eo, No, Ne, c, i, J - 1, 0, has_b)
-                if 2 * J + 1 <= nv - 2:
-                    r += 0.5 * _res5(xo, xe, bo, Eo, No, Ne, c, i, J, 0, has_b)
+                r = re[J] + 0.5 * (ro[J - 1] + ro[J])
                 if J % 2 == 0:
                     bce[c, i, J // 2] = r
                 else:
