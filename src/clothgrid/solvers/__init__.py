@@ -27,9 +27,13 @@ __all__ = ["SOLVERS", "choose_solver", "solve", "Problem", "SolveResult"]
 SOLVERS = {"direct": solve_direct, "fdm": solve_fdm, "jacobi": solve_jacobi, "multigrid": solve_multigrid}
 
 
-# Largest grids (nodes) where the exact solvers beat multigrid on the CPU:
-# measured with benchmarks/bench_solvers.py (docs/performance.md).
-FDM_MAX_NODES = 384 * 384
+# Largest grids (nodes) where the exact solvers beat multigrid on the CPU, measured
+# with benchmarks/bench_solvers.py (docs/performance.md). fdm's solve is slower
+# than multigrid's from 512x512 on (0.085 s against 0.060 s; 0.34 s against
+# 0.28 s at 1024x1024), but multigrid's first use in a process loads Numba and
+# its kernels (about 0.5 s), so for a one-shot run fdm stays ahead up to about
+# 1200x1200; at 2048x2048 multigrid takes 2.2 s and fdm 5.7 s.
+FDM_MAX_NODES = 1200 * 1200
 DIRECT_MAX_NODES = 128 * 128
 
 
