@@ -17,6 +17,7 @@ import numpy as np
 from . import cloth
 from .errors import InputError, MissingDependencyError
 from .grid import Grid
+from .writers import texture_coordinates
 
 __all__ = ["to_trimesh", "to_pyvista", "to_warp_arrays"]
 
@@ -28,14 +29,6 @@ def _require(module: str, purpose: str, pip_name: str | None = None) -> Any:
         raise MissingDependencyError(
             f"{purpose} needs the optional package {pip_name or module!r}, which is not installed "
             f"({exc}); install it with: pip install {pip_name or module}") from None
-
-
-def _texture(grid: Grid, uv: str) -> np.ndarray:
-    if uv == "normalised":
-        return grid.uv.reshape(-1, 2)
-    if uv == "pattern":
-        return grid.pattern_uv.reshape(-1, 2)
-    raise InputError(f"uv must be 'normalised' or 'pattern', not {uv!r}")
 
 
 def to_trimesh(grid: Grid, *, triangles: str = "fixed", uv: str = "normalised"):
@@ -69,7 +62,7 @@ def to_trimesh(grid: Grid, *, triangles: str = "fixed", uv: str = "normalised"):
 
     mesh = trimesh.Trimesh(vertices=np.array(grid.vertices, dtype=np.float64),
                            faces=grid.triangles(triangles),
-                           visual=TextureVisuals(uv=np.array(_texture(grid, uv))), process=False)
+                           visual=TextureVisuals(uv=np.array(texture_coordinates(grid, uv))), process=False)
     mesh.metadata["clothgrid"] = {"shape": list(grid.shape), "quads": np.array(grid.quads),
                                   "sides": grid.sides, "corners": grid.corners}
     return mesh

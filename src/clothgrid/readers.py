@@ -91,6 +91,23 @@ def register_reader(ext: str, func: Reader) -> None:
     READERS[ext if ext.startswith(".") else "." + ext] = func
 
 
+def reader_for(path: Path, registry: dict, kind: str):
+    """The reader in ``registry`` for ``path``'s extension, after checking the file exists.
+
+    Raises :class:`InputError` naming the problem for a missing file, a
+    directory, or an extension no reader is registered for.
+    """
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a {kind} file")
+    reader = registry.get(path.suffix.lower())
+    if reader is None:
+        raise InputError(f"{path}: unknown {kind} file type {path.suffix or '(no extension)'!r}; "
+                         f"known: {', '.join(sorted(registry))}")
+    return reader
+
+
 def load_boundary(path: str | Path) -> Boundary:
     """Read a boundary from ``path``, the format chosen by its extension.
 
@@ -102,13 +119,4 @@ def load_boundary(path: str | Path) -> Boundary:
         The file's curves are not a valid piece.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a boundary file")
-    reader = READERS.get(path.suffix.lower())
-    if reader is None:
-        known = ", ".join(sorted(READERS))
-        raise InputError(f"{path}: unknown boundary file type {path.suffix or '(no extension)'!r}; "
-                         f"known: {known}")
-    return reader(path)
+    return reader_for(path, READERS, "boundary")(path)

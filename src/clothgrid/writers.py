@@ -123,7 +123,7 @@ def _faces(grid: Grid, triangles: str | None) -> np.ndarray:
     return np.asarray(grid.triangles(triangles), dtype=np.int64)
 
 
-def _texture(grid: Grid, uv: str) -> np.ndarray:
+def texture_coordinates(grid: Grid, uv: str) -> np.ndarray:
     """``(N, 2)`` texture coordinates: the normalised ``uv`` or the pattern's (length units)."""
     if uv == "normalised":
         return grid.uv.reshape(-1, 2)
@@ -186,7 +186,7 @@ def write_obj(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str
     instead of the normalised ones as ``vt``.
     """
     nu, nv = grid.shape
-    texture = _texture(grid, uv)
+    texture = texture_coordinates(grid, uv)
     faces = _faces(grid, triangles)
     fh.write(f"# clothgrid grid {nu} x {nv}\n# info: {info_json(grid.info)}\n".encode("ascii"))
     _write_rows(fh, "v %.17g %.17g %.17g\n", grid.points.reshape(-1, 3))
@@ -201,7 +201,7 @@ def write_ply(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str
     ``triangles`` and ``uv`` as in :func:`write_obj`.
     """
     nu, nv = grid.shape
-    texture = _texture(grid, uv)
+    texture = texture_coordinates(grid, uv)
     faces = _faces(grid, triangles)
     header = "\n".join([
         "ply",

@@ -142,6 +142,21 @@ def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
 
 
 @numba.njit(inline="always")
+def _put(ae, ao, c, i, J, value):
+    """Store ``value`` at coarse row ``J`` of a parity-split pair."""
+    if J % 2 == 0:
+        ae[c, i, J // 2] = value
+    else:
+        ao[c, i, J // 2] = value
+
+
+@numba.njit(inline="always")
+def _get(ae, ao, c, i, J):
+    """The value at coarse row ``J`` of a parity-split pair."""
+    return ae[c, i, J // 2] if J % 2 == 0 else ao[c, i, J // 2]
+
+
+@numba.njit(inline="always")
 def _zero_rows(i, a, b, c, d):
     """Zero column ``i`` of the coarse right-hand sides and corrections."""
     a[:, i, :] = 0.0
@@ -163,10 +178,7 @@ def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
         for c in range(k):
             for J in range(1, nc - 1):
                 r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+                _put(bce, bco, c, i, J, r)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -187,10 +199,7 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xc
                      + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
                      + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
                      + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+                _put(bce, bco, c, i, J, r)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -201,10 +210,7 @@ def _prolong(xe, xce, xco):
     for i in numba.prange(1, nu - 1):
         for c in range(k):
             for J in range(1, nc - 1):
-                if J % 2 == 0:
-                    xe[c, i, J] += xce[c, i, J // 2]
-                else:
-                    xe[c, i, J] += xco[c, i, J // 2]
+                xe[c, i, J] += _get(xce, xco, c, i, J)
 
 
 @numba.njit(inline="always")
@@ -239,10 +245,7 @@ def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xc
             _res5_row(xo, xe, bo, Eo, No, Ne, c, i, 0, n_odd, 0, has_b, ro)
             for J in range(1, nc - 1):
                 r = re[J] + 0.5 * (ro[J - 1] + ro[J])
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+                _put(bce, bco, c, i, J, r)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -259,10 +262,7 @@ def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
                 r = be[c, i, J] + 0.5 * bo[c, i, J - 1]
                 if 2 * J + 1 <= nv - 2:
                     r += 0.5 * bo[c, i, J]
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+                _put(bce, bco, c, i, J, r)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -273,11 +273,9 @@ def _prolong_full(xe, xo, xce, xco, nv):
     for i in numba.prange(1, nu - 1):
         for c in range(k):
             for J in range(1, nc - 1):
-                xe[c, i, J] += xce[c, i, J // 2] if J % 2 == 0 else xco[c, i, J // 2]
+                xe[c, i, J] += _get(xce, xco, c, i, J)
             for m in range(0, (nv - 3) // 2 + 1):   # odd row 2m+1 between coarse rows m and m+1
-                lo = xce[c, i, m // 2] if m % 2 == 0 else xco[c, i, m // 2]
-                hi = xce[c, i, (m + 1) // 2] if (m + 1) % 2 == 0 else xco[c, i, (m + 1) // 2]
-                xo[c, i, m] += 0.5 * (lo + hi)
+                xo[c, i, m] += 0.5 * (_get(xce, xco, c, i, m) + _get(xce, xco, c, i, m + 1))
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)

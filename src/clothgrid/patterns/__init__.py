@@ -29,6 +29,7 @@ import numpy as np
 
 from ..boundary import Boundary
 from ..errors import BoundaryError, InputError
+from ..readers import reader_for
 from .corners import (MIN_TURN_DEG, CornerCandidate, CornerChoice, choose_corners,
                       corner_candidates, turn_angles)
 from .piece import Piece
@@ -130,14 +131,7 @@ def read_pieces(path: str | Path, *, units: str | None = None,
         fewer than 4 points.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a pattern file")
-    reader = PATTERN_READERS.get(path.suffix.lower())
-    if reader is None:
-        raise InputError(f"{path}: unknown pattern file type {path.suffix or '(no extension)'!r}; "
-                         f"known: {', '.join(sorted(PATTERN_READERS))}")
+    reader = reader_for(path, PATTERN_READERS, "pattern")
     if units is not None:
         from .units import unit_to_mm
 
