@@ -26,6 +26,10 @@ import numpy as np
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
 
 
+# Coarse row J lives in the even array at J // 2 when J is even, else in the odd
+# one: the kernels below spell that choice out at each use. Helper functions
+# for it (inline="always") made restriction and prolongation 10-40x slower.
+#
 # Layout. A level's iterate is split by row parity into two coordinate-plane
 # arrays, ``xe[c, i, m]`` = x[i, 2m, c] and ``xo[c, i, m]`` = x[i, 2m+1, c],
 # and so are its stencil arrays. A zebra half-sweep then reads one parity's
@@ -142,21 +146,6 @@ def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
 
 
 @numba.njit(inline="always")
-def _put(ae, ao, c, i, J, value):
-    """Store ``value`` at coarse row ``J`` of a parity-split pair."""
-    if J % 2 == 0:
-        ae[c, i, J // 2] = value
-    else:
-        ao[c, i, J // 2] = value
-
-
-@numba.njit(inline="always")
-def _get(ae, ao, c, i, J):
-    """The value at coarse row ``J`` of a parity-split pair."""
-    return ae[c, i, J // 2] if J % 2 == 0 else ao[c, i, J // 2]
-
-
-@numba.njit(inline="always")
 def _zero_rows(i, a, b, c, d):
     """Zero column ``i`` of the coarse right-hand sides and corrections."""
     a[:, i, :] = 0.0
@@ -178,7 +167,10 @@ def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
         for c in range(k):
             for J in range(1, nc - 1):
                 r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
-                _put(bce, bco, c, i, J, r)
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -199,7 +191,10 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xc
                      + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
                      + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
                      + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
-                _put(bce, bco, c, i, J, r)
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -210,7 +205,10 @@ def _prolong(xe, xce, xco):
     for i in numba.prange(1, nu - 1):
         for c in range(k):
             for J in range(1, nc - 1):
-                xe[c, i, J] += _get(xce, xco, c, i, J)
+                if J % 2 == 0:
+                    xe[c, i, J] += xce[c, i, J // 2]
+                else:
+                    xe[c, i, J] += xco[c, i, J // 2]
 
 
 @numba.njit(inline="always")
@@ -245,7 +243,10 @@ def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xc
             _res5_row(xo, xe, bo, Eo, No, Ne, c, i, 0, n_odd, 0, has_b, ro)
             for J in range(1, nc - 1):
                 r = re[J] + 0.5 * (ro[J - 1] + ro[J])
-                _put(bce, bco, c, i, J, r)
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -262,7 +263,10 @@ def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
                 r = be[c, i, J] + 0.5 * bo[c, i, J - 1]
                 if 2 * J + 1 <= nv - 2:
                     r += 0.5 * bo[c, i, J]
-                _put(bce, bco, c, i, J, r)
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
@@ -273,9 +277,11 @@ def _prolong_full(xe, xo, xce, xco, nv):
     for i in numba.prange(1, nu - 1):
         for c in range(k):
             for J in range(1, nc - 1):
-                xe[c, i, J] += _get(xce, xco, c, i, J)
+                xe[c, i, J] += xce[c, i, J // 2] if J % 2 == 0 else xco[c, i, J // 2]
             for m in range(0, (nv - 3) // 2 + 1):   # odd row 2m+1 between coarse rows m and m+1
-                xo[c, i, m] += 0.5 * (_get(xce, xco, c, i, m) + _get(xce, xco, c, i, m + 1))
+                lo = xce[c, i, m // 2] if m % 2 == 0 else xco[c, i, m // 2]
+                hi = xce[c, i, (m + 1) // 2] if (m + 1) % 2 == 0 else xco[c, i, (m + 1) // 2]
+                xo[c, i, m] += 0.5 * (lo + hi)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True)
