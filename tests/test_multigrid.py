@@ -166,3 +166,21 @@ def test_memory_estimate_covers_multigrid():
     from clothgrid.memory import estimate_bytes
 
     assert estimate_bytes("fdm", 4096, 4096) > estimate_bytes("multigrid", 4096, 4096) > estimate_bytes("jacobi", 4096, 4096)
+
+
+@pytest.mark.parametrize("plane", [(0, 2), (1, 2), (0, 1)])
+def test_pieces_in_coordinate_planes(rng, plane):
+    """Only the coordinates with boundary data are solved (here two of three, in any order)."""
+    nu, nv = 23, 19
+    sides = smooth_quad_sides(rng, nu, nv)
+    lifted = []
+    for s in sides:
+        p = np.zeros((len(s), 3))
+        p[:, plane[0]], p[:, plane[1]] = s[:, 0], s[:, 1]
+        lifted.append(p)
+    b = clothgrid.Boundary.from_sides(*lifted)
+    g = clothgrid.generate(b, solver="multigrid")
+    ref = exact_solution(boundary_grid(b), *paper_weights(nu, nv))
+    assert max_rel_error(g.points, ref, b.size) <= TOL
+    other = 3 - sum(plane)
+    assert np.all(g.points[..., other] == 0.0)

@@ -465,7 +465,7 @@ def _serial(kernel):
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
             for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong", "_max_step5",
-                         "_restrict5_full", "_restrict_rhs", "_prolong_full")}
+                         "_restrict5_full", "_restrict_rhs", "_prolong_full", "_merge_grid")}
 
 
 def _pick(name: str, nodes: int):
@@ -576,8 +576,12 @@ class CpuMultigrid:
 
     def solution(self) -> np.ndarray:
         out = np.empty(self._shape)
-        _merge_grid(*self.x[0], out)
+        self.solution_into(out)
         return out
+
+    def solution_into(self, out: np.ndarray) -> None:
+        """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides)."""
+        _pick("_merge_grid", self.nodes[0])(*self.x[0], out)
 
 
 def coarsen(level, dtype=np.float32):
