@@ -178,10 +178,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
                         "(default: 2**-12)")
     g.add_argument("--stop", choices=("error", "paper"), default="error",
-                   help="jacobi stop rule: true error bound, or the paper's last-step rule "
-                        "(default: error)")
+                   help="stop rule of the iterative solvers (jacobi, multigrid): the true error bound, "
+                        "or the paper's last-step rule (default: error)")
     g.add_argument("--max-iter", type=_positive_int, default=None, metavar="N",
-                   help="most iterations of an iterative solver")
+                   help="most iterations of an iterative solver (Jacobi sweeps or multigrid V-cycles)")
     g.add_argument("--allow-unconverged", action="store_true",
                    help="write the grid even if --max-iter is reached before --tol")
     g.add_argument("--functional", choices=("length", "foldfree", "auto"), default="length",
