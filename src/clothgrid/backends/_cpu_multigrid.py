@@ -44,7 +44,7 @@ _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up
 _MB = 128   # lines per block of a half-sweep (long inner loops amortise the row slicing)
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _line_range(nv, p):
     """Interior rows of parity p as a range of m: j = 2m + p in 1 .. nv-2."""
     if p == 1:
@@ -52,7 +52,7 @@ def _line_range(nv, p):
     return 1, (nv - 2) // 2 + 1
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
     """Level 0: solve the interior rows of parity ``p`` exactly along ``i``, ``mb`` rows a block."""
     k, nu = xo.shape[0], xo.shape[1]
@@ -92,7 +92,7 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
                     xi[q] += gi[q] * xn[q]
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
     """Coarse levels: the same line solves for a 9-point stencil."""
     k, nu = xo.shape[0], xo.shape[1]
@@ -134,7 +134,7 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
                     xi[q] += gi[q] * xn[q]
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
     """Residual of level 0 at own-parity node (i, row m) for coordinate c."""
     xc = x[c, i, m]
@@ -145,7 +145,7 @@ def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
     return r
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _zero_rows(i, a, b, c, d):
     """Zero column ``i`` of the coarse right-hand sides and corrections."""
     a[:, i, :] = 0.0
@@ -154,7 +154,7 @@ def _zero_rows(i, a, b, c, d):
     d[:, i, :] = 0.0
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
     """Coarse right-hand side from level 0's even rows (the odd rows' residual is zero
     after pre-smoothing); coarse row J is fine row 2J, stored by J's parity."""
@@ -173,7 +173,7 @@ def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
                     bco[c, i, J // 2] = r
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco):
     k, nu = xe.shape[0], xe.shape[1]
     nc = bce.shape[2] + bco.shape[2]
@@ -197,7 +197,7 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xc
                     bco[c, i, J // 2] = r
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _prolong(xe, xce, xco):
     """Add the coarse correction to the even rows (odd rows are re-solved next)."""
     k, nu = xe.shape[0], xe.shape[1]
@@ -211,7 +211,7 @@ def _prolong(xe, xce, xco):
                     xe[c, i, J] += xco[c, i, J // 2]
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _res5_row(x, t, b, Eo, No, Nt, c, i, a, z, ob, has_b, out):
     """``out[q]`` = residual of level 0 at own-parity rows ``m = a + q`` (``m < z``) of column ``i``."""
     elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, a + ob:z + ob], No[i, a:z]
@@ -226,7 +226,7 @@ def _res5_row(x, t, b, Eo, No, Nt, c, i, a, z, ob, has_b, out):
             out[q] += bi[q]
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xco):
     """``P^T (b - A x)`` from level 0 with every row's residual (for the full multigrid start)."""
     k, nu = xe.shape[0], xe.shape[1]
@@ -249,7 +249,7 @@ def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xc
                     bco[c, i, J // 2] = r
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
     """``b_c = P^T b`` and ``x_c = 0`` (the full multigrid start's coarse right-hand sides)."""
     k, nu = be.shape[0], be.shape[1]
@@ -269,7 +269,7 @@ def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
                     bco[c, i, J // 2] = r
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _prolong_full(xe, xo, xce, xco, nv):
     """``x += P x_c`` on every interior row (odd rows take the mean of their neighbours)."""
     k, nu = xe.shape[0], xe.shape[1]
@@ -284,7 +284,7 @@ def _prolong_full(xe, xo, xce, xco, nv):
                 xo[c, i, m] += 0.5 * (lo + hi)
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     """``max |D^-1 (b - A x)|`` (Euclidean per node) on level 0."""
     k, nu = xe.shape[0], xe.shape[1]
@@ -325,7 +325,7 @@ def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     return np.sqrt(rowmax.max())
 
 
-@numba.njit(inline="always")
+@numba.njit(inline="always", error_model="numpy")
 def _gal(lo, c, up, nv, J, nc):
     """Coarse (diag, up) of P^T T P at coarse row J, for one column's tridiagonal T.
 
@@ -341,7 +341,7 @@ def _gal(lo, c, up, nv, J, nc):
     return d, u
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
     """Galerkin coarse stencil ``P^T A P`` (linear interpolation along j).
 
@@ -416,7 +416,7 @@ def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
             NWc[i, J] = -(0.5 * lo1[f] + 0.25 * c1[f - 1] + 0.5 * lo1[f - 1])
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_grid(x, xe, xo):
     """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""
     nu, nv, k = x.shape
@@ -429,7 +429,7 @@ def _split_grid(x, xe, xo):
                     xo[c, i, j // 2] = x[i, j, c]
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _merge_grid(xe, xo, x):
     """The inverse of :func:`_split_grid`."""
     nu, nv, k = x.shape
@@ -439,7 +439,7 @@ def _merge_grid(xe, xo, x):
                 x[i, j, c] = xe[c, i, j // 2] if j % 2 == 0 else xo[c, i, j // 2]
 
 
-@numba.njit(parallel=True, cache=True, nogil=True)
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_rows(a, ae, ao):
     """Rows ``j`` even / odd of a ``(n, nv)`` stencil array into two contiguous arrays."""
     n, nv = a.shape
@@ -460,7 +460,7 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
 
 def _serial(kernel):
     """The same kernel compiled without threads (``prange`` runs as ``range``)."""
-    return numba.njit(cache=True, nogil=True)(kernel.py_func)
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(kernel.py_func)
 
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
