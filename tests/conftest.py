@@ -69,3 +69,23 @@ def regions_with_corners():
         if "corners" in json.loads(f.read_text()):
             out.append(f)
     return out
+
+
+def parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points, texture coordinates and 0-based faces of an OBJ whose faces are ``v/vt`` pairs."""
+    v, vt, f = [], [], []
+    for line in text.splitlines():
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        if parts[0] == "v":
+            v.append([float(x) for x in parts[1:]])
+        elif parts[0] == "vt":
+            vt.append([float(x) for x in parts[1:]])
+        elif parts[0] == "f":
+            pairs = [tuple(int(k) for k in corner.split("/")) for corner in parts[1:]]
+            assert all(a == b for a, b in pairs)
+            f.append([a - 1 for a, _ in pairs])
+        else:
+            raise AssertionError(f"unexpected OBJ line {line!r}")
+    return np.array(v), np.array(vt), np.array(f, dtype=np.int64)

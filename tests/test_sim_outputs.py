@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import parse_obj
 
 from clothgrid import Boundary, Grid, InputError, generate, load_boundary
 from clothgrid.adapters import to_pyvista, to_trimesh, to_warp_arrays
@@ -44,25 +45,6 @@ def rotated(boundary: Boundary, angle: float = 0.7, shift=(0.1, -0.2, 0.3)) -> B
     sides = [np.c_[p[:, :2], 0 * p[:, 0]] @ rot.T + shift
              for p in (boundary.bottom, boundary.right, boundary.top, boundary.left)]
     return Boundary.from_sides(*sides)
-
-
-def parse_obj(text: str):
-    v, vt, f = [], [], []
-    for line in text.splitlines():
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
-            continue
-        if parts[0] == "v":
-            v.append([float(x) for x in parts[1:]])
-        elif parts[0] == "vt":
-            vt.append([float(x) for x in parts[1:]])
-        elif parts[0] == "f":
-            corners = [tuple(int(k) for k in c.split("/")) for c in parts[1:]]
-            assert all(a == b for a, b in corners)
-            f.append([a - 1 for a, _ in corners])
-        else:
-            raise AssertionError(f"unexpected OBJ line {line!r}")
-    return np.array(v), np.array(vt), np.array(f, dtype=np.int64)
 
 
 def run(capsys, *args):

@@ -7,6 +7,7 @@ import os
 
 import numpy as np
 import pytest
+from conftest import parse_obj
 
 from clothgrid import writers
 from clothgrid.errors import InputError
@@ -30,25 +31,6 @@ def grid() -> Grid:
 
 def listing(directory) -> list[str]:
     return sorted(os.listdir(directory))
-
-
-def parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    v, vt, f = [], [], []
-    for line in text.splitlines():
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
-            continue
-        if parts[0] == "v":
-            v.append([float(x) for x in parts[1:]])
-        elif parts[0] == "vt":
-            vt.append([float(x) for x in parts[1:]])
-        elif parts[0] == "f":
-            pairs = [tuple(int(k) for k in corner.split("/")) for corner in parts[1:]]
-            assert all(a == b for a, b in pairs)
-            f.append([a - 1 for a, _ in pairs])
-        else:
-            raise AssertionError(f"unexpected OBJ line {line!r}")
-    return np.array(v), np.array(vt), np.array(f, dtype=np.int64)
 
 
 def test_npz_round_trip(grid, tmp_path):

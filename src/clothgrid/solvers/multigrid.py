@@ -44,7 +44,7 @@ from .bounds import barrier_max
 from .problem import Problem, SolveResult
 
 __all__ = ["Level", "MultigridOps", "build_hierarchy", "coarse_rows", "vcycle", "fmg", "solve_multigrid",
-           "convergence_factor", "default_max_cycles"]
+           "convergence_factor", "DEFAULT_MAX_CYCLES"]
 
 
 @dataclass
@@ -75,10 +75,6 @@ class Level:
     def shape(self) -> tuple[int, int]:
         return (self.N.shape[0], self.N.shape[1] + (1 if self.C is None else 0))
 
-    @property
-    def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.C, self.E, self.N, self.NE, self.NW) if a is not None)
-
 
 class MultigridOps(Protocol):
     """What a backend supplies to run :func:`vcycle` (see ``backends/cpu.py``).
@@ -105,6 +101,9 @@ class MultigridOps(Protocol):
     def solution(self) -> np.ndarray:
         """Level 0's iterate as a float64 ``(nu, nv, k)`` array."""
 
+
+# V-cycles allowed by default: far more than the 3-15 a solve needs.
+DEFAULT_MAX_CYCLES = 100
 
 # Start with a full-multigrid pass where the backend supplies its operations
 # (the CPU backend does; the gl backend starts its V-cycles from the initial grid).
@@ -215,11 +214,6 @@ def convergence_factor(weights: Weights, cycles: int = 10, seed: int = 0, backen
     return float(np.exp(np.mean(np.log(ratios[-3:])))), ratios
 
 
-def default_max_cycles(nu: int, nv: int) -> int:
-    """Cycles allowed by default: far more than the ~10-15 a solve needs."""
-    return 100
-
-
 def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error", max_iter: int | None = None,
                     progress=None, progress_seconds: float = 2.0, **_) -> SolveResult:
     """V(1,1) cycles until the stopping rule holds.
@@ -231,7 +225,7 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
     if stop not in ("error", "paper"):
         raise InputError(f"unknown stop rule {stop!r}: use 'error' or 'paper'")
     if max_iter is None:
-        max_iter = default_max_cycles(*problem.shape)
+        max_iter = DEFAULT_MAX_CYCLES
     if max_iter < 1:
         raise InputError(f"max_iter must be at least 1, not {max_iter}")
     t0 = time.perf_counter()

@@ -275,10 +275,7 @@ class Device:
             tex.bind_to_image(unit, read=True, write=True)
         for key, tex in inputs.items():
             tex.use(units[key])
-        if uniforms:
-            for key, value in uniforms.items():
-                if key in cs:
-                    cs[key].value = value
+        _set_uniforms(cs, uniforms)
         cs.run(groups)
         self.ctx.memory_barrier()
 
@@ -298,12 +295,16 @@ class Device:
         prog, vao, units = self.program(name)
         for key, tex in inputs.items():
             tex.use(units[key])
-        if uniforms:
-            for key, value in uniforms.items():
-                if key in prog:
-                    prog[key].value = value
+        _set_uniforms(prog, uniforms)
         target.use()
         vao.render(self.mgl.TRIANGLES, vertices=3)
+
+
+def _set_uniforms(program, uniforms: dict | None) -> None:
+    """Set the uniforms ``program`` declares (the compiler drops unused ones)."""
+    for key, value in (uniforms or {}).items():
+        if key in program:
+            program[key].value = value
 
 
 _SAMPLER = re.compile(r"uniform\s+[iu]?sampler2D\s+(\w+)\s*;")
