@@ -171,7 +171,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     w = make_weights(weights, nu, nv, k)
     # Exact solvers read only the boundary nodes: the initial grid matters to iterative ones.
     r0 = initial_grid(boundary, init) if name in ("jacobi", "multigrid") else boundary_grid(boundary)
-    problem = Problem(r0, w, boundary.size)
+    problem = Problem(r0, w, boundary.size, overwrite=True)
     t_solve = time.perf_counter()
     name, res = solve(problem, name, backend=be, tol=tol, stop=stop, max_iter=max_iter, progress=progress)
     seconds = time.perf_counter() - t0
