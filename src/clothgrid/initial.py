@@ -39,11 +39,15 @@ def transfinite(r: np.ndarray) -> np.ndarray:
     vv = v[0]
     left = r[0, 1:-1] - ((1 - vv) * r[0, 0] + vv * r[0, -1])
     right = r[-1, 1:-1] - ((1 - vv) * r[-1, 0] + vv * r[-1, -1])
+    bottom, top = r[1:-1, 0][:, None], r[1:-1, -1][:, None]
     out = r[1:-1, 1:-1]
-    np.multiply(1 - u, left[None], out=out)
-    out += u * right[None]
-    out += (1 - v) * r[1:-1, 0][:, None]
-    out += v * r[1:-1, -1][:, None]
+    step = max(1, (1 << 18) // max(1, out[0].size))   # blocks of rows: temporaries stay in cache
+    for a in range(0, out.shape[0], step):
+        ua, o = u[a:a + step], out[a:a + step]
+        np.multiply(1 - ua, left[None], out=o)
+        o += ua * right[None]
+        o += (1 - v) * bottom[a:a + step]
+        o += v * top[a:a + step]
     return r
 
 
