@@ -16,7 +16,7 @@ import clothgrid
 from clothgrid.initial import boundary_grid
 from clothgrid.solvers import choose_solver
 from clothgrid.solvers.multigrid import build_hierarchy, convergence_factor
-from clothgrid.weights import make_weights
+from clothgrid.weights import Weights, make_weights
 
 TOL = 2.0**-12
 
@@ -94,6 +94,51 @@ def test_coarse_levels_are_galerkin_products(rng, kind, shape):
         got = stencil_matrix(level)
         scale = abs(a).max()
         assert abs(got - a).max() <= 1e-6 * scale   # float32 coarse stencils
+
+
+def random_separable(rng, nu, nv):
+    """Separable weights with non-constant factors along both directions."""
+    cu, dv, du, cv = (np.exp(rng.uniform(-2, 2, n)) for n in (nu - 1, nv, nu, nv - 1))
+    return Weights.from_factors(cu, dv, du, cv, "custom")
+
+
+@pytest.mark.parametrize("shape", [(9, 11), (10, 12), (7, 14), (12, 9), (6, 33)])
+@pytest.mark.parametrize("kind", ["paper", "uniform", "separable"])
+def test_separable_levels_are_galerkin_products(rng, kind, shape):
+    """Separable weights keep their coarse levels as 1D factors (``Level.sep``); the
+    stencil those factors form is (P1..Pl)^T A (P1..Pl), built here from the full weights."""
+    nu, nv = shape
+    w = random_separable(rng, nu, nv) if kind == "separable" else make_weights(kind, nu, nv)
+    levels = build_hierarchy(w)
+    assert all(level.sep is not None for level in levels)
+    a = interior_matrix(np.outer(*w.factors[:2]), np.outer(*w.factors[2:]))
+    rows = nv
+    for level in levels[1:]:
+        p, rows = linear_interpolation(nu, rows)
+        a = (p.T @ a @ p).tocsr()
+        assert level.shape == (nu, rows)
+        assert abs(stencil_matrix(level) - a).max() <= 1e-6 * abs(a).max()
+
+
+@pytest.mark.parametrize("shape", [(9, 7), (12, 17), (40, 64), (130, 70)])
+def test_separable_kernels_match_the_stencil_kernels(rng, shape):
+    """The CPU kernels that form a separable level's stencil on the fly do what the
+    9-point kernels do with the formed arrays, to float32 rounding."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+    from clothgrid.solvers.multigrid import Level, fmg, vcycle
+
+    nu, nv = shape
+    levels = build_hierarchy(random_separable(rng, nu, nv))
+    arrays = [levels[0]] + [Level(C=lv.C, E=lv.E, N=lv.N, NE=lv.NE, NW=lv.NW) for lv in levels[1:]]
+    x = rng.standard_normal((nu, nv, 3))
+    got = []
+    for hierarchy in (levels, arrays):
+        ops = CpuMultigrid(hierarchy, x.copy())
+        fmg(ops)
+        vcycle(ops)
+        got.append((ops.solution(), ops.max_step()))
+    assert np.abs(got[0][0] - got[1][0]).max() <= 1e-5 * np.abs(x).max()
+    assert got[0][1] == pytest.approx(got[1][1], rel=1e-4)
 
 
 def asymptotic_factor(weights):

@@ -134,6 +134,56 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
                     xi[q] += gi[q] * xn[q]
 
 
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb):
+    """Coarse levels of separable weights: :func:`_relax9` with the stencil formed on the fly.
+
+    The stencil is ``Ku (x) M + Du (x) K`` (:class:`~clothgrid.solvers.multigrid.Separable`):
+    ``cu``, ``kud`` (``Ku``'s diagonal), ``du`` over columns ``i``; ``md``, ``mu``, ``kd``,
+    ``ku`` over rows, own (``o``) and other (``t``) parity. A sweep streams only the iterate.
+    """
+    k, nu = xo.shape[0], xo.shape[1]
+    ob = 0 if p == 1 else -1
+    m_lo, m_hi = _line_range(nv, p)
+    nblk = (m_hi - m_lo + mb - 1) // mb if m_hi > m_lo else 0
+    for blk in numba.prange(nblk):
+        m0 = m_lo + blk * mb
+        nb = min(mb, m_hi - m0)
+        a, z = m0, m0 + nb
+        ta, tz = m0 + ob, m0 + ob + nb
+        g = np.empty((nu, mb), dtype=xo.dtype)
+        iv = np.empty((nu, mb), dtype=xo.dtype)
+        nlo = np.empty(mb, dtype=xo.dtype)
+        nhi = np.empty(mb, dtype=xo.dtype)
+        g[0] = 0.0
+        md, mu, kd, ku, mt, kt = mdo[a:z], muo[a:z], kdo[a:z], kuo[a:z], mut[ta:tz], kut[ta:tz]
+        for i in range(1, nu - 1):
+            cl, cr, kk, dd = cu[i - 1], cu[i], kud[i], du[i]
+            gp, gi, ivi = g[i - 1], g[i], iv[i]
+            for q in range(nb):
+                d = kk * md[q] + dd * kd[q] - cl * md[q] * gp[q]
+                ivi[q] = 1.0 / d
+                gi[q] = cr * md[q] * ivi[q]
+                nlo[q] = -(kk * mt[q] + dd * kt[q])
+                nhi[q] = -(kk * mu[q] + dd * ku[q])
+            for c in range(k):
+                t = xt[c]
+                bi, xp, xi = bo[c, i, a:z], xo[c, i - 1, a:z], xo[c, i, a:z]
+                t0lo, t0hi = t[i, ta:tz], t[i, ta + 1:tz + 1]
+                tmlo, tmhi = t[i - 1, ta:tz], t[i - 1, ta + 1:tz + 1]
+                tplo, tphi = t[i + 1, ta:tz], t[i + 1, ta + 1:tz + 1]
+                for q in range(nb):
+                    r = (bi[q] + nlo[q] * t0lo[q] + nhi[q] * t0hi[q] + mu[q] * (cr * tphi[q] + cl * tmhi[q])
+                         + mt[q] * (cl * tmlo[q] + cr * tplo[q]) + cl * md[q] * xp[q])
+                    xi[q] = r * ivi[q]
+        for i in range(nu - 2, 0, -1):
+            gi = g[i]
+            for c in range(k):
+                xi, xn = xo[c, i, a:z], xo[c, i + 1, a:z]
+                for q in range(nb):
+                    xi[q] += gi[q] * xn[q]
+
+
 @numba.njit(inline="always", error_model="numpy")
 def _res5(x, t, b, Eo, No, Nt, c, i, m, ob, has_b):
     """Residual of level 0 at own-parity node (i, row m) for coordinate c."""
@@ -191,6 +241,33 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xc
                      + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
                      + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
                      + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
+                if J % 2 == 0:
+                    bce[c, i, J // 2] = r
+                else:
+                    bco[c, i, J // 2] = r
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco, xce, xco):
+    """:func:`_restrict9` for a separable level (the stencil formed on the fly, see :func:`_relax9s`)."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nc = bce.shape[2] + bco.shape[2]
+    for i in numba.prange(nu):
+        _zero_rows(i, bce, bco, xce, xco)
+        if i == 0 or i == nu - 1:
+            continue
+        cl, cr, kk, dd = cu[i - 1], cu[i], kud[i], du[i]
+        for c in range(k):
+            x = xe[c]
+            t = xo[c]
+            for J in range(1, nc - 1):
+                m = J
+                mb = m - 1
+                r = (be[c, i, m] - (kk * mde[m] + dd * kde[m]) * x[i, m]
+                     + mde[m] * (cl * x[i - 1, m] + cr * x[i + 1, m])
+                     - (kk * muo[mb] + dd * kuo[mb]) * t[i, mb] - (kk * mue[m] + dd * kue[m]) * t[i, mb + 1]
+                     + mue[m] * (cr * t[i + 1, mb + 1] + cl * t[i - 1, mb + 1])
+                     + muo[mb] * (cl * t[i - 1, mb] + cr * t[i + 1, mb]))
                 if J % 2 == 0:
                     bce[c, i, J // 2] = r
                 else:
@@ -464,8 +541,8 @@ def _serial(kernel):
 
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
-            for name in ("_relax5", "_relax9", "_restrict5", "_restrict9", "_prolong", "_max_step5",
-                         "_restrict5_full", "_restrict_rhs", "_prolong_full", "_merge_grid")}
+            for name in ("_relax5", "_relax9", "_relax9s", "_restrict5", "_restrict9", "_restrict9s", "_prolong",
+                         "_max_step5", "_restrict5_full", "_restrict_rhs", "_prolong_full", "_merge_grid")}
 
 
 def _pick(name: str, nodes: int):
@@ -513,12 +590,22 @@ class CpuMultigrid:
             self.b = [(np.zeros((k, 1, 1)), np.zeros((k, 1, 1)))]
         fine = levels[0]
         self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
+        self.sep = [False]
+        dt = np.float32
         for lv in levels[1:]:
             nu, nv = lv.shape
-            dt = lv.C.dtype
             self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
             self.b.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
-            self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
+            self.sep.append(lv.sep is not None)
+            if lv.sep is not None:   # cu, kud, du over columns; md, mu, kd, ku split by row parity
+                sp = lv.sep
+                cu = np.r_[sp.cu, 0.0]
+                cols = tuple(np.ascontiguousarray(a, dtype=dt) for a in (cu, np.r_[0.0, sp.cu] + cu, sp.du))
+                rows = tuple(np.ascontiguousarray(a[par::2], dtype=dt) for a in (sp.md, sp.mu, sp.kd, sp.ku)
+                             for par in (0, 1))
+                self.st.append(cols + rows)   # cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo
+            else:
+                self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
 
     def smooth(self, level: int, reverse: bool = False) -> None:
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
@@ -529,6 +616,12 @@ class CpuMultigrid:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
                                                     p, nv, self._has_b, self.mb)
+            elif self.sep[level]:
+                cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo = st
+                q = 1 - p
+                md, mu, kd, ku = (mde, mdo), (mue, muo), (kde, kdo), (kue, kuo)
+                _pick("_relax9s", self.nodes[level])(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
+                                                     mu[q], ku[q], p, nv, self.mb)
             else:
                 Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
                 q = 1 - p
@@ -542,6 +635,10 @@ class CpuMultigrid:
         if level == 0:
             Ee, _, Ne, No = st
             _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco)
+        elif self.sep[level]:
+            cu, kud, du, mde, _, mue, muo, kde, _, kue, kuo = st
+            _pick("_restrict9s", self.nodes[level])(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo,
+                                                    bce, bco, xce, xco)
         else:
             Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
             _pick("_restrict9", self.nodes[level])(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
