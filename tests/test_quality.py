@@ -209,3 +209,24 @@ def test_large_grid_is_fast():
     q2, q3 = quality(g2), quality(g3)
     assert time.perf_counter() - t < 6.0   # generous: shared CI machines
     assert q2.folded == 0 and q3.folded == 0
+
+
+@pytest.mark.parametrize("curved", [False, True])
+def test_blocks_of_rows_give_the_whole_grid_measures(monkeypatch, curved):
+    """Quality is measured a few rows of cells at a time: blocks of 1, 2 and 7 rows
+    (curved pieces with their halo for local normals) give what one block gives."""
+    import importlib
+
+    q = importlib.import_module("clothgrid.quality")   # the package exports the function as quality
+    rng = np.random.default_rng(3)
+    pts = cylinder_grid(23, 17) if curved else plane_grid(23, 17, shear=0.3)
+    pts = pts + rng.normal(scale=0.1 if curved else 0.4, size=pts.shape) * (1.0 if curved else np.array([1.0, 1.0, 0.0]))
+    grid = Grid.from_points(pts, dim=3 if curved else 2)
+    whole = quality(grid).as_dict()
+    assert whole["folded"] > 0
+    for rows in (1, 2, 7):
+        monkeypatch.setattr(q, "BLOCK_CELLS", rows * 16)
+        got = quality(grid).as_dict()
+        assert got.pop("folded_cells") == whole["folded_cells"]
+        # local normals come from running sums, whose rounding depends on where a block starts
+        assert got == pytest.approx({k: v for k, v in whole.items() if k != "folded_cells"}, rel=1e-12)

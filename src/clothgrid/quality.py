@@ -24,6 +24,8 @@ __all__ = ["Quality", "quality"]
 #: Half width of the block of cells whose corner cross products give the local
 #: normal of a cell on a curved (non-planar) piece: 2 means a 5 x 5 block.
 LOCAL_RADIUS = 2
+#: Cells measured at a time (whole rows of cells; temporaries of a few MB).
+BLOCK_CELLS = 1 << 18
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,40 +179,70 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
         return Quality(0, np.zeros((0, 2), np.int64), nan, nan, nan, nan, nan)
 
     n = _reference_normal(grid, normal, orientation)
-    if n is None:                                             # curved piece: local normals
-        X = np.ascontiguousarray(np.moveaxis(R, -1, 0))      # (3, nu, nv), component first
-    else:                                                     # planar: work in the plane's 2D basis
-        basis = plane_axes(n)                                 # (2, 3), e1 x e2 = n
-        X = (basis @ R.reshape(-1, 3).T).reshape(2, nu, nv)  # lengths and angles are in-plane
+    local = None if n is not None else (1.0 if orientation is None else float(np.sign(orientation) or 1.0))
+    basis = None if n is None else plane_axes(n)              # (2, 3), e1 x e2 = n
+    # Blocks of cell rows, so temporaries stay small (a 4096^2 grid in one piece took 3.9 GB);
+    # curved pieces read LOCAL_RADIUS extra rows on each side for their local normals.
+    step = max(1, BLOCK_CELLS // (nv - 1))
+    halo = LOCAL_RADIUS if n is None else 0
+    parts = []
+    for a in range(0, nu - 1, step):
+        b = min(a + step, nu - 1)                              # cells a .. b-1
+        lo, hi = max(a - halo, 0), min(b + halo, nu - 1)
+        block = R[lo:hi + 1]
+        if basis is None:                                     # curved piece: local normals
+            X = np.ascontiguousarray(np.moveaxis(block, -1, 0))   # (3, rows, nv), component first
+        else:                                                 # planar: lengths and angles are in-plane
+            X = (basis @ block.reshape(-1, 3).T).reshape(2, hi + 1 - lo, nv)
+        parts.append(_measure(X, a - lo, b - lo, local))
+    cells = np.concatenate([np.argwhere(p[0]) + [a, 0] for p, a in zip(parts, range(0, nu - 1, step))])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        spread_u = np.float64(max(p[4] for p in parts)) / np.float64(min(p[5] for p in parts))
+        spread_v = np.float64(max(p[6] for p in parts)) / np.float64(min(p[7] for p in parts))
+    return Quality(
+        folded=int(len(cells)),
+        folded_cells=cells.astype(np.int64),
+        min_scaled_jacobian=float(min(p[1] for p in parts)),
+        max_aspect_ratio=float(max(p[2] for p in parts)),
+        max_orthogonality_deviation_deg=float(max(p[3] for p in parts)),
+        edge_spread_u=float(spread_u),
+        edge_spread_v=float(spread_v),
+    )
+
+
+def _measure(X: np.ndarray, a: int, b: int, local: float | None):
+    """The measures of cell rows ``a .. b-1`` of the points block ``X`` (``(d, rows, nv)``).
+
+    ``d = 2``: coordinates in the piece's plane. ``d = 3`` with ``local`` (+1 or
+    -1): a curved piece, whose cells are checked against local normals. Returns
+    the folded mask of those rows, min scaled Jacobian, max aspect ratio, max
+    angle deviation, and the longest and shortest u- and v-edges.
+    """
     raw_u, raw_v = X[:, 1:] - X[:, :-1], X[:, :, 1:] - X[:, :, :-1]
-    eu, len_u = _unit(raw_u)                                  # (d, nu-1, nv) u-edges
-    ev, len_v = _unit(raw_v)                                  # (d, nu, nv-1) v-edges
-    if n is None:
+    eu, len_u = _unit(raw_u)                                  # (d, rows-1, nv) u-edges
+    ev, len_v = _unit(raw_v)                                  # (d, rows, nv-1) v-edges
+    n = None
+    if local is not None:
         cell_sum = _cross(raw_u[:, :, :-1] + raw_u[:, :, 1:], raw_v[:, :-1] + raw_v[:, 1:])
         n, _ = _unit(_box_sum(cell_sum, LOCAL_RADIUS))        # sum of the corner crosses
-        if orientation is not None:
-            n *= float(np.sign(orientation) or 1.0)
-    cu, cv = eu, ev
-
-    def sides(u: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
-        """Bottom, top, left and right edges of every cell, ``(d, nu-1, nv-1)`` each."""
-        return {"b": u[:, :, :-1], "t": u[:, :, 1:], "l": v[:, :-1], "r": v[:, 1:]}
-
-    unit, proj = sides(eu, ev), sides(cu, cv)
-    shape = (nu - 1, nv - 1)
+        n = n[:, a:b] * local
+    # Cells a .. b-1: their u-edges are rows a .. b-1 of raw_u, their v-edges rows a .. b of raw_v.
+    eu, ev, len_u, len_v = eu[:, a:b], ev[:, a:b + 1], len_u[a:b], len_v[a:b + 1]
+    unit = {"b": eu[:, :, :-1], "t": eu[:, :, 1:], "l": ev[:, :-1], "r": ev[:, 1:]}
+    shape = (b - a, X.shape[2] - 1)
     min_sj, max_cos = np.full(shape, np.inf), np.zeros(shape)
     folded = np.zeros(shape, dtype=bool)
     # Corner k of the quad, edge pair (R[k+1]-R[k], R[k-1]-R[k]) in terms of the cell's sides:
     # 0: (b, l)  1: (r, -b)  2: (-t, -r)  3: (-l, t), whose crosses are b x l, b x r, t x r, t x l.
     for first, second in ("bl", "br", "tr", "tl"):
-        pa, pc = proj[first], proj[second]
-        if len(pa) == 2:
+        pa, pc = unit[first], unit[second]
+        if n is None:
             sj = pa[0] * pc[1] - pa[1] * pc[0]
         else:
             sj = np.einsum("k...,k...->...", _cross(pa, pc), n)
         folded |= ~(sj > 0)
         np.minimum(min_sj, sj, out=min_sj)
-        cos = np.einsum("k...,k...->...", unit[first], unit[second])   # |angle - 90| = asin|cos|
+        cos = np.einsum("k...,k...->...", pa, pc)            # |angle - 90| = asin|cos|
         np.maximum(max_cos, np.abs(cos), out=max_cos)
 
     lengths = np.stack([len_u[:, :-1], len_u[:, 1:], len_v[:-1], len_v[1:]])
@@ -220,15 +252,5 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
     deviation = np.where(degenerate, 90.0, np.degrees(np.arcsin(np.minimum(max_cos, 1.0))))
     with np.errstate(invalid="ignore", divide="ignore"):
         aspect = np.where(degenerate, np.inf, longest / shortest)
-        spread_u = len_u.max() / len_u.min()
-        spread_v = len_v.max() / len_v.min()
-    cells = np.argwhere(folded).astype(np.int64)
-    return Quality(
-        folded=int(len(cells)),
-        folded_cells=cells,
-        min_scaled_jacobian=float(min_sj.min()),
-        max_aspect_ratio=float(aspect.max()),
-        max_orthogonality_deviation_deg=float(deviation.max()),
-        edge_spread_u=float(spread_u),
-        edge_spread_v=float(spread_v),
-    )
+    return (folded, float(min_sj.min()), float(aspect.max()), float(deviation.max()),
+            float(len_u.max()), float(len_u.min()), float(len_v.max()), float(len_v.min()))
