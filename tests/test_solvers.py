@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import regions_with_corners, smooth_quad_sides
@@ -188,6 +190,29 @@ def test_memory_estimate_orders_solvers():
     with pytest.raises(clothgrid.SizeError, match="solver 'fdm'"):
         check_memory("direct", 1024, 1024, available=10**9)
     assert check_memory("fdm", 1024, 1024, available=10**9) < 10**9
+
+
+@pytest.mark.parametrize("solver, n", [("multigrid", 300), ("fdm", 300), ("direct", 120), ("jacobi", 40)])
+def test_memory_estimate_covers_generate_quality_and_save(tmp_path, solver, n):
+    """What the CLI says before allocating bounds what generate, quality and an NPZ
+    save allocate (NumPy's allocations, traced), for 2D and 3D pieces."""
+    import tracemalloc
+
+    from clothgrid.memory import estimate_bytes
+    from clothgrid.readers import load_boundary
+
+    piece = load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
+    clothgrid.quality(clothgrid.generate(piece, 9, solver=solver)).table()   # imports and kernels: not per node
+    clothgrid.generate(piece, 9, solver=solver).save(tmp_path / "warm.npz")
+    tracemalloc.start()
+    try:
+        grid = clothgrid.generate(piece, n, solver=solver, weights="paper")
+        clothgrid.quality(grid)
+        grid.save(tmp_path / "g.npz")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert 0.2 * estimate_bytes(solver, n, n) < peak <= estimate_bytes(solver, n, n)
 
 
 # --- options ---------------------------------------------------------------------------------------

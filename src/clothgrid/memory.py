@@ -1,8 +1,11 @@
 """What a grid needs in memory, said before allocating it.
 
-Estimates are calibrated on measured peak resident sizes (this repository's
-``benchmarks/bench_core.py`` prints them): about 200 bytes per node for the
-pipeline (initial grid, weights, result, uv, quads), plus per solver:
+Estimates are upper bounds calibrated on measured peak resident sizes (this
+repository's ``benchmarks/bench_core.py`` and ``bench_solvers.py`` print them):
+about 80 bytes per node for the pipeline (initial grid, result, uv and quads
+for the output file), about 200 bytes per cell of one block of quality
+measurements (:data:`clothgrid.quality.BLOCK_CELLS` cells at most), plus per
+solver:
 
 - ``fdm``: two dense eigenvector matrices, ``8 (m^2 + n^2)`` bytes, and the
   dense products' work arrays;
@@ -10,7 +13,11 @@ pipeline (initial grid, weights, result, uv, quads), plus per solver:
   measured at ``N (6.5 log2 N - 52)`` entries, about 24 bytes each at peak;
 - ``jacobi``: one extra grid;
 - ``multigrid``: the float64 iterate and float32 coarse levels (about as many
-  nodes again), 68 bytes per node for three coordinates.
+  nodes again), 68 bytes per node for three coordinates (48 with separable
+  weights, whose coarse stencils are 1D factors).
+
+Measured: ``clothgrid generate tshirt_front.json --nodes 4096x4096 --solver
+multigrid -o g.npz`` peaked at 1.78 GB (estimate 2.5 GB).
 """
 
 from __future__ import annotations
@@ -22,7 +29,8 @@ from .errors import SizeError
 
 __all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes"]
 
-PIPELINE_BYTES_PER_NODE = 200
+PIPELINE_BYTES_PER_NODE = 80
+QUALITY_BYTES_PER_CELL = 200
 
 
 def available_bytes() -> int:
@@ -44,7 +52,9 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
     """Peak memory, in bytes, to generate an ``nu x nv`` grid with ``solver``."""
     n = nu * nv
     m_u, m_v = max(nu - 2, 1), max(nv - 2, 1)
-    total = PIPELINE_BYTES_PER_NODE * n
+    from .quality import BLOCK_CELLS
+
+    total = PIPELINE_BYTES_PER_NODE * n + QUALITY_BYTES_PER_CELL * min(n, BLOCK_CELLS)
     if solver == "fdm":
         total += 16 * (m_u**2 + m_v**2) + 48 * n
     elif solver == "direct":
