@@ -78,7 +78,7 @@ if out != "-":
 info = g.info
 print(json.dumps({"wall": wall, "solve": solve, "iterations": info["iterations"],
                   "bound": info["error_estimate"], "converged": info["converged"],
-                  "factor": info.get("convergence_factor"), "renderer": info.get("gl_renderer") or info.get("device"),
+                  "factor": info.get("convergence_factor"), "renderer": info.get("gl_renderer") or info.get("cuda_device"),
                   "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 

@@ -27,6 +27,16 @@ def rng(request):
     return np.random.default_rng([SEED, zlib.crc32(request.node.nodeid.encode())])
 
 
+@pytest.fixture(autouse=True)
+def auto_backend_is_the_cpu(request, monkeypatch):
+    """``backend="auto"`` stays the CPU outside the cuda tests, even on a GPU machine (where it
+    would pick the cuda backend): the other tests check the CPU's solvers and their choices."""
+    if request.node.path.name not in ("test_cuda.py", "cuda_simulated.py"):
+        from clothgrid.backends import cuda
+
+        monkeypatch.setattr(cuda, "on_gpu", lambda: False)
+
+
 def smooth_quad_sides(rng, nu: int, nv: int, dim: int = 2, amp: float = 0.08):
     """Four smooth random sides of a quad (bottom, right, top, left) that do not cross."""
     from clothgrid import Boundary, BoundaryError

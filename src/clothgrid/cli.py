@@ -170,10 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the factor k of the v weights in eq. 2 (default: 1)")
     g.add_argument("--solver", choices=("auto", "direct", "fdm", "jacobi", "multigrid"), default="auto",
                    help="solver (default: auto)")
-    g.add_argument("--backend", choices=("auto", "cpu", "gl"), default="auto",
-                   help="where the solver runs: cpu, or gl (OpenGL through headless EGL: the GPU's "
-                        "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi) "
-                        "(default: auto, the CPU)")
+    g.add_argument("--backend", choices=("auto", "cpu", "gl", "cuda"), default="auto",
+                   help="where the solver runs: cpu; gl (OpenGL through headless EGL: the GPU's "
+                        "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi); or cuda "
+                        "(an NVIDIA GPU through CuPy, pip install 'clothgrid[cuda]'; solvers multigrid "
+                        "and fdm) (default: auto, cuda where it finds a GPU, else the CPU)")
     g.add_argument("--tol", type=parse_tol, default=2.0**-12, metavar="T",
                    help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
                         "(default: 2**-12)")

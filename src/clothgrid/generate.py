@@ -85,12 +85,16 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     solver : {"auto", "direct", "fdm", "jacobi", "multigrid"}
         ``auto`` picks the fastest solver that meets ``tol`` for the size and
         weights (:func:`clothgrid.solvers.choose_solver`).
-    backend : {"auto", "cpu", "gl"}
+    backend : {"auto", "cpu", "gl", "cuda"}
         Where the array operations run: ``gl`` is OpenGL through headless EGL
         (the GPU's driver, or Mesa's llvmpipe), for solvers ``multigrid``
-        (``auto``) and ``jacobi``; it raises
-        :class:`~clothgrid.errors.BackendUnavailableError` when no context can
-        be made. The grid's info then records ``gl_renderer``.
+        (``auto``) and ``jacobi``; ``cuda`` is an NVIDIA GPU through CuPy and
+        numba.cuda (``pip install 'clothgrid[cuda]'``), for solvers
+        ``multigrid`` (``auto``) and ``fdm``. Both raise
+        :class:`~clothgrid.errors.BackendUnavailableError` with the reason when
+        the device cannot be used; the grid's info then records
+        ``gl_renderer`` or ``cuda_device``. ``auto`` is ``cuda`` where it finds
+        a GPU and runs ``solver``, else ``cpu``.
     tol : float
         Required accuracy: every node within ``tol`` times the boundary's
         bounding-box diagonal of the exact solution (default ``2**-12``).
@@ -139,7 +143,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     _check_options(init, solver, stop, tol, max_iter)
     if not isinstance(functional, str) or functional not in FUNCTIONALS:
         raise InputError(f"unknown functional {functional!r}: use one of {', '.join(FUNCTIONALS)}")
-    be = get_backend(backend)
+    be = get_backend(backend, solver)
     if nodes is not None:
         nu, nv = parse_nodes(nodes)
         boundary = boundary.resampled(nu, nv)
@@ -150,7 +154,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         raise InputError("functional 'foldfree' is for planar pieces: this 3D piece is curved; "
                          "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
     separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
-    on_device = getattr(be, "solvers", None)  # a backend that runs only some solvers (gl)
+    on_device = getattr(be, "solvers", None)  # a backend that runs only some solvers (gl, cuda)
     if on_device and solver != "auto" and solver not in on_device:
         raise InputError(f"solver {solver!r} does not run on backend {be.name!r}: use one of auto, "
                          f"{', '.join(on_device)} (or backend 'cpu')")

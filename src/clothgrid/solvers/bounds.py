@@ -53,6 +53,11 @@ def barrier_max(problem: Problem, solve: Callable[[np.ndarray], np.ndarray] | No
     return float(np.max(solve(d)))
 
 
-def error_bound(points: np.ndarray, problem: Problem, backend, zmax: float) -> float:
-    """Guaranteed bound on ``max |R* - R|`` (absolute) for the grid ``points``."""
-    return backend.max_step(points, problem.weights.wu, problem.weights.wv) * zmax
+def error_bound(points: np.ndarray, problem: Problem, backend, zmax: float, weights=None) -> float:
+    """Guaranteed bound on ``max |R* - R|`` (absolute) for the grid ``points``.
+
+    ``weights``: ``(wu, wv)`` as arrays of the backend where ``points`` lives
+    (a GPU's); by default the problem's own.
+    """
+    wu, wv = weights if weights is not None else (problem.weights.wu, problem.weights.wv)
+    return backend.max_step(points, wu, wv) * zmax

@@ -39,33 +39,42 @@ def generalized_eig(c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 class FDM:
-    """The fast diagonalisation of one separable problem, reusable for many right-hand sides."""
+    """The fast diagonalisation of one separable problem, reusable for many right-hand sides.
 
-    def __init__(self, weights, nu: int, nv: int):
+    The eigenpairs are computed on the host (SciPy) and kept as arrays of
+    ``xp`` (NumPy, or CuPy for the cuda backend: uploaded once, the products
+    then run on the GPU as cuBLAS GEMMs).
+    """
+
+    def __init__(self, weights, nu: int, nv: int, xp=np):
         if weights.factors is None:
             raise InputError("solver 'fdm' needs separable weights ('paper' or 'uniform'); "
                              "use solver='direct' or 'auto' for per-edge weights")
         cu, dv, du, cv = weights.factors
-        self.lam, self.phi = generalized_eig(cu, du[1:-1])
+        self.xp = xp
+        lam, phi = generalized_eig(cu, du[1:-1])
+        self.lam, self.phi = xp.asarray(lam), xp.asarray(phi)
         if nu == nv and np.array_equal(cv, cu) and np.array_equal(dv, du):
             self.mu, self.psi = self.lam, self.phi
         else:
-            self.mu, self.psi = generalized_eig(cv, dv[1:-1])
+            mu, psi = generalized_eig(cv, dv[1:-1])
+            self.mu, self.psi = xp.asarray(mu), xp.asarray(psi)
 
-    def apply(self, b: np.ndarray, coords: list[int]) -> np.ndarray:
-        """``A^-1 b`` for an ``(m, n, 3)`` right-hand side, only for ``coords`` (others zero)."""
-        y = np.zeros_like(b)
+    def apply(self, b, coords: list[int]):
+        """``A^-1 b`` for an ``(m, n, 3)`` right-hand side of ``xp``, only for ``coords`` (others zero)."""
+        xp = self.xp
+        y = xp.zeros_like(b)
         q = len(coords)
         if not q:
             return y
         phi, psi = self.phi, self.psi
         # Coordinates side by side (left products) or stacked (right products): one GEMM each.
-        t = phi.T @ np.concatenate([b[:, :, c] for c in coords], axis=1)       # (m, q n)
-        t = np.concatenate(np.split(t, q, axis=1), axis=0) @ psi               # (q m, n)
-        t /= np.tile(self.lam[:, None] + self.mu[None, :], (q, 1))
+        t = phi.T @ xp.concatenate([b[:, :, c] for c in coords], axis=1)       # (m, q n)
+        t = xp.concatenate(xp.split(t, q, axis=1), axis=0) @ psi               # (q m, n)
+        t /= xp.tile(self.lam[:, None] + self.mu[None, :], (q, 1))
         t = t @ psi.T
-        t = phi @ np.concatenate(np.split(t, q, axis=0), axis=1)               # (m, q n)
-        for c, yc in zip(coords, np.split(t, q, axis=1)):
+        t = phi @ xp.concatenate(xp.split(t, q, axis=0), axis=1)               # (m, q n)
+        for c, yc in zip(coords, xp.split(t, q, axis=1)):
             y[:, :, c] = yc
         return y
 
@@ -78,16 +87,21 @@ def solve_fdm(problem: Problem, *, backend, tol: float = 2.0**-12, max_refine: i
     piece's size at 1024 x 1024 with the paper's weights); each refinement
     step solves for the correction from the residual, at the cost of the four
     products again. At most ``max_refine`` steps are made.
+
+    A backend with ``array_module()`` (cuda) keeps the grid, the weights and
+    the products in its arrays; the residual and the bound are then its own.
     """
     nu, nv = problem.shape
     if progress:
         progress(f"fdm: eigenproblems of size {nu - 2} and {nv - 2}")
-    fdm = FDM(problem.weights, nu, nv)
+    xp = backend.array_module() if hasattr(backend, "array_module") else np
+    fdm = FDM(problem.weights, nu, nv, xp)
     coords = problem.active_coords
-    wu, wv = problem.weights.wu, problem.weights.wv
-    points = problem.with_interior(fdm.apply(problem.interior_rhs(), coords))
+    wu, wv = xp.asarray(problem.weights.wu), xp.asarray(problem.weights.wv)
+    points = xp.asarray(problem.r0).copy()
+    points[1:-1, 1:-1] = fdm.apply(xp.asarray(problem.interior_rhs()), coords)
     zmax = barrier_max(problem)
-    err = error_bound(points, problem, backend, zmax) / problem.scale
+    err = error_bound(points, problem, backend, zmax, (wu, wv)) / problem.scale
     refinements = 0
     # Refine while the guaranteed bound is not comfortably inside tol.
     while err > 0.5 * tol and refinements < max_refine:
@@ -95,6 +109,6 @@ def solve_fdm(problem: Problem, *, backend, tol: float = 2.0**-12, max_refine: i
         if progress:
             progress(f"fdm: error bound {err:.3g} > tol/2, refinement {refinements}")
         points[1:-1, 1:-1] += fdm.apply(backend.residual(points, wu, wv), coords)
-        err = error_bound(points, problem, backend, zmax) / problem.scale
-    return SolveResult(points, iterations=refinements, error_estimate=err, converged=err <= tol,
-                       extra={"refinements": refinements})
+        err = error_bound(points, problem, backend, zmax, (wu, wv)) / problem.scale
+    return SolveResult(getattr(xp, "asnumpy", np.asarray)(points), iterations=refinements, error_estimate=err,
+                       converged=err <= tol, extra={"refinements": refinements})

@@ -1,0 +1,137 @@
+"""cuda backend: the multigrid and fdm solvers on an NVIDIA GPU (CuPy arrays, numba.cuda kernels).
+
+``pip install 'clothgrid[cuda]'`` (CuPy for CUDA 12 and numba-cuda). The grid
+and the multigrid hierarchy live in GPU memory as CuPy arrays; the multigrid's
+operations are the CPU multigrid's kernels written for ``numba.cuda``
+(:mod:`clothgrid.backends.cuda._kernels`), one thread per node or per line
+block; fdm's four dense products are cuBLAS GEMMs on the eigenvectors computed
+on the host. The float64 residual and the error bound are computed on the GPU;
+one float per V-cycle and the finished grid come back. ``docs/cuda.md`` says
+what runs where.
+
+Under Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1`` set before
+``numba.cuda`` is imported) the same code runs on the CPU with NumPy arrays,
+which is how the tests check the kernels without a GPU; ``backend="auto"``
+never picks the simulator.
+
+:func:`require` raises :class:`~clothgrid.errors.BackendUnavailableError`
+with the reason when there is no GPU to use: CuPy missing, no GPU or driver
+for CuPy, numba.cuda or libNVVM unusable.
+"""
+
+from __future__ import annotations
+
+from ...errors import InputError, SizeError
+from ...memory import format_bytes
+from ...weights import interior_diagonal
+from ..cpu import residual
+from . import _device, _sim
+
+__all__ = ["name", "solvers", "require", "available", "on_gpu", "array_module", "info", "describe", "summary",
+           "device_bytes", "check_size", "residual", "max_step", "multigrid"]
+
+name = "cuda"
+#: Solvers that run on this backend (``auto`` picks the first).
+solvers = ("multigrid", "fdm")
+
+
+def require() -> _device.Device:
+    """The device; raises BackendUnavailableError (with the reason) when there is none."""
+    return _device.require()
+
+
+def available() -> tuple[bool, str]:
+    """``(True, device name)`` or ``(False, why not)``; cheap when CuPy is not installed, remembered."""
+    dev = _device.probe()
+    return (False, dev) if isinstance(dev, str) else (True, dev.name)
+
+
+def on_gpu() -> bool:
+    """True when the backend has a real GPU (not the simulator): ``get_backend("auto")`` then picks it."""
+    dev = _device.probe()
+    return not isinstance(dev, str) and not dev.simulated
+
+
+def array_module():
+    """The module of the device's arrays: CuPy on a GPU, NumPy under the simulator."""
+    require()
+    return _sim.array_module()
+
+
+def describe() -> dict:
+    """``cuda_*`` keys of a grid's info: ``cuda_device`` (name), ``cuda_compute_capability``,
+    ``cuda_memory`` (bytes), ``cuda_cupy`` (version), ``cuda_simulator``."""
+    return require().describe()
+
+
+info = describe
+
+
+def summary() -> str:
+    """One line: the device, its compute capability and memory, CuPy's version."""
+    return require().summary()
+
+
+def device_bytes(solver: str, nu: int, nv: int) -> int:
+    """Bytes of device memory a solve of an ``nu x nv`` grid (three coordinates) allocates, at most.
+
+    ``multigrid``, per node: level 0's float64 iterate as parity planes (24)
+    and the grid it is split from and merged back into (24), the edge weights
+    split by parity (16; the paper's and uniform weights need only 1D
+    factors); the coarse levels, about as many nodes again in all: five float32
+    stencil arrays, iterate and right-hand side (44); the line solves' scratch,
+    three float64 arrays over level 0's lines and three float32 ones over
+    level 1's (15). Per-edge weights add a second hierarchy for the barrier
+    solve of the error bound, one coordinate with a right-hand side (83): the
+    estimate includes it. ``fdm``: the two eigenvector matrices, ``8 ((nu-2)^2 +
+    (nv-2)^2)``, and per node the right-hand side, the grid and its copy, the
+    weights, the residual and the products' three work arrays (192).
+    """
+    n = nu * nv
+    if solver == "multigrid":
+        return (24 + 24 + 16 + 44 + 15 + 83) * n
+    if solver == "fdm":
+        return 8 * ((nu - 2) ** 2 + (nv - 2) ** 2) + 192 * n
+    raise InputError(f"solver {solver!r} does not run on backend 'cuda': use one of {', '.join(solvers)}")
+
+
+def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0) -> None:
+    """Raise :class:`~clothgrid.errors.SizeError` before allocating a grid the device cannot hold.
+
+    The solve fits when :func:`device_bytes` is at most 90 % of the device's
+    free memory (CuPy's pooled free blocks included). ``host_bytes``, the
+    host's share of the solve, counts too under the simulator, whose device
+    memory is the host's.
+    """
+    dev = require()
+    need = device_bytes(solver, nu, nv) + (host_bytes if dev.simulated else 0)
+    have = dev.free_memory()
+    if need > 0.9 * have:
+        raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of device "
+                        f"memory on backend 'cuda', but {dev.name} has {format_bytes(have)} free: "
+                        "use fewer nodes or backend 'cpu'")
+
+
+def max_step(r, wu, wv) -> float:
+    """The largest step a Jacobi sweep would make from the device grid ``r``, in float64 on the device.
+
+    ``max |D^-1 (b - A r)|`` (Euclidean per node) from device arrays ``r``,
+    ``wu``, ``wv``: the factor of the error bound of
+    :mod:`clothgrid.solvers.bounds`, computed as :func:`clothgrid.backends.cpu.max_step` does.
+    """
+    xp = array_module()
+    res = residual(r, wu, wv)
+    return float((xp.sqrt(xp.sum(res * res, axis=-1)) / interior_diagonal(wu, wv)).max())
+
+
+def multigrid(levels, x0, rhs=None):
+    """The multigrid operations (:class:`~clothgrid.solvers.multigrid.MultigridOps`) on the device.
+
+    ``levels`` from :func:`~clothgrid.solvers.multigrid.build_hierarchy`; ``x0``
+    the ``(nu, nv, k)`` level-0 iterate and ``rhs`` the optional interior
+    right-hand side, both host arrays, uploaded once.
+    """
+    require()
+    from ._multigrid import CudaMultigrid
+
+    return CudaMultigrid(levels, x0, rhs)

@@ -1,0 +1,254 @@
+"""The cuda backend's :class:`~clothgrid.solvers.multigrid.MultigridOps`: the CPU multigrid on a GPU.
+
+The hierarchy (:func:`~clothgrid.solvers.multigrid.build_hierarchy`, NumPy on
+the host) is uploaded once: level 0's iterate and right-hand side as float64
+parity planes, its edge weights split by row parity (the paper's and uniform
+weights as their 1D factors, read through stride flags: no ``(nu, nv)`` array),
+every coarse level's iterate, right-hand side and 9-point stencil in float32.
+Each operation is then one to three kernel launches of
+:mod:`clothgrid.backends.cuda._kernels` over device arrays; :meth:`max_step`
+reads back one float, :meth:`solution_into` the grid, once.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import _kernels as K
+from ._sim import array_module, kernel_array
+
+#: Threads per block of the node kernels and of the line kernels.
+NODE_THREADS = 256
+LINE_THREADS = 128
+#: Columns ``i`` per thread of the ``max_step`` partial maxima.
+MAX_STEP_ROWS = 32
+#: Smallest block of columns per thread of a line solve (see :func:`line_block`).
+MIN_LINE_BLOCK = 32
+#: Bytes per chunk when the grid is copied to the host.
+DOWNLOAD_BYTES = 64 << 20
+
+
+def line_block(nu: int) -> int:
+    """Columns per block of the partitioned line solves for lines of ``nu`` nodes.
+
+    A line takes about ``2 L + 2 nu / L`` dependent steps (the blocks, then the
+    separators), least near ``L = sqrt(nu)``; lines of at most ``MIN_LINE_BLOCK
+    + 3`` nodes are one block, which is the CPU's Thomas solve exactly.
+    """
+    return max(MIN_LINE_BLOCK, math.isqrt(nu))
+
+
+def line_range(nv: int, p: int) -> tuple[int, int]:
+    """Interior rows of parity ``p`` as a range of plane index ``m``: ``j = 2m + p`` in ``1 .. nv-2``."""
+    if p == 1:
+        return 0, (nv - 3) // 2 + 1
+    return 1, (nv - 2) // 2 + 1
+
+
+def launch(nx: int, ny: int, threads: int) -> tuple[tuple[int, int], tuple[int, int]]:
+    """``(blocks, threads per block)`` covering ``nx x ny`` threads, ``x`` (neighbouring memory) first."""
+    bx = min(32, nx)
+    by = max(1, min(threads // bx, ny))
+    return ((nx + bx - 1) // bx, (ny + by - 1) // by), (bx, by)
+
+
+def _planes(n_rows: int) -> tuple[int, int]:
+    """Lengths of the even and odd parity planes of ``n_rows`` rows."""
+    return (n_rows + 1) // 2, n_rows // 2
+
+
+def _coarse_stencil(level) -> tuple[np.ndarray, ...]:
+    """A coarse level's ``C, E, N, NE, NW`` as float32 arrays, formed without keeping them on the level."""
+    if level.sep is not None:
+        return level.sep.stencil(np.float32)
+    return level.C, level.E, level.N, level.NE, level.NW
+
+
+class CudaMultigrid:
+    """Multigrid operations on a GPU (CuPy arrays), or on Numba's CUDA simulator (NumPy arrays).
+
+    Parameters
+    ----------
+    levels : list of Level
+        The hierarchy, finest first.
+    x0 : numpy.ndarray
+        ``(nu, nv, k)`` level-0 iterate (boundary nodes hold the data), ``k <= 3``.
+    rhs : numpy.ndarray, optional
+        ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
+    block : int, optional
+        Columns per block of the line solves (default :func:`line_block`).
+    """
+
+    def __init__(self, levels, x0: np.ndarray, rhs: np.ndarray | None = None, block: int | None = None):
+        nu, nv, k = x0.shape
+        if k > K.MAX_COORDS:
+            raise ValueError(f"the cuda multigrid solves at most {K.MAX_COORDS} coordinates, not {k}")
+        self._xp = array_module()
+        self.levels = len(levels)
+        self._shape = x0.shape
+        self._has_b = rhs is not None
+        self.nv = [lv.shape[1] for lv in levels]
+        self.block = block or line_block(nu)
+        self.nsep = max(0, (nu - 3) // (self.block + 1))
+        self.x = [self._split(x0)]
+        if rhs is not None:
+            b0 = np.zeros(x0.shape)
+            b0[1:-1, 1:-1] = rhs
+            self.b = [self._split(b0)]
+        else:
+            self.b = [tuple(self._zeros((k, 1, 1)) for _ in range(2))]   # never read (has_b False)
+        self.st = [self._fine_stencil(levels[0])]
+        for n_rows in self.nv[1:]:
+            self.x.append(tuple(self._zeros((k, nu, n), np.float32) for n in _planes(n_rows)))
+            self.b.append(tuple(self._zeros((k, nu, n), np.float32) for n in _planes(n_rows)))
+        for lv in levels[1:]:
+            self.st.append(sum((self._split_rows(a) for a in _coarse_stencil(lv)), ()))
+        # Thomas scratch per precision, as wide as the widest level's lines; 5-point-only arguments.
+        self.scratch = {np.float64: self._scratch(nu, self.nv[0], np.float64)}
+        if self.levels > 1:
+            self.scratch[np.float32] = self._scratch(nu, self.nv[1], np.float32)
+        self.unused = {dt: self._zeros((1, 1), dt) for dt in self.scratch}
+        self._partial = self._xp.zeros((-(-(nu - 2) // MAX_STEP_ROWS), _planes(nv)[0]))
+        self._partial_k = kernel_array(self._partial)
+
+    # --- upload -----------------------------------------------------------------------------------------
+
+    def _zeros(self, shape, dtype=np.float64):
+        return kernel_array(self._xp.zeros(shape, dtype=dtype))
+
+    def _split(self, grid: np.ndarray):
+        """Upload an ``(nu, nv, k)`` float64 grid as parity planes."""
+        nu, nv, k = grid.shape
+        full = kernel_array(self._xp.asarray(np.ascontiguousarray(grid, dtype=np.float64)))
+        planes = tuple(self._zeros((k, nu, n)) for n in _planes(nv))
+        blocks, threads = launch(nv, nu, NODE_THREADS)
+        K.split_grid[blocks, threads](full, *planes)
+        return planes
+
+    def _split_rows(self, a: np.ndarray):
+        """Upload an ``(n, nv)`` stencil array as its even and odd rows ``j`` (contiguous each)."""
+        d = self._xp.asarray(a)
+        return tuple(kernel_array(self._xp.ascontiguousarray(d[:, p::2])) for p in (0, 1))
+
+    def _fine_stencil(self, level):
+        """Level 0's ``Ee, Eo, Ne, No`` and the flags ``ei``, ``nm`` (1D factors where ``E``, ``N`` are views)."""
+        E, N = level.E, level.N
+        self.ei = 0 if E.strides[0] == 0 else 1     # E[i, j] = E[0, j]: upload one row
+        self.nm = 0 if N.strides[1] == 0 else 1     # N[i, j] = N[i, 0]: upload one column
+        Ee, Eo = self._split_rows(E[:1] if self.ei == 0 else E)
+        if self.nm:
+            Ne, No = self._split_rows(N)
+        else:
+            Ne = No = kernel_array(self._xp.asarray(np.ascontiguousarray(N[:, :1])))
+        return Ee, Eo, Ne, No
+
+    def _scratch(self, nu: int, n_rows: int, dtype):
+        """Thomas factors and the two spikes, ``(nu, lines)`` each."""
+        lines = max(1, (n_rows - 1) // 2)
+        return tuple(self._zeros((nu, lines), dtype) for _ in range(3))
+
+    # --- MultigridOps -----------------------------------------------------------------------------------
+
+    def smooth(self, level: int, reverse: bool = False) -> None:
+        """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
+        (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
+        dt = np.float64 if level == 0 else np.float32
+        g, yl, yr = self.scratch[dt]
+        for p in ((1, 0) if reverse else (0, 1)):
+            m_lo, m_hi = line_range(nv, p)
+            lines = m_hi - m_lo
+            if lines <= 0:
+                continue
+            q = 1 - p
+            own, other, b = (xe, xo, be) if p == 0 else (xo, xe, bo)
+            if level == 0:
+                Ee, Eo, Ne, No = st
+                no = self.unused[dt]
+                E, stencil = (Ee, Eo)[p], (no, (Ee, Eo)[p], (Ne, No)[p], (Ne, No)[q], no, no, no, no)
+                flags = (self.ei, self.nm, self._has_b, False)
+            else:
+                Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
+                E = (Ee, Eo)[p]
+                stencil = ((Ce, Co)[p], E, (Ne, No)[p], (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
+                           (NWe, NWo)[p], (NWe, NWo)[q])
+                flags = (1, 1, True, True)
+            ob = 0 if p == 1 else -1
+            blocks, threads = launch(lines, self.nsep + 1, LINE_THREADS)
+            K.line_blocks[blocks, threads](own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block,
+                                           self.nsep, ob, *flags)
+            if self.nsep:
+                blocks, threads = launch(lines, 1, LINE_THREADS)
+                K.line_separators[blocks, threads](own, E, g, yl, yr, m_lo, lines, self.block, self.nsep, flags[0])
+                blocks, threads = launch(lines, own.shape[1], NODE_THREADS)
+                K.line_spread[blocks, threads](own, yl, yr, m_lo, lines, self.block, self.nsep)
+
+    def _coarse_launch(self, level: int):
+        """Blocks and threads over level ``level + 1``'s nodes ``(J, i)``."""
+        return launch(self.nv[level + 1], self._shape[0], NODE_THREADS)
+
+    def restrict(self, level: int) -> None:
+        """``b[l+1] = P^T (b[l] - A_l x[l])`` from the even rows, and ``x[l+1] = 0``."""
+        (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
+        coarse = (*self.b[level + 1], *self.x[level + 1])
+        blocks, threads = self._coarse_launch(level)
+        if level == 0:
+            Ee, _, Ne, No = st
+            K.restrict5[blocks, threads](xe, xo, be, Ee, Ne, No, self.ei, self.nm, self._has_b, *coarse)
+        else:
+            Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
+            K.restrict9[blocks, threads](xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, *coarse)
+
+    def prolong(self, level: int) -> None:
+        """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
+        blocks, threads = self._coarse_launch(level)
+        K.prolong[blocks, threads](self.x[level][0], *self.x[level + 1])
+
+    def restrict_full(self, level: int) -> None:
+        """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
+        (level 0), or ``b[l+1] = P^T b[l]`` (coarser levels); ``x[l+1] = 0``."""
+        coarse = (*self.b[level + 1], *self.x[level + 1])
+        blocks, threads = self._coarse_launch(level)
+        if level == 0:
+            (xe, xo), (be, bo) = self.x[0], self.b[0]
+            K.restrict5_full[blocks, threads](xe, xo, be, bo, *self.st[0], self.ei, self.nm, self._has_b, self.nv[0],
+                                              *coarse)
+        else:
+            K.restrict_rhs[blocks, threads](*self.b[level], self.nv[level], *coarse)
+
+    def prolong_full(self, level: int) -> None:
+        """``x[l] += P x[l+1]`` on every row (full-multigrid start)."""
+        xe, xo = self.x[level]
+        blocks, threads = launch(xe.shape[2], self._shape[0], NODE_THREADS)
+        K.prolong_full[blocks, threads](xe, xo, *self.x[level + 1], self.nv[level])
+
+    def max_step(self) -> float:
+        """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
+        (xe, xo), (be, bo) = self.x[0], self.b[0]
+        rows, cols = self._partial.shape
+        blocks, threads = launch(cols, rows, NODE_THREADS)
+        K.max_step5[blocks, threads](xe, xo, be, bo, *self.st[0], self.ei, self.nm, self.nv[0], self._has_b,
+                                     MAX_STEP_ROWS, self._partial_k)
+        return math.sqrt(float(self._partial.max()))
+
+    def solution(self) -> np.ndarray:
+        """Level 0's iterate as a float64 ``(nu, nv, k)`` NumPy array."""
+        out = np.empty(self._shape)
+        self.solution_into(out)
+        return out
+
+    def solution_into(self, out: np.ndarray) -> None:
+        """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides).
+
+        The parity planes are merged into a device grid, copied to ``out`` in
+        chunks of rows ``i`` of at most ``DOWNLOAD_BYTES``.
+        """
+        nu, nv, k = self._shape
+        grid = self._xp.empty(self._shape)
+        blocks, threads = launch(nv, nu, NODE_THREADS)
+        K.merge_grid[blocks, threads](*self.x[0], kernel_array(grid))
+        to_host = getattr(self._xp, "asnumpy", np.asarray)
+        rows = max(1, DOWNLOAD_BYTES // (8 * nv * k))
+        for i in range(0, nu, rows):
+            out[i:i + rows] = to_host(grid[i:i + rows])

@@ -1,0 +1,185 @@
+"""The cuda backend's kernels under Numba's CUDA simulator, against the CPU multigrid and the reference.
+
+Not collected on its own (the name does not start with ``test_``):
+``tests/test_cuda.py`` runs this file in a subprocess with
+``NUMBA_ENABLE_CUDASIM=1``, because the simulator must be chosen before
+``numba.cuda`` is first imported and the main test process keeps the real
+``numba.cuda`` (on a GPU machine it tests the GPU). The simulator runs every
+GPU thread as a Python thread: the grids are tiny.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import smooth_quad_sides
+from reference import exact_solution, max_rel_error, paper_weights, uniform_weights
+
+import clothgrid
+from clothgrid.backends import _cpu_multigrid, cuda, get_backend
+from clothgrid.backends.cuda import _multigrid, _sim
+from clothgrid.initial import boundary_grid, initial_grid
+from clothgrid.solvers.multigrid import build_hierarchy, fmg, vcycle
+from clothgrid.weights import make_weights
+
+TOL = 2.0**-12
+F32 = 1e-5   # float32 rounding, relative to the largest value compared
+
+
+@pytest.fixture(autouse=True, scope="module")
+def simulator():
+    assert _sim.active(), "run with NUMBA_ENABLE_CUDASIM=1 (tests/test_cuda.py does)"
+
+
+def random_weights(rng, nu, nv):
+    return np.exp(rng.uniform(-2, 2, (nu - 1, nv))), np.exp(rng.uniform(-2, 2, (nu, nv - 1)))
+
+
+def weights_for(rng, kind, nu, nv):
+    """``(clothgrid weights spec, (wu, wv) for the reference)``."""
+    if kind == "random":
+        w = random_weights(rng, nu, nv)
+        return w, w
+    return kind, (paper_weights if kind == "paper" else uniform_weights)(nu, nv)
+
+
+def quad(rng, nu, nv, dim):
+    return clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv, dim=dim))
+
+
+# --- every operation against the CPU's, from the same state -----------------------------------------------
+
+def arrays(ops):
+    """Every level's iterate and right-hand side parity planes, in a fixed order."""
+    return [a for lvl in range(ops.levels) for a in (*ops.x[lvl], *ops.b[lvl])]
+
+
+def read(a):
+    return a.copy_to_host() if hasattr(a, "copy_to_host") else a.copy()
+
+
+def assert_same_state(cpu, gpu, what):
+    for n, (a, b) in enumerate(zip(arrays(cpu), arrays(gpu))):
+        a, b = read(a), read(b)
+        rel = 1e-12 if a.dtype == np.float64 else F32
+        assert a.shape == b.shape and a.dtype == b.dtype, (what, n)
+        err = np.abs(a - b).max() if a.size else 0.0
+        assert err <= rel * max(np.abs(a).max(), 1e-300), f"{what}: array {n} differs by {err:.3g}"
+
+
+def same_random_state(rng, cpu, gpu):
+    """Random values in every array of both (boundary nodes included), so that no term of an
+    operation is zero by accident (after a sweep the odd rows' residual would be)."""
+    for a, b in zip(arrays(cpu), arrays(gpu)):
+        a[...] = rng.standard_normal(a.shape)
+        b.copy_to_device(a)
+
+
+def operations(levels: int):
+    """Each operation of a V-cycle and of the full multigrid start, on every level it applies to."""
+    ops = []
+    for lvl in range(levels - 1):
+        ops += [("smooth", lvl), ("restrict", lvl), ("prolong", lvl), ("restrict_full", lvl), ("prolong_full", lvl),
+                ("smooth_reverse", lvl)]
+    return ops + [("smooth_reverse", levels - 1)]
+
+
+def run(ops, op, lvl):
+    if op == "smooth_reverse":
+        ops.smooth(lvl, reverse=True)
+    else:
+        getattr(ops, op)(lvl)
+
+
+@pytest.mark.parametrize("shape, kind, k, block", [
+    ((9, 7), "paper", 3, None),
+    ((12, 17), "uniform", 2, None),
+    ((17, 17), "random", 3, None),
+    ((17, 12), "paper", 3, 2),      # partitioned lines; the last block ends on a multiple of L+1
+    ((16, 9), "random", 2, 1),      # one node per block
+    ((17, 11), "random", 1, 3),
+])
+@pytest.mark.parametrize("with_rhs", [False, True])
+def test_each_operation_matches_cpu(rng, shape, kind, k, block, with_rhs):
+    nu, nv = shape
+    levels = build_hierarchy(make_weights(random_weights(rng, nu, nv) if kind == "random" else kind, nu, nv))
+    x0 = rng.standard_normal((nu, nv, k))
+    rhs = rng.standard_normal((nu - 2, nv - 2, k)) if with_rhs else None
+    cpu = _cpu_multigrid.CpuMultigrid(levels, x0, rhs)
+    gpu = _multigrid.CudaMultigrid(levels, x0, rhs, block=block)
+    assert gpu.nsep == (0 if block is None else (nu - 3) // (block + 1))
+    assert_same_state(cpu, gpu, "upload")
+    for op, lvl in operations(len(levels)):
+        same_random_state(rng, cpu, gpu)
+        run(cpu, op, lvl)
+        run(gpu, op, lvl)
+        assert_same_state(cpu, gpu, f"{op}({lvl})")
+    assert gpu.max_step() == pytest.approx(cpu.max_step(), rel=1e-12)
+    assert np.abs(gpu.solution() - cpu.solution()).max() <= 1e-12 * np.abs(x0).max()
+
+
+def test_solution_into_a_strided_view_in_chunks(rng, monkeypatch):
+    nu, nv = 9, 8
+    x0 = rng.standard_normal((nu, nv, 2))
+    gpu = _multigrid.CudaMultigrid(build_hierarchy(make_weights("paper", nu, nv)), x0)
+    monkeypatch.setattr(_multigrid, "DOWNLOAD_BYTES", 3 * nv * 2 * 8)   # three rows i per chunk
+    out = np.zeros((nu, nv, 3))
+    gpu.solution_into(out[..., 1:])
+    assert np.array_equal(out[..., 1:], x0) and not out[..., 0].any()
+
+
+@pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((12, 17), 3, "uniform"), ((17, 13), 2, "random")])
+def test_fmg_and_one_vcycle_match_cpu(rng, shape, dim, kind):
+    nu, nv = shape
+    b = quad(rng, nu, nv, dim)
+    spec, _ = weights_for(rng, kind, nu, nv)
+    levels = build_hierarchy(make_weights(spec, nu, nv))
+    x0 = initial_grid(b, "tfi")[..., :dim]
+    cpu, gpu = _cpu_multigrid.CpuMultigrid(levels, x0), _multigrid.CudaMultigrid(levels, x0)
+    for ops in (cpu, gpu):
+        fmg(ops)
+        vcycle(ops)
+    assert max_rel_error(gpu.solution(), cpu.solution(), b.size) <= F32
+    assert gpu.max_step() == pytest.approx(cpu.max_step(), rel=1e-3, abs=1e-6 * b.size)
+
+
+# --- whole solves through generate(), against the independent reference ----------------------------------
+
+@pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((12, 17), 3, "paper"), ((17, 17), 2, "uniform"),
+                                              ((17, 12), 3, "random")])
+@pytest.mark.parametrize("partitioned", [False, True])
+def test_multigrid_within_tol_of_the_reference(rng, monkeypatch, shape, dim, kind, partitioned):
+    if partitioned:
+        monkeypatch.setattr(_multigrid, "MIN_LINE_BLOCK", 2)
+    nu, nv = shape
+    b = quad(rng, nu, nv, dim)
+    spec, (wu, wv) = weights_for(rng, kind, nu, nv)
+    g = clothgrid.generate(b, backend="cuda", weights=spec)   # auto: multigrid, stop="error"
+    err = max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size)
+    assert g.info["solver"] == "multigrid" and g.info["backend"] == "cuda" and g.info["converged"]
+    assert err <= TOL and err <= g.info["error_estimate"] * (1 + 1e-9) + 1e-14
+    assert g.info["cuda_simulator"] is True and g.info["cuda_device"] == "Numba CUDA simulator"
+
+
+@pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((14, 11), 3, "uniform")])
+def test_fdm_matches_cpu_and_the_reference(rng, shape, dim, kind):
+    nu, nv = shape
+    b = quad(rng, nu, nv, dim)
+    g = clothgrid.generate(b, backend="cuda", solver="fdm", weights=kind)
+    c = clothgrid.generate(b, backend="cpu", solver="fdm", weights=kind)
+    ref = exact_solution(boundary_grid(b), *(paper_weights if kind == "paper" else uniform_weights)(nu, nv))
+    assert g.info["solver"] == "fdm" and g.info["converged"]
+    assert max_rel_error(g.points, c.points, b.size) <= 1e-12
+    assert g.info["error_estimate"] == pytest.approx(c.info["error_estimate"], rel=1e-6, abs=1e-15)
+    assert max_rel_error(g.points, ref, b.size) <= min(TOL, g.info["error_estimate"] * (1 + 1e-9) + 1e-14)
+
+
+def test_simulator_is_a_device_but_never_auto(rng):
+    assert get_backend("cuda") is cuda and get_backend("auto").name == "cpu"
+    assert cuda.available() == (True, "Numba CUDA simulator") and not cuda.on_gpu()
+    assert cuda.array_module() is np and "simulator" in cuda.summary()
+    assert cuda.info() == cuda.describe() and cuda.describe()["cuda_compute_capability"] is None
+    with pytest.raises(ValueError, match="at most 3 coordinates"):
+        cuda.multigrid(build_hierarchy(make_weights("paper", 9, 7)), np.zeros((9, 7, 4)))
+    with pytest.raises(clothgrid.SizeError, match="device memory on backend 'cuda'"):
+        clothgrid.generate(quad(rng, 9, 9, 2), (200_000, 200_000), backend="cuda", solver="fdm")
