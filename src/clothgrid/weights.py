@@ -46,6 +46,10 @@ class Weights:
             raise ValueError("Weights needs wu and wv, or the factors of separable weights")
         self._wu, self._wv, self.kind, self.factors = wu, wv, kind, factors
 
+    def __repr__(self) -> str:
+        nu, nv = self.shape
+        return f"Weights({self.kind!r}, {nu}x{nv}, {'separable' if self.factors is not None else 'per edge'})"
+
     @property
     def wu(self) -> np.ndarray:
         if self._wu is None:
