@@ -138,14 +138,15 @@ def test_multigrid_within_tol_of_the_reference(rng, weights, size):
     assert g.info["error_bound"] and err <= g.info["error_estimate"] * (1 + 1e-9) + 1e-14
 
 
+@pytest.mark.parametrize("fmg", [True, False])
 @pytest.mark.parametrize("init", ["tfi", "zero"])
-def test_multigrid_3d_and_host_fp64(rng, fp64, init, monkeypatch):
+def test_multigrid_3d_and_host_fp64(rng, fp64, init, fmg, monkeypatch):
+    """gl runs the CPU's cycles, with and without the full-multigrid start."""
     from clothgrid.solvers import multigrid
 
+    monkeypatch.setattr(multigrid, "FULL_MULTIGRID_START", fmg)
     b = quad(rng, 40, 29, dim=3)
     g = clothgrid.generate(b, backend="gl", init=init)
-    # the gl backend has no full-multigrid start: compare with the CPU's plain V-cycles
-    monkeypatch.setattr(multigrid, "FULL_MULTIGRID_START", False)
     c = clothgrid.generate(b, backend="cpu", solver="multigrid", init=init)
     ref = reference(b)
     assert np.ptp(ref[..., 2]) > 0.01

@@ -169,7 +169,7 @@ class MultigridOps(Protocol):
 DEFAULT_MAX_CYCLES = 100
 
 # Start with a full-multigrid pass where the backend supplies its operations
-# (the CPU backend does; the gl backend starts its V-cycles from the initial grid).
+# (``restrict_full`` and ``prolong_full``: the cpu, gl and cuda backends do).
 FULL_MULTIGRID_START = True
 
 

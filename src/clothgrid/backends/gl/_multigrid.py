@@ -212,6 +212,16 @@ class GLMultigrid:
         self.counts["prolong"] += 1
         self.seconds["prolong"] += time.perf_counter() - t0
 
+    def restrict_full(self, level: int) -> None:
+        """Full-multigrid start: ``P^T`` of every row's residual. Level 0's correction is zero
+        after a fold and coarser ones were just cleared, so this is ``P^T b[l]``."""
+        self.odd_last[level] = False
+        self.restrict(level)
+
+    # PROLONG interpolates every row (odd rows the mean of their neighbours): in a V-cycle the
+    # odd rows are re-solved next anyway, and the full-multigrid start needs all of them.
+    prolong_full = prolong
+
     def max_step(self) -> float:
         """Fold level 0's correction into the float64 iterate; ``max |D^-1 (b - A x)|`` in float64."""
         t0 = time.perf_counter()
