@@ -190,16 +190,14 @@ def fine_level(weights: Weights) -> Level:
     sep = None
     if weights.factors is not None:
         cu, dv, du, cv = weights.factors
-        interior = np.zeros(nv, dtype=bool)
-        interior[1:-1] = True
-        kd, ku = np.zeros(nv), np.zeros(nv)
+        md, kd, ku = np.zeros(nv), np.zeros(nv), np.zeros(nv)
+        md[1:-1] = dv[1:-1]                  # M = diag(dv) over the interior rows
         kd[1:-1] = cv[:-1] + cv[1:]          # K[j, j]: the v-edges below and above row j
         ku[1:-2] = -cv[1:-1]                 # K[j, j+1] between interior rows
-        sep = Separable(cu=cu, du=du, md=np.where(interior, dv, 0.0), mu=np.zeros(nv), kd=kd, ku=ku)
-    if weights.unit_stencil:
-        cu, dv, du, cv = weights.factors
-        return Level(E=np.broadcast_to(cu[0] * dv, (nu - 1, nv)), N=np.broadcast_to((du * cv[0])[:, None], (nu, nv - 1)),
-                     sep=sep)
+        sep = Separable(cu=cu, du=du, md=md, mu=np.zeros(nv), kd=kd, ku=ku)
+        if weights.unit_stencil:
+            return Level(E=np.broadcast_to(cu[0] * dv, (nu - 1, nv)),
+                         N=np.broadcast_to((du * cv[0])[:, None], (nu, nv - 1)), sep=sep)
     return Level(E=np.ascontiguousarray(weights.wu), N=np.ascontiguousarray(weights.wv), sep=sep)
 
 
