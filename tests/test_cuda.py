@@ -231,6 +231,13 @@ def test_cli_backend_cuda_exits_2_and_writes_nothing(capsys, tmp_path, monkeypat
 
 # --- on a GPU --------------------------------------------------------------------------------------------
 
+@pytest.mark.skipif(not os.environ.get("CLOTHGRID_EXPECT_GPU"), reason="CLOTHGRID_EXPECT_GPU is not set: "
+                    "a GPU is not required on this machine")
+def test_the_expected_gpu_is_used():
+    """Where the run must be on a GPU (``CLOTHGRID_EXPECT_GPU=1``), the GPU tests must not skip."""
+    assert GPU, cuda.available()[1]
+
+
 @needs_gpu
 def test_gpu_reports_itself(rng):
     g = clothgrid.generate(quad(rng, 17, 17), backend="cuda")

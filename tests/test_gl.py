@@ -7,6 +7,7 @@ Sizes are small: llvmpipe runs on the CPU.
 
 from __future__ import annotations
 
+import os
 import threading
 
 import numpy as np
@@ -55,6 +56,9 @@ def test_backend_is_available_and_reports_its_renderer(rng):
     assert g.info["backend"] == "gl" and g.info["solver"] == "multigrid"
     assert g.info["gl_renderer"] and g.info["gl_max_texture_size"] >= 1024
     assert g.info["gl_fp64"] in ("device", "host")
+    if os.environ.get("CLOTHGRID_EXPECT_GPU"):   # set where the run must be on a GPU: EGL falls back silently
+        assert not any(s in g.info["gl_renderer"].lower() for s in ("llvmpipe", "softpipe", "swrast")), \
+            f"CLOTHGRID_EXPECT_GPU is set but the renderer is {g.info['gl_renderer']!r}"
 
 
 def test_reduction_pyramid_finds_the_max(rng):

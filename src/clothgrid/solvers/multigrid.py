@@ -338,10 +338,13 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
         return SolveResult(problem.r0.copy(), iterations=0, error_estimate=0.0, converged=True)
     levels = build_hierarchy(problem.weights)
     ops = backend.multigrid(levels, problem.r0[..., active])
+    if hasattr(ops, "synchronize"):   # a device backend: the upload has finished
+        ops.synchronize()
     setup = time.perf_counter() - t0
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
                        _barrier_solver(problem, backend, levels))
     limit = tol * problem.scale / (zmax if stop == "error" else 1.0)
+    t_cycles = time.perf_counter()
     if FULL_MULTIGRID_START and hasattr(ops, "prolong_full"):
         fmg(ops)
     steps = []
@@ -356,6 +359,9 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
         if progress and (now := time.perf_counter()) - last_report >= progress_seconds:
             progress(f"multigrid: {len(steps)} cycles, error bound {step * zmax / problem.scale:.3g} (tol {tol:.3g})")
             last_report = now
+    # max_step reads one float back from the device: the cycles have finished on it.
+    cycles = time.perf_counter() - t_cycles
+    t_download = time.perf_counter()
     # The inactive coordinates (zero) and the boundary nodes are r0's own.
     out = problem.r0 if problem.overwrite else problem.r0.copy()
     contiguous = active == list(range(active[0], active[-1] + 1))
@@ -364,7 +370,8 @@ def solve_multigrid(problem: Problem, *, backend, tol: float, stop: str = "error
     else:
         out[..., active] = ops.solution()
     factors = [b / a for a, b in zip(steps, steps[1:]) if a > 0]
-    extra = {"levels": len(levels), "setup_seconds": setup,
+    extra = {"levels": len(levels), "setup_seconds": setup, "cycle_seconds": cycles,
+             "download_seconds": time.perf_counter() - t_download,
              "convergence_factor": float(np.exp(np.mean(np.log(factors[-3:])))) if factors else None,
              "steps": [s / problem.scale for s in steps]}
     if hasattr(ops, "extra"):

@@ -223,6 +223,11 @@ class CudaMultigrid:
         blocks, threads = launch(xe.shape[2], self._shape[0], NODE_THREADS)
         K.prolong_full[blocks, threads](xe, xo, *self.x[level + 1], self.nv[level])
 
+    def synchronize(self) -> None:
+        """Wait until the device has done the work queued so far (the simulator has nothing queued)."""
+        if self._xp is not np:
+            self._xp.cuda.Device().synchronize()   # GPU only
+
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
         (xe, xo), (be, bo) = self.x[0], self.b[0]

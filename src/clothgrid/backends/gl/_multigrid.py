@@ -222,6 +222,11 @@ class GLMultigrid:
     # odd rows are re-solved next anyway, and the full-multigrid start needs all of them.
     prolong_full = prolong
 
+    def synchronize(self) -> None:
+        """Wait until the device has done the passes issued so far (``glFinish``)."""
+        with self.dev.current():
+            self.dev.ctx.finish()
+
     def max_step(self) -> float:
         """Fold level 0's correction into the float64 iterate; ``max |D^-1 (b - A x)|`` in float64."""
         t0 = time.perf_counter()
