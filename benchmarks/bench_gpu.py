@@ -345,6 +345,9 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", nargs="*", default=list(METHODS))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "bench" / "gpu")
     ap.add_argument("--timeout", type=float, default=240.0, help="seconds per method")
+    ap.add_argument("--ref-max", type=int, default=1 << 15, help="largest side of the CPU reference grids")
+    ap.add_argument("--render", nargs="*", type=Path, metavar="DIR",
+                    help="only write the tables and plot of earlier runs' rows.jsonl (merged) into --out")
     ap.add_argument("--child", nargs=2, metavar=("METHOD", "TMP"), help=argparse.SUPPRESS)
     ap.add_argument("--sizes", nargs="*", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -354,12 +357,21 @@ def main(argv=None) -> int:
         else:
             child(args.child[0], args.sizes, Path(args.child[1]))
         return 0
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.render:
+        rows = []
+        for d in args.render:
+            rows += [json.loads(line) for line in (d / "rows.jsonl").read_text().splitlines() if line.strip()]
+        facts = json.loads((args.render[0] / "device.json").read_text())
+        facts.pop("copy_bandwidth", None)
+        write(rows, facts, args.out, args.table_min)
+        print((args.out / "gpu.md").read_text())
+        return 0
     sizes = []
     n = args.min
     while n <= args.max:
         sizes.append(n)
         n *= 2
-    args.out.mkdir(parents=True, exist_ok=True)
     facts = device_facts()
     print(json.dumps(facts, indent=1), flush=True)
     rows: list[dict] = []
@@ -368,7 +380,7 @@ def main(argv=None) -> int:
         print("copy bandwidth", flush=True)
         rows += run_child(["--child", "copy", "2", "--sizes", *map(str, sizes)], args.timeout)
         for label in order:
-            top = METHODS[label][3]
+            top = min(METHODS[label][3], args.ref_max) if label == REFERENCE else METHODS[label][3]
             print(label, flush=True)
             rows += run_child(["--child", label, tmp, "--sizes", *map(str, [s for s in sizes if s <= top])],
                               args.timeout)
@@ -378,6 +390,7 @@ def main(argv=None) -> int:
 
 
 def write(rows: list[dict], facts: dict, out: Path, table_min: int) -> None:
+    (out / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     bw = {r["side"]: r["bandwidth"] for r in rows if r.get("bandwidth")}
     for r in rows:
         if "bytes" in r and bw.get(r["side"]):

@@ -90,5 +90,5 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None) ->
         if solver == "direct":
             hint = "use solver 'fdm' (separable weights) or fewer nodes"
         raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of memory, "
-                        f"but {format_bytes(have)} is available: {hint}")
+                        f"more than the 90 % of the {format_bytes(have)} available that a solve may take: {hint}")
     return need

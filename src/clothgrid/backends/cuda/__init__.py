@@ -108,8 +108,8 @@ def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0) -> None:
     have = dev.free_memory()
     if need > 0.9 * have:
         raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of device "
-                        f"memory on backend 'cuda', but {dev.name} has {format_bytes(have)} free: "
-                        "use fewer nodes or backend 'cpu'")
+                        f"memory on backend 'cuda', more than the 90 % of the {format_bytes(have)} free on {dev.name} "
+                        "that a solve may take: use fewer nodes or backend 'cpu'")
 
 
 def max_step(r, wu, wv) -> float:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from ...errors import BackendUnavailableError
 from ...memory import available_bytes, format_bytes
-from . import _sim
+from . import _compat, _sim
 
 SIMULATOR = "Numba CUDA simulator"
 _INSTALL = "pip install 'clothgrid[cuda]'"
@@ -93,6 +93,7 @@ def _gpu() -> Device | str:
     except Exception as exc:   # CUDARuntimeError: no driver, driver too old, no device, ...
         return (f"backend 'cuda' finds no usable GPU: CuPy {cupy.__version__} is installed, but CUDA says "
                 f"{type(exc).__name__}: {exc}")
+    _compat.patch_numpy()   # before numba.cuda compiles anything
     from numba import cuda
 
     if not cuda.is_available():

@@ -42,7 +42,11 @@ CPU, one Python thread per GPU thread: the tests check them there.
 
 from __future__ import annotations
 
-from numba import cuda
+from ._compat import patch_numpy
+
+patch_numpy()   # numba-cuda <= 0.30.4 with NumPy >= 2.5 (see _compat)
+
+from numba import cuda  # noqa: E402
 
 #: Coordinates per node the kernels handle (per-thread carried values live in local arrays).
 MAX_COORDS = 3

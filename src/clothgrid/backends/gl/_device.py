@@ -214,7 +214,8 @@ class Device:
             raise SizeError(
                 f"a {nu}x{nv} grid with backend 'gl' needs about {format_bytes(need)} of textures"
                 + (" and host arrays" if self.software else "")
-                + f", but {format_bytes(have)} is available ({source}) on {name}: use fewer nodes")
+                + f", more than the 90 % of the {format_bytes(have)} available ({source}) on {name} that a solve "
+                "may take: use fewer nodes")
         if 16 * nu * nv >= _PROBE_BYTES and not self.probe(nv, nu):
             raise SizeError(
                 f"{name} refused a {nv}x{nu} RGBA32F texture ({format_bytes(16 * nu * nv)}), which a "
