@@ -1,0 +1,70 @@
+"""Where a cuda multigrid solve spends its time: each operation on each level, device-synchronised.
+
+    python benchmarks/gpu_ops.py 4096 16384
+
+For each size (the T-shirt front, paper weights, two coordinates) the
+hierarchy is built and uploaded once; then each operation of
+:class:`clothgrid.backends.cuda._multigrid.CudaMultigrid` is run ``reps``
+times between two device synchronisations, and its median time is printed
+per level, with the level's nodes, next to a whole V-cycle, the full-multigrid
+start and the time the same number of kernel launches takes on an empty grid
+(launch overhead).
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def timed(fn, sync, reps=10):
+    fn()
+    sync()
+    out = []
+    for _ in range(reps):
+        t = time.perf_counter()
+        fn()
+        sync()
+        out.append(time.perf_counter() - t)
+    return statistics.median(out)
+
+
+def main(sizes):
+    import clothgrid
+    from clothgrid import load_boundary
+    from clothgrid.backends import cuda
+    from clothgrid.initial import initial_grid
+    from clothgrid.solvers.multigrid import build_hierarchy, fmg, vcycle
+    from clothgrid.weights import make_weights
+
+    cuda.require()
+    b = load_boundary(ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json")
+    clothgrid.generate(b, (300, 300), backend="cuda")   # compile
+    for n in sizes:
+        bn = b.resampled(n, n)
+        x0 = initial_grid(bn, "tfi")[..., :2]
+        levels = build_hierarchy(make_weights("paper", n, n))
+        ops = cuda.multigrid(levels, x0)
+        sync = ops.synchronize
+        print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
+        print(f"  V-cycle {timed(lambda: vcycle(ops), sync) * 1e3:.2f} ms, full-multigrid start "
+              f"{timed(lambda: fmg(ops), sync, 3) * 1e3:.2f} ms, max_step {timed(ops.max_step, sync) * 1e3:.3f} ms",
+              flush=True)
+        for lvl in range(ops.levels):
+            rows = ops.nv[lvl]
+            t_s = timed(lambda: ops.smooth(lvl), sync)
+            line = f"  level {lvl:2d} ({n}x{rows}): smooth {t_s * 1e3:8.3f} ms"
+            if lvl + 1 < ops.levels:
+                t_r = timed(lambda: ops.restrict(lvl), sync)
+                t_p = timed(lambda: ops.prolong(lvl), sync)
+                line += f", restrict {t_r * 1e3:7.3f} ms, prolong {t_p * 1e3:7.3f} ms"
+            print(line, flush=True)
+        del ops
+
+
+if __name__ == "__main__":
+    main([int(a) for a in sys.argv[1:]] or [4096])
