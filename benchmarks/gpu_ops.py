@@ -64,6 +64,14 @@ def main(sizes):
                 line += f", restrict {t_r * 1e3:7.3f} ms, prolong {t_p * 1e3:7.3f} ms"
             print(line, flush=True)
         del ops
+        from clothgrid.solvers import multigrid
+        for start in (True, False):
+            multigrid.FULL_MULTIGRID_START = start
+            g = clothgrid.generate(b, (n, n), backend="cuda")
+            print(f"  generate, full-multigrid start {start}: {g.info['iterations']} V-cycles, cycles "
+                  f"{g.info['cycle_seconds'] * 1e3:.1f} ms, bound {g.info['error_estimate']:.2e}", flush=True)
+            del g
+        multigrid.FULL_MULTIGRID_START = True
 
 
 if __name__ == "__main__":

@@ -164,14 +164,16 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         name = "jacobi" if stop == "paper" and "jacobi" in on_device else on_device[0]
     else:
         name = choose_solver(separable, nu, nv)
+    device_need = 0
     if on_device:  # the device's texture size and memory, before anything is allocated (SizeError)
-        be.check_size(nu, nv, name, estimate_bytes(name, nu, nv))
+        device_need = be.check_size(nu, nv, name, estimate_bytes(name, nu, nv),
+                                    coords=2 if boundary.dim == 2 else 3, separable=separable)
     need = check_memory(name, nu, nv)
     if name == "jacobi" and not separable and stop == "error":
         need = max(need, check_memory("direct", nu, nv))  # the bound's barrier takes one direct solve
     say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
     if on_device:
-        say(f"backend {be.name}: {be.summary()}")
+        say(f"backend {be.name}: {be.summary()}; about {format_bytes(device_need)} of device memory")
     w = make_weights(weights, nu, nv, k)
     # Exact solvers read only the boundary nodes: the initial grid matters to iterative ones.
     r0 = initial_grid(boundary, init) if name in ("jacobi", "multigrid") else boundary_grid(boundary)

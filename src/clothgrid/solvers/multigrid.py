@@ -76,17 +76,23 @@ class Separable:
     kd: np.ndarray
     ku: np.ndarray
 
-    def stencil(self, dtype=np.float32) -> tuple[np.ndarray, ...]:
-        """The level's ``C, E, N, NE, NW`` as ``(nu, nv)`` arrays (see :class:`Level`)."""
-        cu = np.r_[self.cu, 0.0][:, None]           # cu[i]: the edge to i+1 (none from the last column)
-        cl = np.r_[0.0, self.cu][:, None]           # cu[i-1]: the edge from i-1
-        du = self.du[:, None]
-        C = (cl + cu) * self.md + du * self.kd
-        E = cu * self.md
-        N = -((cl + cu) * self.mu + du * self.ku)
-        NE = cu * self.mu
-        NW = cl * self.mu
-        return tuple(np.ascontiguousarray(a, dtype=dtype) for a in (C, E, N, NE, NW))
+    def stencil(self, dtype=np.float32, xp=np, rows: slice = slice(None)) -> tuple:
+        """The level's ``C, E, N, NE, NW`` as ``(nu, nv)`` arrays (see :class:`Level`).
+
+        ``xp`` is the array module that forms them (CuPy forms them on the GPU
+        from the 1D factors: nothing of the grid's size crosses the bus);
+        ``rows`` picks the rows ``J`` to form (``slice(p, None, 2)``: one parity).
+        """
+        cu = xp.asarray(np.r_[self.cu, 0.0])[:, None]           # cu[i]: the edge to i+1 (none from the last column)
+        cl = xp.asarray(np.r_[0.0, self.cu])[:, None]           # cu[i-1]: the edge from i-1
+        du = xp.asarray(self.du)[:, None]
+        md, mu, kd, ku = (xp.asarray(a[rows]) for a in (self.md, self.mu, self.kd, self.ku))
+        C = (cl + cu) * md + du * kd
+        E = cu * md
+        N = -((cl + cu) * mu + du * ku)
+        NE = cu * mu
+        NW = cl * mu
+        return tuple(xp.ascontiguousarray(a, dtype=dtype) for a in (C, E, N, NE, NW))
 
 
 class Level:

@@ -72,44 +72,51 @@ def summary() -> str:
     return require().summary()
 
 
-def device_bytes(solver: str, nu: int, nv: int) -> int:
-    """Bytes of device memory a solve of an ``nu x nv`` grid (three coordinates) allocates, at most.
+def device_bytes(solver: str, nu: int, nv: int, coords: int = 3, separable: bool = False) -> int:
+    """Bytes of device memory a solve of an ``nu x nv`` grid allocates, at most.
 
-    ``multigrid``, per node: level 0's float64 iterate as parity planes (24)
-    and the grid it is split from and merged back into (24), the edge weights
-    split by parity (16; the paper's and uniform weights need only 1D
-    factors); the coarse levels, about as many nodes again in all: five float32
-    stencil arrays, iterate and right-hand side (44); the line solves' scratch,
-    three float64 arrays over level 0's lines and three float32 ones over
-    level 1's (15). Per-edge weights add a second hierarchy for the barrier
-    solve of the error bound, one coordinate with a right-hand side (83): the
-    estimate includes it. ``fdm``: the two eigenvector matrices, ``8 ((nu-2)^2 +
-    (nv-2)^2)``, and per node the right-hand side, the grid and its copy, the
-    weights, the residual and the products' three work arrays (192).
+    ``coords`` is the number of coordinates solved (2 for a planar piece given in
+    2D), ``separable`` whether the weights are the paper's or uniform (1D factors).
+
+    ``multigrid``, per node, ``k = coords``: level 0's float64 iterate as parity
+    planes (``8 k``) and the grid it is split from and merged back into
+    (``8 k``); the coarse levels, about as many nodes again in all: five float32
+    stencil arrays, float32 iterate and right-hand side (``20 + 8 k``); the line
+    solves' scratch, three float64 arrays over level 0's lines and three float32
+    ones over level 1's (15); the float64 temporaries that form the coarse
+    stencils (8). Per-edge weights add level 0's edge weights split by parity
+    (16) and a second hierarchy for the barrier solve of the error bound, one
+    coordinate with a right-hand side (83). Measured on an H100 (NVML, the
+    T-shirt front, two coordinates, paper weights): 84-86 bytes a node from
+    1024^2 to 16384^2 against the 91 counted here. ``fdm``: the two eigenvector
+    matrices, ``8 ((nu-2)^2 + (nv-2)^2)``, and per node the right-hand side, the
+    grid and its copy, the weights, the residual and the products' three work
+    arrays (192).
     """
     n = nu * nv
     if solver == "multigrid":
-        return (24 + 24 + 16 + 44 + 15 + 83) * n
+        return (24 * coords + 20 + 15 + 8 + (0 if separable else 16 + 83)) * n
     if solver == "fdm":
         return 8 * ((nu - 2) ** 2 + (nv - 2) ** 2) + 192 * n
     raise InputError(f"solver {solver!r} does not run on backend 'cuda': use one of {', '.join(solvers)}")
 
 
-def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0) -> None:
+def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0, coords: int = 3, separable: bool = False) -> int:
     """Raise :class:`~clothgrid.errors.SizeError` before allocating a grid the device cannot hold.
 
     The solve fits when :func:`device_bytes` is at most 90 % of the device's
     free memory (CuPy's pooled free blocks included). ``host_bytes``, the
     host's share of the solve, counts too under the simulator, whose device
-    memory is the host's.
+    memory is the host's. Returns the bytes counted.
     """
     dev = require()
-    need = device_bytes(solver, nu, nv) + (host_bytes if dev.simulated else 0)
+    need = device_bytes(solver, nu, nv, coords, separable) + (host_bytes if dev.simulated else 0)
     have = dev.free_memory()
     if need > 0.9 * have:
         raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of device "
                         f"memory on backend 'cuda', more than the 90 % of the {format_bytes(have)} free on {dev.name} "
                         "that a solve may take: use fewer nodes or backend 'cpu'")
+    return need
 
 
 def max_step(r, wu, wv) -> float:

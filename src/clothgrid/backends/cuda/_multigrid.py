@@ -59,11 +59,15 @@ def _planes(n_rows: int) -> tuple[int, int]:
     return (n_rows + 1) // 2, n_rows // 2
 
 
-def _coarse_stencil(level) -> tuple[np.ndarray, ...]:
-    """A coarse level's ``C, E, N, NE, NW`` as float32 arrays, formed without keeping them on the level."""
+def _coarse_stencil(level, xp, p: int) -> tuple:
+    """Rows ``J`` of parity ``p`` of a coarse level's ``C, E, N, NE, NW``, float32 arrays of ``xp``.
+
+    Separable levels are formed by ``xp`` from their 1D factors (on the GPU with
+    CuPy) without keeping them on the level; others are uploaded.
+    """
     if level.sep is not None:
-        return level.sep.stencil(np.float32)
-    return level.C, level.E, level.N, level.NE, level.NW
+        return level.sep.stencil(np.float32, xp=xp, rows=slice(p, None, 2))
+    return tuple(xp.ascontiguousarray(xp.asarray(a)[:, p::2]) for a in (level.C, level.E, level.N, level.NE, level.NW))
 
 
 class CudaMultigrid:
@@ -103,8 +107,9 @@ class CudaMultigrid:
         for n_rows in self.nv[1:]:
             self.x.append(tuple(self._zeros((k, nu, n), np.float32) for n in _planes(n_rows)))
             self.b.append(tuple(self._zeros((k, nu, n), np.float32) for n in _planes(n_rows)))
-        for lv in levels[1:]:
-            self.st.append(sum((self._split_rows(a) for a in _coarse_stencil(lv)), ()))
+        for lv in levels[1:]:   # C, E, N, NE, NW: even and odd rows of each
+            even, odd = (_coarse_stencil(lv, self._xp, p) for p in (0, 1))
+            self.st.append(tuple(kernel_array(a) for pair in zip(even, odd) for a in pair))
         # Thomas scratch per precision, as wide as the widest level's lines; 5-point-only arguments.
         self.scratch = {np.float64: self._scratch(nu, self.nv[0], np.float64)}
         if self.levels > 1:
