@@ -63,6 +63,11 @@ def main(sizes):
                 t_p = timed(lambda: ops.prolong(lvl), sync)
                 line += f", restrict {t_r * 1e3:7.3f} ms, prolong {t_p * 1e3:7.3f} ms"
             print(line, flush=True)
+        # Launch overhead: a prolongation on the coarsest pair of levels moves a few kB.
+        lvl = ops.levels - 2
+        per = timed(lambda: [ops.prolong(lvl) for _ in range(200)], sync, 3) / 200
+        print(f"  one launch on a tiny level (prolong {lvl}): {per * 1e6:.1f} us", flush=True)
+        graph_vcycle(ops, vcycle)
         del ops
         from clothgrid.solvers import multigrid
         for start in (True, False):
@@ -72,6 +77,30 @@ def main(sizes):
                   f"{g.info['cycle_seconds'] * 1e3:.1f} ms, bound {g.info['error_estimate']:.2e}", flush=True)
             del g
         multigrid.FULL_MULTIGRID_START = True
+
+
+def graph_vcycle(ops, vcycle) -> None:
+    """Capture one V-cycle's launches in a CUDA graph (CuPy stream capture, Numba launching on
+    that stream) and time its replays: the V-cycle without Python's launch overhead."""
+    try:
+        import cupy
+        from numba import cuda as ncuda
+
+        s = cupy.cuda.Stream(non_blocking=True)
+        ops.stream = ncuda.external_stream(s.ptr)
+        s.begin_capture()
+        try:
+            vcycle(ops)
+        finally:
+            graph = s.end_capture()
+        graph.launch(stream=s)
+        s.synchronize()
+        t = timed(lambda: graph.launch(stream=s), s.synchronize)
+        print(f"  V-cycle replayed from a CUDA graph: {t * 1e3:.2f} ms", flush=True)
+    except Exception as exc:   # an experiment: say why it did not run
+        print(f"  CUDA graph capture failed: {type(exc).__name__}: {exc}", flush=True)
+    finally:
+        ops.stream = 0
 
 
 if __name__ == "__main__":

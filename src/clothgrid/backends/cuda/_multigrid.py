@@ -90,6 +90,8 @@ class CudaMultigrid:
         if k > K.MAX_COORDS:
             raise ValueError(f"the cuda multigrid solves at most {K.MAX_COORDS} coordinates, not {k}")
         self._xp = array_module()
+        #: Stream of every kernel launch (0: the default stream; a capture can set its own).
+        self.stream = 0
         self.levels = len(levels)
         self._shape = x0.shape
         self._has_b = rhs is not None
@@ -129,7 +131,7 @@ class CudaMultigrid:
         full = kernel_array(self._xp.asarray(np.ascontiguousarray(grid, dtype=np.float64)))
         planes = tuple(self._zeros((k, nu, n)) for n in _planes(nv))
         blocks, threads = launch(nv, nu, NODE_THREADS)
-        K.split_grid[blocks, threads](full, *planes)
+        K.split_grid[blocks, threads, self.stream](full, *planes)
         return planes
 
     def _split_rows(self, a: np.ndarray):
@@ -181,13 +183,13 @@ class CudaMultigrid:
                 flags = (1, 1, True, True)
             ob = 0 if p == 1 else -1
             blocks, threads = launch(lines, self.nsep + 1, LINE_THREADS)
-            K.line_blocks[blocks, threads](own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block,
+            K.line_blocks[blocks, threads, self.stream](own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block,
                                            self.nsep, ob, *flags)
             if self.nsep:
                 blocks, threads = launch(lines, 1, LINE_THREADS)
-                K.line_separators[blocks, threads](own, E, g, yl, yr, m_lo, lines, self.block, self.nsep, flags[0])
+                K.line_separators[blocks, threads, self.stream](own, E, g, yl, yr, m_lo, lines, self.block, self.nsep, flags[0])
                 blocks, threads = launch(lines, own.shape[1], NODE_THREADS)
-                K.line_spread[blocks, threads](own, yl, yr, m_lo, lines, self.block, self.nsep)
+                K.line_spread[blocks, threads, self.stream](own, yl, yr, m_lo, lines, self.block, self.nsep)
 
     def _coarse_launch(self, level: int):
         """Blocks and threads over level ``level + 1``'s nodes ``(J, i)``."""
@@ -200,15 +202,15 @@ class CudaMultigrid:
         blocks, threads = self._coarse_launch(level)
         if level == 0:
             Ee, _, Ne, No = st
-            K.restrict5[blocks, threads](xe, xo, be, Ee, Ne, No, self.ei, self.nm, self._has_b, *coarse)
+            K.restrict5[blocks, threads, self.stream](xe, xo, be, Ee, Ne, No, self.ei, self.nm, self._has_b, *coarse)
         else:
             Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
-            K.restrict9[blocks, threads](xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, *coarse)
+            K.restrict9[blocks, threads, self.stream](xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, *coarse)
 
     def prolong(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
         blocks, threads = self._coarse_launch(level)
-        K.prolong[blocks, threads](self.x[level][0], *self.x[level + 1])
+        K.prolong[blocks, threads, self.stream](self.x[level][0], *self.x[level + 1])
 
     def restrict_full(self, level: int) -> None:
         """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
@@ -217,16 +219,16 @@ class CudaMultigrid:
         blocks, threads = self._coarse_launch(level)
         if level == 0:
             (xe, xo), (be, bo) = self.x[0], self.b[0]
-            K.restrict5_full[blocks, threads](xe, xo, be, bo, *self.st[0], self.ei, self.nm, self._has_b, self.nv[0],
+            K.restrict5_full[blocks, threads, self.stream](xe, xo, be, bo, *self.st[0], self.ei, self.nm, self._has_b, self.nv[0],
                                               *coarse)
         else:
-            K.restrict_rhs[blocks, threads](*self.b[level], self.nv[level], *coarse)
+            K.restrict_rhs[blocks, threads, self.stream](*self.b[level], self.nv[level], *coarse)
 
     def prolong_full(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on every row (full-multigrid start)."""
         xe, xo = self.x[level]
         blocks, threads = launch(xe.shape[2], self._shape[0], NODE_THREADS)
-        K.prolong_full[blocks, threads](xe, xo, *self.x[level + 1], self.nv[level])
+        K.prolong_full[blocks, threads, self.stream](xe, xo, *self.x[level + 1], self.nv[level])
 
     def synchronize(self) -> None:
         """Wait until the device has done the work queued so far (the simulator has nothing queued)."""
@@ -238,7 +240,7 @@ class CudaMultigrid:
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         rows, cols = self._partial.shape
         blocks, threads = launch(cols, rows, NODE_THREADS)
-        K.max_step5[blocks, threads](xe, xo, be, bo, *self.st[0], self.ei, self.nm, self.nv[0], self._has_b,
+        K.max_step5[blocks, threads, self.stream](xe, xo, be, bo, *self.st[0], self.ei, self.nm, self.nv[0], self._has_b,
                                      MAX_STEP_ROWS, self._partial_k)
         return math.sqrt(float(self._partial.max()))
 
@@ -257,7 +259,7 @@ class CudaMultigrid:
         nu, nv, k = self._shape
         grid = self._xp.empty(self._shape)
         blocks, threads = launch(nv, nu, NODE_THREADS)
-        K.merge_grid[blocks, threads](*self.x[0], kernel_array(grid))
+        K.merge_grid[blocks, threads, self.stream](*self.x[0], kernel_array(grid))
         to_host = getattr(self._xp, "asnumpy", np.asarray)
         rows = max(1, DOWNLOAD_BYTES // (8 * nv * k))
         for i in range(0, nu, rows):
