@@ -273,12 +273,12 @@ def test_failed_second_output_removes_first(capsys, horn, tmp_path, monkeypatch)
 
 
 def test_keyboard_interrupt_exit_130(capsys, horn, tmp_path, monkeypatch):
-    gen = importlib.import_module("clothgrid.generate")  # the module, not the function
+    pipeline = importlib.import_module("clothgrid.pipeline")
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(gen, "generate", interrupted)
+    monkeypatch.setattr(pipeline, "generate", interrupted)
     code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz")
     assert code == 130
     assert "interrupted" in err

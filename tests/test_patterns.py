@@ -16,10 +16,11 @@ import pytest
 
 from clothgrid import InputError, generate
 from clothgrid.cli import main
-from clothgrid.patterns import (Piece, choose_corners, corner_candidates, generate_piece,
+from clothgrid.patterns import (Piece, choose_corners, corner_candidates,
                                 load_single_boundary, nodes_for_edge_length, parse_length,
                                 piece_boundary, read_pieces)
 from clothgrid.patterns.piece import piece_from_polygon
+from clothgrid.pipeline import generate_piece
 from clothgrid.patterns.sampling import Bezier, EllipseArc, bspline_to_beziers, sample_loop
 
 ezdxf = pytest.importorskip("ezdxf")
@@ -663,18 +664,18 @@ def test_unknown_piece_and_duplicate_outputs(capsys, svg_file, tmp_path):
 
 
 def test_failed_write_leaves_nothing(capsys, svg_file, tmp_path, monkeypatch):
-    from clothgrid import cli
+    from clothgrid import pipeline
 
     calls = {"n": 0}
-    real = cli._write_all
+    real = pipeline.write_result
 
-    def flaky(grid, outputs, plot, **kw):
+    def flaky(result, *args, **kw):
         calls["n"] += 1
         if calls["n"] == 2:
             raise InputError("cannot write: disk full (simulated)")
-        return real(grid, outputs, plot, **kw)
+        return real(result, *args, **kw)
 
-    monkeypatch.setattr(cli, "_write_all", flaky)
+    monkeypatch.setattr(pipeline, "write_result", flaky)
     code, _, err = run(capsys, "generate", svg_file, "-o", tmp_path / "g.obj", "--nodes", "9", "-q")
     assert code == 2 and "disk full" in err
     assert files(tmp_path) == ["pattern.svg"]

@@ -14,7 +14,8 @@ from clothgrid.errors import InputError
 from clothgrid.grid import Grid
 from clothgrid.plot import plot_grid
 from clothgrid.quality import quality
-from clothgrid.writers import load_npz, register_writer, save
+from clothgrid.readers import load_npz
+from clothgrid.writers import register_writer, save
 
 
 @pytest.fixture

@@ -21,7 +21,6 @@ from .errors import ClothgridError, InputError, NotConvergedError
 
 __all__ = ["main", "parse_nodes", "parse_tol"]
 
-PLOT_SUFFIXES = (".png",)
 DEMO_PIECE = "tshirt_front.json"
 _NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
 _POWER = re.compile(rf"\s*({_NUM})\s*(?:\*\*|\^)\s*({_NUM})\s*")
@@ -209,9 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="texture coordinates of .obj and .ply: normalised arc length in [0, 1] "
                         "(default) or the flat pattern coordinates in length units")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
-    from .patterns.command import add_generate_arguments, add_pieces_parser
-
-    add_generate_arguments(g)  # --edge-length and the pattern-file options
+    _add_pattern_arguments(g)  # --edge-length and the pattern-file options
     g.set_defaults(func=_cmd_generate)
 
     d = sub.add_parser("demo", help="grid a bundled T-shirt front and write OBJ, NPZ and PNG",
@@ -224,8 +221,73 @@ def build_parser() -> argparse.ArgumentParser:
                    help="edge weights (default: uniform: the paper's weights fold cells under "
                         "the neckline of this piece)")
     d.set_defaults(func=_cmd_demo)
-    add_pieces_parser(sub)  # clothgrid pieces FILE
+    _add_pieces_parser(sub)  # clothgrid pieces FILE
     return parser
+
+
+def _add_pattern_arguments(g: argparse.ArgumentParser) -> None:
+    """Add the pattern-file options (and ``--edge-length``) to the ``generate`` parser."""
+    p = g.add_argument_group("pattern files (.svg, .dxf, GarmentCode .json)")
+    p.add_argument("--edge-length", metavar="LEN",
+                   help="grid size from a target edge length along the sides, e.g. 5mm, 0.5cm, "
+                        "0.25in (a plain number: mm for pattern files, the file's units for a "
+                        "boundary JSON); instead of --nodes (pattern default: 10mm)")
+    p.add_argument("--piece", action="append", metavar="NAME",
+                   help="grid only this piece (repeatable; default: every piece)")
+    p.add_argument("--corners", type=_corner_indices, metavar="I,J,K,L",
+                   help="the grid corners as outline indices (bottom-left, bottom-right, "
+                        "top-right, top-left, counter-clockwise), see 'clothgrid pieces "
+                        "--candidates'; one piece only")
+    p.add_argument("--corners-near", type=_corner_points, metavar="X,Y;X,Y;X,Y;X,Y",
+                   help="the grid corners as the outline points nearest to four points in mm "
+                        "(same order as --corners); one piece only")
+    p.add_argument("--min-turn", type=float, default=None, metavar="DEG",
+                   help="smallest turn (degrees) that makes a vertex a corner candidate "
+                        "(default: 20)")
+    # --units (the generate parser's own option) overrides the units a pattern file states
+
+
+def _add_pieces_parser(sub: Any) -> None:
+    """Add ``clothgrid pieces FILE``: list the pieces, their size and corner candidates."""
+    p = sub.add_parser("pieces", help="list the pieces of a pattern file and their corners",
+                       description="List the pieces of a pattern file (.svg, .dxf, GarmentCode "
+                                   ".json) with their size, units and the automatic corner "
+                                   "choice.")
+    p.add_argument("input", metavar="FILE", help="pattern file")
+    p.add_argument("--piece", action="append", metavar="NAME", help="only this piece (repeatable)")
+    p.add_argument("--candidates", action="store_true",
+                   help="also list every corner candidate: outline index, point (mm), turn")
+    p.add_argument("--units", metavar="UNIT",
+                   help="read the coordinates in this unit instead of what the file says")
+    p.add_argument("--min-turn", type=float, default=None, metavar="DEG",
+                   help="smallest turn (degrees) for a corner candidate (default: 20)")
+    p.add_argument("--json", action="store_true", help="print the listing as JSON")
+    p.set_defaults(func=_cmd_pieces)
+
+
+def _corner_indices(text: str) -> list[int]:
+    parts = [x for x in re.split(r"[,\s]+", text.strip()) if x]
+    try:
+        vals = [int(x) for x in parts]
+    except ValueError:
+        vals = []
+    if len(vals) != 4:
+        raise argparse.ArgumentTypeError(f"--corners {text!r}: expected 4 outline indices I,J,K,L "
+                                         "(bottom-left, bottom-right, top-right, top-left)")
+    return vals
+
+
+def _corner_points(text: str) -> list[tuple[float, float]]:
+    pts: list = []
+    for part in [x for x in re.split(r"\s*;\s*", text.strip()) if x]:
+        xy = [x for x in re.split(r"[,\s]+", part) if x]
+        try:
+            pts.append((float(xy[0]), float(xy[1])) if len(xy) == 2 else None)
+        except ValueError:
+            pts.append(None)
+    if len(pts) != 4 or any(p is None for p in pts):
+        raise argparse.ArgumentTypeError(f"--corners-near {text!r}: expected four points X,Y;X,Y;X,Y;X,Y in mm")
+    return pts
 
 
 # --------------------------------------------------------------------------- helpers
@@ -233,73 +295,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _say(message: str) -> None:
     print(f"clothgrid: {message}", file=sys.stderr, flush=True)
-
-
-def _suffix_known(path: Path, known: set[str]) -> bool:
-    return path.suffix.lower() in known
-
-
-def _check_outputs(outputs: Sequence[str], plot: str | None) -> tuple[list[Path], Path | None]:
-    """Fail fast (InputError) on an unknown extension or a missing output folder."""
-    from .writers import WRITERS
-
-    known = {"." + str(k).lower().lstrip(".") for k in WRITERS}
-    paths: list[Path] = []
-    for text in outputs:
-        path = Path(text)
-        if not _suffix_known(path, known):
-            raise InputError(f"unknown output format {path.suffix or '(no extension)'!r} for "
-                             f"{text!r}: use one of {', '.join(sorted(known))}")
-        if path not in paths:
-            paths.append(path)
-    plot_path = None
-    if plot is not None:
-        plot_path = Path(plot)
-        if not _suffix_known(plot_path, set(PLOT_SUFFIXES)):
-            raise InputError(f"--plot {plot!r}: the plot must be a {'/'.join(PLOT_SUFFIXES)} file")
-        if plot_path in paths:
-            raise InputError(f"{plot!r} is given both as an output and as the plot")
-    for path in paths + ([plot_path] if plot_path is not None else []):
-        folder = path.parent
-        if not folder.is_dir():
-            raise InputError(f"output folder {str(folder)!r} does not exist (for {str(path)!r})")
-        if path.is_dir():
-            raise InputError(f"output {str(path)!r} is a folder")
-    return paths, plot_path
-
-
-def _load(path: Path):
-    from .readers import load_boundary
-
-    return load_boundary(path)
-
-
-def _write_all(grid: Any, outputs: Sequence[Path], plot: Path | None, *, title: str | None,
-               quality: Any, options: dict[str, Any] | None = None) -> list[Path]:
-    """Write every output; on any failure remove what this call wrote and re-raise.
-
-    Each writer gets those of ``options`` it takes (:func:`clothgrid.writers.writer_options`).
-    """
-    from .writers import save, writer_options
-
-    written: list[Path] = []
-    try:
-        for path in outputs:
-            takes = writer_options(path.suffix)
-            opts = {k: v for k, v in (options or {}).items() if k in takes and v is not None}
-            written.append(Path(save(grid, path, **opts)))
-        if plot is not None:
-            from .plot import plot_grid  # matplotlib takes ~0.7 s to import: only when asked
-
-            written.append(Path(plot_grid(grid, plot, title=title, quality=quality)))
-    except BaseException as exc:
-        for path in written:
-            path.unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            name = getattr(exc, "filename", None) or "output"
-            raise InputError(f"cannot write {name}: {exc.strerror or exc}") from exc
-        raise
-    return written
 
 
 def _fmt(value: Any, spec: str) -> str:
@@ -333,36 +328,17 @@ def folded_text(q: Any, max_listed: int = 5) -> str:
 # --------------------------------------------------------------------------- commands
 
 
-def _cmd_generate(args: argparse.Namespace) -> int:
+def _report(result: Any, pattern: bool) -> None:
+    """Print one grid's lines: the piece and its corners, the quality table(s), the timing line."""
     import numpy as np
 
-    from .generate import generate
-    from .quality import Quality, quality
+    from .quality import Quality
 
-    from .patterns.command import check_boundary_args, generate_pattern, grid_nodes, is_pattern_input
-
-    if is_pattern_input(args.input):  # every piece of an SVG, DXF or GarmentCode file
-        return generate_pattern(args)
-    check_boundary_args(args)
-    outputs, plot = _check_outputs(args.output, args.plot)
-    progress = _progress(args.quiet)
-    source = Path(args.input)
-
-    t0 = time.perf_counter()
-    boundary = _load(source)
-    t_load = time.perf_counter() - t0
-    if progress:
-        progress(f"loaded {source} in {t_load:.3f} s")
-
-    t0 = time.perf_counter()
-    nodes, _ = grid_nodes(args, boundary, pattern=False)  # --nodes or --edge-length
-    grid = generate(boundary, nodes, init=args.init, weights=args.weights, k=args.k,
-                    solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop,
-                    max_iter=args.max_iter, allow_unconverged=args.allow_unconverged,
-                    progress=progress, functional=args.functional)
-    t_solve = time.perf_counter() - t0
-
-    q = quality(grid)
+    job, grid = result.job, result.grid
+    if pattern:
+        nu, nv = grid.shape
+        w, h = job.piece["size"]
+        print(f"piece {job.name}: {w:.6g} x {h:.6g} mm, {nu} x {nv} nodes; corners: {job.corners}")
     if grid.info.get("functional") == "foldfree":
         before = grid.info.get("quality_before") or {}
         print("length functional:")
@@ -371,66 +347,116 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         ff = grid.info.get("foldfree", {})
         print(f"fold-free ({_fmt(ff.get('iterations'), 'd')} iterations, "
               f"{_fmt(ff.get('seconds'), '.3f')} s):")
-    print(q.table())
-    print(timing_line(grid.info, t_solve), flush=True)
-    if q.folded and args.strict:
-        _say(f"error: the grid has {folded_text(q)}; no output written "
-             + ("(try --functional auto)" if args.functional == "length" else "(--strict)"))
-        return 3
-    if not grid.info.get("converged", True):
-        _say(f"warning: writing a grid that is not converged (error estimate "
-             f"{_fmt(grid.info.get('error_estimate'), '.2e')} > tol {_fmt(args.tol, '.2e')}) "
-             f"because of --allow-unconverged")
-    if q.folded:
-        hint = "; try --functional auto" if args.functional == "length" else ""
-        _say(f"warning: {folded_text(q)}{hint}")
+    print(result.quality.table())
+    print(timing_line(grid.info, result.seconds), flush=True)
 
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    from . import pipeline
+
+    options = pipeline.GridOptions(
+        nodes=args.nodes, edge_length=args.edge_length, init=args.init, weights=args.weights, k=args.k,
+        solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop, max_iter=args.max_iter,
+        allow_unconverged=args.allow_unconverged, functional=args.functional)
+    progress = _progress(args.quiet)
+    jobs = pipeline.read_jobs(args.input, args.output, args.plot, options=options, pieces=args.piece,
+                              corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
+                              units=args.units, progress=progress)
+    pattern = jobs[0].piece is not None
+    many = len(jobs) > 1 or pattern
+    results = []
+    for job in jobs:
+        result = pipeline.run_job(job, options, progress)
+        _report(result, pattern)
+        if not result.grid.info.get("converged", True):
+            _say(f"warning: {f'piece {job.name}: ' if many else ''}writing a grid that is not converged "
+                 f"(error estimate {_fmt(result.grid.info.get('error_estimate'), '.2e')} > tol "
+                 f"{_fmt(args.tol, '.2e')}) because of --allow-unconverged")
+        results.append(result)
+    folded = [r for r in results if r.quality.folded]
+    hint = "try --functional auto" if args.functional == "length" else ""
+    if folded and args.strict:
+        r = folded[0]
+        _say(f"error: {f'piece {r.job.name}: ' if many else ''}the grid has {folded_text(r.quality)}; "
+             f"no output written ({hint or '--strict'})")
+        return 3
+    for r in folded:
+        _say(f"warning: {f'piece {r.job.name}: ' if many else ''}{folded_text(r.quality)}"
+             + (f"; {hint}" if hint else ""))
     t0 = time.perf_counter()
-    title = getattr(boundary, "name", None) or source.stem
-    # The writers read the coordinates' unit from info["length_unit"] (clothgrid.cloth).
-    grid.info["length_unit"] = args.units or getattr(boundary, "length_unit", None) or "m"
-    options = {"triangles": args.triangles, "uv": args.uv, "density": args.density,
-               "cloth": args.cloth or None}
-    written = _write_all(grid, outputs, plot, title=title, quality=q, options=options)
+    out = pipeline.OutputOptions(triangles=args.triangles, uv=args.uv, density=args.density, cloth=args.cloth)
+    written = pipeline.write_results(results, out)
     if progress:
         progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
+    return 0
+
+
+def _cmd_pieces(args: argparse.Namespace) -> int:
+    """``clothgrid pieces FILE``: print the pieces with size, units and corners."""
+    import json
+
+    from . import pipeline
+
+    source = Path(args.input)
+    pieces = pipeline.select_pieces(source, args.piece, units=args.units)
+    listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json)
+    if args.json:
+        print(json.dumps({"file": str(source), "pieces": listing}, indent=2))
+        return 0
+    print(f"{source}: {len(pieces)} piece{'s' if len(pieces) != 1 else ''} (coordinates in mm)")
+    for e in listing:
+        w, h = e["size_mm"]
+        print(f"{e['name']}: {w:.6g} x {h:.6g} mm, perimeter {e['perimeter_mm']:.6g} mm, "
+              f"{e['outline_points']} outline points, {e['turn_points']} turn points "
+              f"[{e['source']}, file units {e['file_units']}]")
+        c = e["corners"]
+        pts = "; ".join(f"{x:.6g},{y:.6g}" for x, y in c["points"])
+        print(f"  corners {','.join(map(str, c['indices']))} ({pts} mm): {c['message']}")
+        if e["grain_line"] is not None:
+            (x0, y0), (x1, y1) = e["grain_line"]
+            print(f"  grain line: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm")
+        for note in e["notes"]:
+            print(f"  note: {note}")
+        if args.candidates:
+            cands = e["candidates"]
+            print(f"  {len(cands)} corner candidate{'s' if len(cands) != 1 else ''} "
+                  "(index: x, y mm, turn degrees, + convex):")
+            for cand in cands:
+                x, y = cand["point"]
+                tp = ", turn point" if cand["turn_point"] else ""
+                print(f"    {cand['index']}: {x:.6g}, {y:.6g}, turn {cand['turn']:+.1f}{tp}")
+    sys.stdout.flush()
     return 0
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     from importlib.resources import as_file, files
 
-    from .generate import generate
-    from .quality import quality
+    from . import pipeline
 
     folder = Path(args.output_dir)
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{str(folder)!r} exists and is not a folder")
-
-    t0 = time.perf_counter()
-    with as_file(files("clothgrid").joinpath("data", DEMO_PIECE)) as source:
-        boundary = _load(Path(source))
-    t_load = time.perf_counter() - t0
-    name = getattr(boundary, "name", None) or Path(DEMO_PIECE).stem
-
-    t0 = time.perf_counter()
-    grid = generate(boundary, args.nodes, weights=args.weights, progress=_say)
-    t_solve = time.perf_counter() - t0
-    q = quality(grid)
-
+    name = Path(DEMO_PIECE).stem
+    options = pipeline.GridOptions(nodes=args.nodes, weights=args.weights)
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    written = _write_all(grid, [folder / f"{name}.obj", folder / f"{name}.npz"],
-                         folder / f"{name}.png", title=name, quality=q)
+    with as_file(files("clothgrid").joinpath("data", DEMO_PIECE)) as source:
+        (job,) = pipeline.read_jobs(source, [folder / f"{name}.obj", folder / f"{name}.npz"], folder / f"{name}.png",
+                                    options=options)
+    t_load = time.perf_counter() - t0
+    result = pipeline.run_job(job, options, _say)
+    t0 = time.perf_counter()
+    written = pipeline.write_result(result)
     t_write = time.perf_counter() - t0
 
-    nu, nv = grid.shape
-    if q.folded:
-        _say(f"warning: {q.folded} folded cells (see the quality table)")
-    print(f"{name}: {nu} x {nv} nodes, {args.weights} weights")
-    print(q.table())
-    print(timing_line(grid.info, t_solve))
-    print(f"time: load {t_load:.3f} s, solve {t_solve:.3f} s, write {t_write:.3f} s")
+    nu, nv = result.grid.shape
+    if result.quality.folded:
+        _say(f"warning: {result.quality.folded} folded cells (see the quality table)")
+    print(f"{job.name}: {nu} x {nv} nodes, {args.weights} weights")
+    print(result.quality.table())
+    print(timing_line(result.grid.info, result.seconds))
+    print(f"time: load {t_load:.3f} s, solve {result.seconds:.3f} s, write {t_write:.3f} s")
     print(f"files in {folder}/: {', '.join(p.name for p in written)}")
     return 0
 

@@ -30,15 +30,33 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from .errors import InputError
 from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .grid import Grid
+
+
+class GridLike(Protocol):
+    """What the functions here read of a grid (:class:`clothgrid.Grid` is one): no import of it,
+    so that the grid module can build on this one."""
+
+    points: Any
+    info: dict
+    dim: int
+
+    @property
+    def uv(self) -> Any: ...
+
+    @property
+    def quads(self) -> Any: ...
+
+    @property
+    def shape(self) -> tuple[int, int]: ...
+
+    def triangles(self, diagonal: str = "fixed") -> Any: ...
 
 __all__ = [
     "Springs", "SPRING_KINDS", "LENGTH_UNITS", "MASS_UNITS", "DEFAULT_LENGTH_UNIT", "CORNER_NAMES",
@@ -93,7 +111,7 @@ def length_scale(unit: str) -> float:
     raise InputError(f"unknown length unit {unit!r}: use one of {', '.join(LENGTH_UNITS)}")
 
 
-def resolve_length_unit(grid: Grid, length_unit: str | None = None) -> str:
+def resolve_length_unit(grid: GridLike, length_unit: str | None = None) -> str:
     """The length unit to use: ``length_unit``, else ``grid.info["length_unit"]``, else metres.
 
     Raises
@@ -152,7 +170,7 @@ def parse_density(value: float | str) -> float:
 # --------------------------------------------------------------------------- rest shape
 
 
-def is_planar(grid: Grid) -> bool:
+def is_planar(grid: GridLike) -> bool:
     """True if the piece is planar: 2D input, or a 3D boundary within ``1e-9`` of its size of a plane.
 
     The boundary decides (its nodes are exact), as in :func:`clothgrid.quality.quality`.
@@ -186,7 +204,7 @@ def _line_arc_lengths(points: np.ndarray) -> np.ndarray:
     return out
 
 
-def pattern_uv(grid: Grid) -> np.ndarray:
+def pattern_uv(grid: GridLike) -> np.ndarray:
     """``(nu, nv, 2)`` node positions in the piece's own flat coordinates (the rest shape).
 
     * 2D input: ``x, y`` as given.
@@ -219,7 +237,7 @@ def pattern_uv(grid: Grid) -> np.ndarray:
     return np.ascontiguousarray((points @ rot.T)[..., :2])
 
 
-def rest_coordinates(grid: Grid) -> np.ndarray:
+def rest_coordinates(grid: GridLike) -> np.ndarray:
     """The rest shape the springs and masses are measured on.
 
     ``(nu, nv, 2)`` :func:`pattern_uv` for a planar piece, ``(nu, nv, 3)`` points
@@ -325,7 +343,7 @@ def spring_pairs(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return pairs, kind, axis
 
 
-def springs(grid: Grid) -> Springs:
+def springs(grid: GridLike) -> Springs:
     """Provot's springs of ``grid`` with rest lengths from the flat pattern.
 
     Structural springs join neighbours along u and v (the grid edges), shear
@@ -346,7 +364,7 @@ def springs(grid: Grid) -> Springs:
 # --------------------------------------------------------------------------- areas and masses
 
 
-def cell_areas(grid: Grid) -> np.ndarray:
+def cell_areas(grid: GridLike) -> np.ndarray:
     """``(nu-1, nv-1)`` rest areas of the cells, in the length unit squared.
 
     Half the norm of the cross product of the cell's diagonals, on
@@ -362,7 +380,7 @@ def cell_areas(grid: Grid) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(d1, d2), axis=-1)
 
 
-def node_areas(grid: Grid) -> np.ndarray:
+def node_areas(grid: GridLike) -> np.ndarray:
     """``(nu*nv,)`` lumped rest area per node: a quarter of each adjacent cell's area.
 
     In flat index order ``i*nv + j`` and the length unit squared; the sum is
@@ -378,7 +396,7 @@ def node_areas(grid: Grid) -> np.ndarray:
     return out.ravel()
 
 
-def node_masses(grid: Grid, density: float | str, length_unit: str | None = None) -> np.ndarray:
+def node_masses(grid: GridLike, density: float | str, length_unit: str | None = None) -> np.ndarray:
     """``(nu*nv,)`` lumped node masses in kg: density times :func:`node_areas`.
 
     Parameters
@@ -411,7 +429,7 @@ def node_masses(grid: Grid, density: float | str, length_unit: str | None = None
 # --------------------------------------------------------------------------- sides and corners
 
 
-def sides(grid: Grid) -> dict[str, np.ndarray]:
+def sides(grid: GridLike) -> dict[str, np.ndarray]:
     """Flat node indices of the four sides, each in its side's direction.
 
     ``bottom`` and ``top`` run left to right (``i`` increasing), ``left`` and
@@ -424,7 +442,7 @@ def sides(grid: Grid) -> dict[str, np.ndarray]:
     return {"bottom": i * nv, "right": (nu - 1) * nv + j, "top": i * nv + nv - 1, "left": j.copy()}
 
 
-def corners(grid: Grid) -> dict[str, int]:
+def corners(grid: GridLike) -> dict[str, int]:
     """Flat node indices of the corners by name (:data:`CORNER_NAMES`)."""
     nu, nv = grid.shape
     return dict(zip(CORNER_NAMES, (0, (nu - 1) * nv, nu * nv - 1, nv - 1)))

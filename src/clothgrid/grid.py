@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from . import cloth, writers
+
 __all__ = ["Grid", "quad_indices", "arc_length_uv"]
 
 
@@ -158,9 +160,7 @@ class Grid:
     @property
     def planar(self) -> bool:
         """True for a planar piece (2D input, or a 3D boundary lying in a plane)."""
-        from .cloth import is_planar
-
-        return is_planar(self)
+        return cloth.is_planar(self)
 
     @property
     def pattern_uv(self) -> np.ndarray:
@@ -170,35 +170,25 @@ class Grid:
         plane; for a curved piece (:attr:`planar` False) the arc lengths along
         the grid lines. See :func:`clothgrid.cloth.pattern_uv`.
         """
-        from .cloth import pattern_uv
-
-        return pattern_uv(self)
+        return cloth.pattern_uv(self)
 
     @property
     def sides(self) -> dict[str, np.ndarray]:
         """Flat node indices of the sides ``bottom``, ``right``, ``top``, ``left``, in their directions."""
-        from .cloth import sides
-
-        return sides(self)
+        return cloth.sides(self)
 
     @property
     def corners(self) -> dict[str, int]:
         """Flat node indices of the corners ``bottom-left``, ``bottom-right``, ``top-right``, ``top-left``."""
-        from .cloth import corners
-
-        return corners(self)
+        return cloth.corners(self)
 
     def springs(self):
         """Provot's structural, shear and bend springs with rest lengths (:class:`clothgrid.cloth.Springs`)."""
-        from .cloth import springs
-
-        return springs(self)
+        return cloth.springs(self)
 
     def node_areas(self) -> np.ndarray:
         """``(nu*nv,)`` lumped rest area per node (a quarter of each adjacent cell), length unit squared."""
-        from .cloth import node_areas
-
-        return node_areas(self)
+        return cloth.node_areas(self)
 
     def node_masses(self, density: float | str, length_unit: str | None = None) -> np.ndarray:
         """``(nu*nv,)`` lumped node masses in kg for an areal density (kg/m^2, or text like ``"150gsm"``).
@@ -206,9 +196,7 @@ class Grid:
         ``length_unit`` is the unit of the coordinates (default
         ``info["length_unit"]``, else metres); see :func:`clothgrid.cloth.node_masses`.
         """
-        from .cloth import node_masses
-
-        return node_masses(self, density, length_unit)
+        return cloth.node_masses(self, density, length_unit)
 
     def save(self, path: str | Path, **options: Any) -> Path:
         """Write the grid to ``path``, the format chosen by extension.
@@ -217,9 +205,7 @@ class Grid:
         ``options``. The file is written to a temporary name and renamed on
         success, so a failure leaves no partial file.
         """
-        from .writers import save
-
-        return save(self, path, **options)
+        return writers.save(self, path, **options)
 
     def __repr__(self) -> str:
         nu, nv = self.shape

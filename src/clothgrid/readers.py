@@ -17,13 +17,16 @@ the second being the format of the test regions (see ``MATH.md``).
 from __future__ import annotations
 
 import json
+
+import numpy as np
 from pathlib import Path
 from typing import Callable
 
 from .boundary import SIDES, Boundary
 from .errors import BoundaryError, InputError
+from .grid import Grid
 
-__all__ = ["READERS", "register_reader", "load_boundary", "read_json"]
+__all__ = ["READERS", "register_reader", "load_boundary", "read_json", "load_npz"]
 
 Reader = Callable[[Path], Boundary]
 
@@ -120,3 +123,25 @@ def load_boundary(path: str | Path) -> Boundary:
     """
     path = Path(path)
     return reader_for(path, READERS, "boundary")(path)
+
+
+def load_npz(path: str | Path) -> Grid:
+    """Read a grid written by :func:`clothgrid.writers.write_npz`.
+
+    Raises
+    ------
+    InputError
+        If the file is missing or is not a clothgrid NPZ file.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            points = np.array(z["points"], dtype=np.float64)
+            uv = np.array(z["uv"], dtype=np.float64)
+            quads = np.array(z["quads"], dtype=np.int64)
+            dim = int(z["dim"]) if "dim" in z.files else 3
+            info = json.loads(str(z["info"])) if "info" in z.files else {}
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"cannot read grid from {str(path)!r}: {exc}") from exc
+    if points.ndim != 3 or points.shape[2] != 3:
+        raise InputError(f"{str(path)!r}: points must have shape (nu, nv, 3), not {points.shape}")
+    return Grid(points=points, uv=uv, quads=quads, info=info, dim=dim)

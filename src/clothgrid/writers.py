@@ -27,7 +27,8 @@ from typing import Any, BinaryIO, Callable, Iterator
 import numpy as np
 
 from .errors import InputError
-from .grid import Grid
+from . import cloth as sim
+from .cloth import GridLike
 
 __all__ = [
     "WRITERS",
@@ -41,12 +42,11 @@ __all__ = [
     "write_json",
     "write_vts",
     "writer_options",
-    "load_npz",
     "info_json",
 ]
 
 #: A writer gets the grid and a binary file open for writing.
-Writer = Callable[[Grid, BinaryIO], None]
+Writer = Callable[[GridLike, BinaryIO], None]
 
 # Read once at import (os.umask can only be read by setting it, which is not thread-safe).
 _UMASK = os.umask(0o022)
@@ -114,7 +114,7 @@ UV_CHOICES = ("normalised", "pattern")
 TRIANGLE_CHOICES = ("fixed", "alternate")
 
 
-def _faces(grid: Grid, triangles: str | None) -> np.ndarray:
+def _faces(grid: GridLike, triangles: str | None) -> np.ndarray:
     """The quads, or with ``triangles`` the triangles with that diagonal choice."""
     if triangles is None:
         return np.asarray(grid.quads, dtype=np.int64)
@@ -123,7 +123,7 @@ def _faces(grid: Grid, triangles: str | None) -> np.ndarray:
     return np.asarray(grid.triangles(triangles), dtype=np.int64)
 
 
-def texture_coordinates(grid: Grid, uv: str) -> np.ndarray:
+def texture_coordinates(grid: GridLike, uv: str) -> np.ndarray:
     """``(N, 2)`` texture coordinates: the normalised ``uv`` or the pattern's (length units)."""
     if uv == "normalised":
         return grid.uv.reshape(-1, 2)
@@ -132,7 +132,7 @@ def texture_coordinates(grid: Grid, uv: str) -> np.ndarray:
     raise InputError(f"uv must be one of {', '.join(UV_CHOICES)}, not {uv!r}")
 
 
-def write_npz(grid: Grid, fh: BinaryIO, *, cloth: bool = False, triangles: str = "fixed",
+def write_npz(grid: GridLike, fh: BinaryIO, *, cloth: bool = False, triangles: str = "fixed",
               density: float | str | None = None, length_unit: str | None = None) -> None:
     """NumPy archive (uncompressed, fast to write).
 
@@ -152,7 +152,6 @@ def write_npz(grid: Grid, fh: BinaryIO, *, cloth: bool = False, triangles: str =
     These are about 15 numbers per node: opt-in, so that the plain archive of
     a 1024 x 1024 grid stays quick to write.
     """
-    from . import cloth as sim
 
     unit = sim.resolve_length_unit(grid, length_unit)
     side = sim.sides(grid)
@@ -177,7 +176,7 @@ def write_npz(grid: Grid, fh: BinaryIO, *, cloth: bool = False, triangles: str =
     np.savez(fh, **arrays)
 
 
-def write_obj(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str = "normalised") -> None:
+def write_obj(grid: GridLike, fh: BinaryIO, *, triangles: str | None = None, uv: str = "normalised") -> None:
     """Wavefront OBJ: ``v x y z``, ``vt u v`` (same index) and ``f a/a b/b c/c d/d`` (1-based).
 
     ``triangles`` (``"fixed"`` or ``"alternate"``) writes triangles
@@ -195,7 +194,7 @@ def write_obj(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str
     _write_rows(fh, "f" + " %d/%d" * faces.shape[1] + "\n", f)
 
 
-def write_ply(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str = "normalised") -> None:
+def write_ply(grid: GridLike, fh: BinaryIO, *, triangles: str | None = None, uv: str = "normalised") -> None:
     """ASCII PLY: vertices ``x y z s t`` (s, t the texture coordinates) and quad faces.
 
     ``triangles`` and ``uv`` as in :func:`write_obj`.
@@ -222,7 +221,7 @@ def write_ply(grid: Grid, fh: BinaryIO, *, triangles: str | None = None, uv: str
     _write_rows(fh, f"{k}" + " %d" * k + "\n", faces)
 
 
-def write_json(grid: Grid, fh: BinaryIO) -> None:
+def write_json(grid: GridLike, fh: BinaryIO) -> None:
     """JSON: ``shape``, ``dim``, ``points`` and ``uv`` (nested lists), ``quads`` and ``info``."""
     doc = {"shape": list(grid.shape), "dim": int(grid.dim), "points": grid.points.tolist(),
            "uv": grid.uv.tolist(), "quads": np.asarray(grid.quads).tolist(),
@@ -236,7 +235,7 @@ def _b64_block(a: np.ndarray, dtype: str) -> str:
     return base64.b64encode(np.uint64(len(data)).astype("<u8").tobytes() + data).decode("ascii")
 
 
-def write_vts(grid: Grid, fh: BinaryIO, *, density: float | str | None = None,
+def write_vts(grid: GridLike, fh: BinaryIO, *, density: float | str | None = None,
               length_unit: str | None = None) -> None:
     """VTK XML structured grid (``.vts``, for ParaView), data inline in base64.
 
@@ -245,17 +244,16 @@ def write_vts(grid: Grid, fh: BinaryIO, *, density: float | str | None = None,
     data: ``uv`` (the texture coordinates), ``pattern_uv``, ``node_area`` and,
     with ``density``, ``mass`` (kg). The info and length unit are in a comment.
     """
-    from . import cloth
 
     nu, nv = grid.shape
-    unit = cloth.resolve_length_unit(grid, length_unit)
+    unit = sim.resolve_length_unit(grid, length_unit)
     arrays: list[tuple[str, np.ndarray, int]] = [
         ("uv", grid.uv.reshape(-1, 2), 2),
         ("pattern_uv", grid.pattern_uv.reshape(-1, 2), 2),
-        ("node_area", cloth.node_areas(grid), 1),
+        ("node_area", sim.node_areas(grid), 1),
     ]
     if density is not None:
-        arrays.append(("mass", cloth.node_masses(grid, density, unit), 1))
+        arrays.append(("mass", sim.node_masses(grid, density, unit), 1))
     extent = f"0 {nv - 1} 0 {nu - 1} 0 0"
     comment = f"clothgrid grid {nu} x {nv}, length unit {unit}; info: {info_json(grid.info)}"
     comment = comment.replace("--", "- -")
@@ -321,7 +319,7 @@ def register_writer(extension: str, writer: Writer) -> Writer:
     return writer
 
 
-def save(grid: Grid, path: str | Path, **options: Any) -> Path:
+def save(grid: GridLike, path: str | Path, **options: Any) -> Path:
     """Write ``grid`` to ``path``, the format chosen by the extension (see :data:`WRITERS`).
 
     The file is written to a temporary file in the same directory and renamed
@@ -356,25 +354,3 @@ def save(grid: Grid, path: str | Path, **options: Any) -> Path:
     with atomic_write(path) as fh:
         writer(grid, fh, **options)
     return path
-
-
-def load_npz(path: str | Path) -> Grid:
-    """Read a grid written by :func:`write_npz`.
-
-    Raises
-    ------
-    InputError
-        If the file is missing or is not a clothgrid NPZ file.
-    """
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            points = np.array(z["points"], dtype=np.float64)
-            uv = np.array(z["uv"], dtype=np.float64)
-            quads = np.array(z["quads"], dtype=np.int64)
-            dim = int(z["dim"]) if "dim" in z.files else 3
-            info = json.loads(str(z["info"])) if "info" in z.files else {}
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(f"cannot read grid from {str(path)!r}: {exc}") from exc
-    if points.ndim != 3 or points.shape[2] != 3:
-        raise InputError(f"{str(path)!r}: points must have shape (nu, nv, 3), not {points.shape}")
-    return Grid(points=points, uv=uv, quads=quads, info=info, dim=dim)

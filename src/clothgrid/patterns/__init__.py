@@ -4,9 +4,10 @@ A pattern file holds one or more pieces; each reader returns a list of
 :class:`Piece` (a closed counter-clockwise outline in millimetres with the
 file's turn points and grain line). Then :func:`choose_corners` picks the
 four grid corners, :func:`piece_boundary` makes the :class:`~clothgrid.Boundary`
-and :func:`generate_piece` the grid::
+and :func:`clothgrid.pipeline.generate_piece` the grid::
 
-    from clothgrid.patterns import read_pieces, generate_piece
+    from clothgrid.patterns import read_pieces
+    from clothgrid.pipeline import generate_piece
     for piece in read_pieces("pattern.svg"):
         grid = generate_piece(piece, edge_length="5mm")
         grid.save(f"{piece.name}.obj")
@@ -39,7 +40,7 @@ from .units import UNITS, parse_length
 __all__ = [
     "Piece", "CornerCandidate", "CornerChoice", "PATTERN_READERS", "register_pattern_reader",
     "read_pieces", "is_pattern_file", "choose_corners", "corner_candidates", "turn_angles",
-    "piece_boundary", "generate_piece", "nodes_for_edge_length", "load_single_boundary",
+    "piece_boundary", "piece_info", "nodes_for_edge_length", "load_single_boundary",
     "parse_length", "UNITS", "DEFAULT_EDGE_LENGTH_MM", "DEFAULT_REL_TOL", "MIN_TURN_DEG",
 ]
 
@@ -201,48 +202,6 @@ def piece_info(piece: Piece, choice: CornerChoice, edge_length: float | None) ->
         "notes": list(piece.notes),
         "meta": {k: v for k, v in piece.meta.items() if v is not None},
     }
-
-
-def generate_piece(piece: Piece, nodes: Any = None, *, edge_length: float | str | None = None,
-                   corners: Sequence[int] | None = None, near: Any = None,
-                   choice: CornerChoice | None = None, **kwargs: Any):
-    """Grid a pattern piece: corners, boundary, node counts, :func:`clothgrid.generate`.
-
-    Parameters
-    ----------
-    piece : Piece
-    nodes : int or (int, int) or str, optional
-        Grid size; give this or ``edge_length``.
-    edge_length : float or str, optional
-        Target grid edge length along the sides: millimetres, or text with a
-        unit such as ``"5mm"`` or ``"0.25in"``. Default (neither given): 10 mm.
-    corners, near, choice :
-        Corner choice (see :func:`choose_corners`); default automatic.
-    **kwargs :
-        Passed to :func:`clothgrid.generate` (solver, weights, tol, ...).
-
-    Returns
-    -------
-    Grid
-        With ``info["piece"]``: name, units (``"mm"``: the grid's coordinates),
-        file units, size, corner choice (indices, points, method, message),
-        grain line, notes.
-    """
-    from ..generate import generate
-
-    if nodes is not None and edge_length is not None:
-        raise InputError("give the grid size as nodes or as an edge length, not both")
-    if choice is None:
-        choice = choose_corners(piece, corners, near)
-    boundary = piece_boundary(piece, choice=choice)
-    h = None
-    if nodes is None:
-        h = DEFAULT_EDGE_LENGTH_MM if edge_length is None else parse_length(
-            edge_length, "mm", what="edge length")
-        nodes = nodes_for_edge_length(boundary, h)
-    grid = generate(boundary, nodes, **kwargs)
-    grid.info["piece"] = piece_info(piece, choice, h)
-    return grid
 
 
 def load_single_boundary(path: str | Path, **kwargs: Any) -> Boundary:

@@ -1,0 +1,460 @@
+"""One path from file to files: read -> jobs -> grids -> outputs.
+
+A boundary JSON file is one :class:`Job`; a pattern file (SVG, DXF, GarmentCode
+JSON) is one job per piece. Every job then takes the same steps, whatever file
+it came from::
+
+    from clothgrid.pipeline import GridOptions, OutputOptions, read_jobs, run_job, write_results
+
+    jobs = read_jobs("pattern.dxf", ["meshes/{piece}.obj"], options=GridOptions(edge_length="5mm"))
+    results = [run_job(job) for job in jobs]        # generate + quality, once per grid
+    write_results(results, OutputOptions())          # atomic; a failure removes what it wrote
+
+The command line (:mod:`clothgrid.cli`) is this module plus argument parsing and
+printing.
+
+Output names: with one job every output path is used as given; with several,
+``out.obj`` becomes ``out_<piece>.obj``, or ``{piece}`` in a path is replaced by
+the piece's name (``-o meshes/{piece}.obj``). Names are made file-safe
+(characters other than letters, digits, ``.``, ``_`` and ``-`` become ``_``).
+Unknown output formats, missing output folders and two jobs writing one file are
+reported by :func:`read_jobs`, before any grid is made.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+from . import writers
+from .boundary import Boundary
+from .errors import InputError
+from .generate import generate, parse_nodes
+from .grid import Grid
+from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
+                       is_pattern_file, nodes_for_edge_length, piece_boundary, piece_info, read_pieces)
+from .patterns.units import parse_length
+from .quality import Quality, quality
+from .readers import load_boundary
+
+__all__ = ["GridOptions", "OutputOptions", "Job", "Result", "read_jobs", "run_job", "write_result",
+           "write_results", "generate_piece", "piece_listing", "select_pieces", "corner_choice",
+           "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES"]
+
+PLOT_SUFFIXES = (".png",)
+
+
+@dataclass(frozen=True)
+class GridOptions:
+    """How every grid of a run is made: the options of :func:`clothgrid.generate` and its size.
+
+    ``nodes`` (``(nu, nv)``, ``N`` or ``"NUxNV"``) or ``edge_length`` (a target
+    edge length along the sides: a number in the input's units, or text with a
+    unit such as ``"5mm"`` for pattern files) sets the size; with neither, a
+    boundary file keeps its own point counts and a pattern piece gets 10 mm
+    edges. The rest are :func:`clothgrid.generate`'s. Checked once, when made.
+    """
+
+    nodes: Any = None
+    edge_length: float | str | None = None
+    init: str = "tfi"
+    weights: str = "paper"
+    k: float = 1.0
+    solver: str = "auto"
+    backend: str = "auto"
+    tol: float = 2.0**-12
+    stop: str = "error"
+    max_iter: int | None = None
+    allow_unconverged: bool = False
+    functional: str = "length"
+
+    def __post_init__(self) -> None:
+        from .generate import FUNCTIONALS, _check_options
+
+        if self.nodes is not None and self.edge_length is not None:
+            raise InputError("give --nodes or --edge-length, not both")
+        if self.nodes is not None:
+            object.__setattr__(self, "nodes", parse_nodes(self.nodes))
+        _check_options(self.init, self.solver, self.stop, self.tol, self.max_iter)
+        if self.functional not in FUNCTIONALS:
+            raise InputError(f"unknown functional {self.functional!r}: use one of {', '.join(FUNCTIONALS)}")
+
+    def generate_kwargs(self) -> dict[str, Any]:
+        """The keyword arguments of :func:`clothgrid.generate` (all but the size)."""
+        return {"init": self.init, "weights": self.weights, "k": self.k, "solver": self.solver,
+                "backend": self.backend, "tol": self.tol, "stop": self.stop, "max_iter": self.max_iter,
+                "allow_unconverged": self.allow_unconverged, "functional": self.functional}
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """How the outputs are written: each writer takes those it knows (:func:`clothgrid.writers.writer_options`)."""
+
+    triangles: str | None = None
+    uv: str | None = None
+    density: float | None = None
+    cloth: bool = False
+
+    def for_writer(self, suffix: str) -> dict[str, Any]:
+        takes = writers.writer_options(suffix)
+        given = {"triangles": self.triangles, "uv": self.uv, "density": self.density,
+                 "cloth": self.cloth or None}
+        return {k: v for k, v in given.items() if k in takes and v is not None}
+
+
+@dataclass
+class Job:
+    """One grid to make and where it goes.
+
+    Attributes
+    ----------
+    name : str
+        The piece's name (the boundary's, or the file's stem).
+    boundary : Boundary
+    nodes : (int, int) or None
+        Grid size (None: the boundary's own point counts).
+    outputs : list of Path
+        Files to write, format by extension.
+    plot : Path or None
+        A PNG of the grid.
+    length_unit : str
+        Unit of the coordinates (written into the outputs).
+    piece : dict or None
+        For a pattern piece, what ``grid.info["piece"]`` records (corners, grain line, ...).
+    corners : str or None
+        For a pattern piece, how its corners were chosen (one line).
+    """
+
+    name: str
+    boundary: Boundary
+    nodes: tuple[int, int] | None
+    outputs: list[Path]
+    plot: Path | None = None
+    length_unit: str = "m"
+    piece: dict[str, Any] | None = None
+    corners: str | None = None
+    edge_length: float | None = None
+
+
+@dataclass
+class Result:
+    """A job's grid, its quality (computed once) and the seconds ``generate`` took."""
+
+    job: Job
+    grid: Grid
+    quality: Quality
+    seconds: float
+    written: list[Path] = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------- names
+
+
+def safe_name(name: str) -> str:
+    """``name`` with every character other than letters, digits, ``.``, ``_``, ``-`` made ``_``."""
+    out = re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".")
+    return out or "piece"
+
+
+def output_names(paths: Sequence[str], names: Sequence[str]) -> list[list[str]]:
+    """Per piece, the output paths: as given for one piece, else ``stem_<piece>.ext`` or ``{piece}``."""
+    safe = [safe_name(n) for n in names]
+    if len(set(safe)) != len(safe):
+        seen: dict[str, int] = {}
+        for k, s in enumerate(safe):
+            seen[s] = seen.get(s, 0) + 1
+            if seen[s] > 1:
+                safe[k] = f"{s}-{seen[s]}"
+    out = []
+    for s in safe:
+        mine = []
+        for text in paths:
+            text = str(text)
+            if "{piece}" in text:
+                mine.append(text.replace("{piece}", s))
+            elif len(names) == 1:
+                mine.append(text)
+            else:
+                p = Path(text)
+                mine.append(str(p.with_name(f"{p.stem}_{s}{p.suffix}")))
+        out.append(mine)
+    return out
+
+
+def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tuple[list[Path], Path | None]:
+    """The output paths, after failing fast (InputError) on an unknown extension or a missing folder."""
+    known = {"." + str(k).lower().lstrip(".") for k in writers.WRITERS}
+    paths: list[Path] = []
+    for text in outputs:
+        path = Path(text)
+        if path.suffix.lower() not in known:
+            raise InputError(f"unknown output format {path.suffix or '(no extension)'!r} for "
+                             f"{str(text)!r}: use one of {', '.join(sorted(known))}")
+        if path not in paths:
+            paths.append(path)
+    plot_path = None
+    if plot is not None:
+        plot_path = Path(plot)
+        if plot_path.suffix.lower() not in PLOT_SUFFIXES:
+            raise InputError(f"--plot {str(plot)!r}: the plot must be a {'/'.join(PLOT_SUFFIXES)} file")
+        if plot_path in paths:
+            raise InputError(f"{str(plot)!r} is given both as an output and as the plot")
+    for path in paths + ([plot_path] if plot_path is not None else []):
+        folder = path.parent
+        if not folder.is_dir():
+            raise InputError(f"output folder {str(folder)!r} does not exist (for {str(path)!r})")
+        if path.is_dir():
+            raise InputError(f"output {str(path)!r} is a folder")
+    return paths, plot_path
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> list[Piece]:
+    if not wanted:
+        return pieces
+    by_name = {p.name: p for p in pieces}
+    missing = [w for w in wanted if w not in by_name]
+    if missing:
+        names = ", ".join(repr(p.name) for p in pieces)
+        raise InputError(f"{source}: no piece named {', '.join(repr(m) for m in missing)}; "
+                         f"the pieces are {names}")
+    out: list[Piece] = []
+    for w in wanted:
+        if by_name[w] not in out:
+            out.append(by_name[w])
+    return out
+
+
+def select_pieces(source: str | Path, wanted: Sequence[str] | None = None, *,
+                  units: str | None = None) -> list[Piece]:
+    """The pieces of a pattern file, only those named in ``wanted`` if given (in that order)."""
+    source = Path(source)
+    return _select(read_pieces(source, units=units), wanted, source)
+
+
+def corner_choice(piece: Piece, corners: Sequence[int] | None = None, near: Any = None,
+                  min_turn: float | None = None) -> CornerChoice:
+    """The grid corners of ``piece``: given indices, the points nearest to ``near``, or automatic."""
+    if min_turn is not None and not (0 <= min_turn < 180):
+        raise InputError(f"--min-turn {min_turn!r} must be between 0 and 180 degrees")
+    return choose_corners(piece, corners, near, min_turn=MIN_TURN_DEG if min_turn is None else min_turn)
+
+
+def _size(boundary: Boundary, options: GridOptions, pattern: bool) -> tuple[tuple[int, int] | None, float | None]:
+    """Node counts and edge length of one job (see :class:`GridOptions`)."""
+    text = options.edge_length
+    if text is None:
+        if options.nodes is None and pattern:
+            return nodes_for_edge_length(boundary, DEFAULT_EDGE_LENGTH_MM), DEFAULT_EDGE_LENGTH_MM
+        return options.nodes, None
+    if pattern:
+        h = parse_length(text, "mm", what="--edge-length")
+    else:
+        try:
+            h = float(text)
+        except (TypeError, ValueError):
+            raise InputError(f"--edge-length {text!r}: a boundary JSON file has no units, so give "
+                             "the edge length as a plain number in the file's units") from None
+        if not 0 < h < float("inf"):
+            raise InputError(f"--edge-length {text!r} must be positive and finite")
+    return nodes_for_edge_length(boundary, h), h
+
+
+def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Path | None = None, *,
+              options: GridOptions = GridOptions(), pieces: Sequence[str] | None = None,
+              corners: Sequence[int] | None = None, corners_near: Any = None, min_turn: float | None = None,
+              units: str | None = None, progress: Callable[[str], None] | None = None) -> list[Job]:
+    """The jobs of one input file, outputs checked (nothing is gridded or written yet).
+
+    Parameters
+    ----------
+    source : str or Path
+        A boundary JSON file, or a pattern file (``.svg``, ``.dxf``, GarmentCode ``.json``).
+    outputs, plot :
+        Output paths (see the module's "Output names") and an optional PNG.
+    options : GridOptions
+        The size and solver options.
+    pieces, corners, corners_near, min_turn :
+        Pattern files only: the pieces to grid (default: all), their corners
+        (one piece only) and the smallest turn of a corner candidate.
+    units : str, optional
+        Boundary file: the unit of its coordinates (default metres). Pattern
+        file: read its coordinates in this unit instead of the one it states.
+    progress : callable, optional
+        Called with a line saying what was read.
+
+    Raises
+    ------
+    InputError
+        An unreadable input, pattern options for a boundary file, an unknown
+        output format, a missing output folder, two jobs writing one file.
+    """
+    source = Path(source)
+    t0 = time.perf_counter()
+    if not is_pattern_file(source):
+        used = [name for name, v in (("--piece", pieces), ("--corners", corners), ("--corners-near", corners_near),
+                                     ("--min-turn", min_turn)) if v]
+        if used:
+            raise InputError(f"{', '.join(used)} {'is' if len(used) == 1 else 'are'} for pattern files "
+                             f"(.svg, .dxf, GarmentCode .json), not for the boundary file {source}")
+        paths, plot_path = check_outputs(outputs, plot)
+        boundary = load_boundary(source)
+        if progress:
+            progress(f"loaded {source} in {time.perf_counter() - t0:.3f} s")
+        nodes, h = _size(boundary, options, pattern=False)
+        unit = units or getattr(boundary, "length_unit", None) or "m"
+        return [Job(boundary.name or source.stem, boundary, nodes, paths, plot_path, length_unit=unit,
+                    edge_length=h)]
+    chosen = select_pieces(source, pieces, units=units)
+    if progress:
+        progress(f"read {len(chosen)} piece{'s' if len(chosen) != 1 else ''} from {source} in "
+                 f"{time.perf_counter() - t0:.3f} s")
+    if (corners is not None or corners_near is not None) and len(chosen) != 1:
+        raise InputError("--corners and --corners-near need a single piece: pick one with --piece NAME")
+    names = [p.name for p in chosen]
+    outs = output_names(outputs, names)
+    plots = output_names([plot], names) if plot is not None else None
+    jobs: list[Job] = []
+    seen: list[Path] = []
+    for k, piece in enumerate(chosen):
+        paths, plot_path = check_outputs(outs[k], plots[k][0] if plots else None)
+        for p in paths + ([plot_path] if plot_path else []):
+            if p in seen:
+                raise InputError(f"two pieces would write the same file {str(p)!r}: put {{piece}} in the output name")
+            seen.append(p)
+        choice = corner_choice(piece, corners, corners_near, min_turn)
+        boundary = piece_boundary(piece, choice=choice)
+        nodes, h = _size(boundary, options, pattern=True)
+        jobs.append(Job(piece.name, boundary, nodes, paths, plot_path, length_unit="mm",
+                        piece=piece_info(piece, choice, h), corners=choice.message, edge_length=h))
+    return jobs
+
+
+# --------------------------------------------------------------------------- gridding and writing
+
+
+def run_job(job: Job, options: GridOptions = GridOptions(),
+            progress: Callable[[str], None] | None = None) -> Result:
+    """Grid one job: :func:`clothgrid.generate`, then its quality (once).
+
+    Raises what :func:`clothgrid.generate` raises (InputError, NotConvergedError).
+    """
+    t0 = time.perf_counter()
+    grid = generate(job.boundary, job.nodes, progress=progress, **options.generate_kwargs())
+    seconds = time.perf_counter() - t0
+    if job.piece is not None:
+        grid.info["piece"] = job.piece
+    # The writers read the coordinates' unit from info["length_unit"] (clothgrid.cloth).
+    grid.info["length_unit"] = job.length_unit
+    return Result(job, grid, quality(grid), seconds)
+
+
+def write_result(result: Result, options: OutputOptions = OutputOptions()) -> list[Path]:
+    """Write one result's outputs and plot; on any failure remove what this call wrote and re-raise.
+
+    An OSError becomes an :class:`InputError` naming the file.
+    """
+    job = result.job
+    written: list[Path] = []
+    try:
+        for path in job.outputs:
+            written.append(Path(writers.save(result.grid, path, **options.for_writer(path.suffix))))
+        if job.plot is not None:
+            from .plot import plot_grid  # matplotlib takes ~0.7 s to import: only when asked
+
+            written.append(Path(plot_grid(result.grid, job.plot, title=job.name, quality=result.quality)))
+    except BaseException as exc:
+        for path in written:
+            path.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            name = getattr(exc, "filename", None) or "output"
+            raise InputError(f"cannot write {name}: {exc.strerror or exc}") from exc
+        raise
+    result.written = written
+    return written
+
+
+def write_results(results: Sequence[Result], options: OutputOptions = OutputOptions()) -> list[Path]:
+    """Write every result (:func:`write_result`); on any failure remove every file this call wrote."""
+    written: list[Path] = []
+    try:
+        for r in results:
+            written += write_result(r, options)
+    except BaseException:
+        for p in written:
+            p.unlink(missing_ok=True)
+        raise
+    return written
+
+
+def generate_piece(piece: Piece, nodes: Any = None, *, edge_length: float | str | None = None,
+                   corners: Sequence[int] | None = None, near: Any = None,
+                   choice: CornerChoice | None = None, **kwargs: Any) -> Grid:
+    """Grid a pattern piece: corners, boundary, node counts, :func:`clothgrid.generate`.
+
+    Parameters
+    ----------
+    piece : Piece
+    nodes : int or (int, int) or str, optional
+        Grid size; give this or ``edge_length``.
+    edge_length : float or str, optional
+        Target grid edge length along the sides: millimetres, or text with a
+        unit such as ``"5mm"`` or ``"0.25in"``. Default (neither given): 10 mm.
+    corners, near, choice :
+        Corner choice (see :func:`clothgrid.patterns.choose_corners`); default automatic.
+    **kwargs :
+        Passed to :func:`clothgrid.generate` (solver, weights, tol, ...).
+
+    Returns
+    -------
+    Grid
+        With ``info["piece"]``: name, units (``"mm"``: the grid's coordinates),
+        file units, size, corner choice (indices, points, method, message),
+        grain line, notes.
+    """
+    if nodes is not None and edge_length is not None:
+        raise InputError("give the grid size as nodes or as an edge length, not both")
+    if choice is None:
+        choice = choose_corners(piece, corners, near)
+    boundary = piece_boundary(piece, choice=choice)
+    h = None
+    if nodes is None:
+        h = DEFAULT_EDGE_LENGTH_MM if edge_length is None else parse_length(edge_length, "mm", what="edge length")
+        nodes = nodes_for_edge_length(boundary, h)
+    grid = generate(boundary, nodes, **kwargs)
+    grid.info["piece"] = piece_info(piece, choice, h)
+    return grid
+
+
+def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, candidates: bool = False
+                  ) -> list[dict[str, Any]]:
+    """What ``clothgrid pieces`` shows of each piece: size, units, outline, corner choice and candidates."""
+    from .patterns import corner_candidates
+
+    out = []
+    for piece in pieces:
+        choice = corner_choice(piece, min_turn=min_turn)
+        w, h = piece.extent
+        entry = {
+            "name": piece.name, "source": piece.source, "file_units": piece.units,
+            "size_mm": [w, h], "perimeter_mm": piece.perimeter, "area_mm2": piece.area,
+            "outline_points": len(piece.outline), "turn_points": len(piece.turn_points),
+            "sampling_tolerance_mm": piece.tolerance,
+            "grain_line": None if piece.grain_line is None else piece.grain_line.tolist(),
+            "corners": choice.as_dict(), "notes": list(piece.notes),
+        }
+        if candidates:
+            entry["candidates"] = [c.as_dict() for c in
+                                   corner_candidates(piece, MIN_TURN_DEG if min_turn is None else min_turn)]
+        out.append(entry)
+    return out
+
+
+def with_options(options: GridOptions, **changes: Any) -> GridOptions:
+    """A copy of ``options`` with ``changes`` (checked again)."""
+    return replace(options, **changes)
