@@ -36,6 +36,7 @@ import numpy as np
 
 from .errors import InputError
 from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop
+from .units import LENGTH_UNITS, length_scale
 
 
 
@@ -64,9 +65,6 @@ __all__ = [
     "node_masses", "sides", "corners", "parse_density", "length_scale", "resolve_length_unit",
 ]
 
-#: Metres per length unit, by name.
-LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048,
-                                  "yd": 0.9144}
 #: Kilograms per mass unit, by name.
 MASS_UNITS: dict[str, float] = {"kg": 1.0, "g": 1e-3, "mg": 1e-6, "oz": 0.028349523125,
                                 "lb": 0.45359237}
@@ -83,32 +81,6 @@ _DENSITY = re.compile(rf"\s*({_NUM})\s*(?:(gsm)|([a-z]+)\s*/\s*([a-z]+)\s*(?:\^|
 
 
 # --------------------------------------------------------------------------- units
-
-
-def length_scale(unit: str) -> float:
-    """Metres per ``unit``: one of :data:`LENGTH_UNITS` (case-insensitive), or another unit
-    the pattern readers know (:data:`clothgrid.patterns.units.UNITS`: ``px``, ``pt``,
-    ``inch``, ``metres``, ...), so that ``--units`` means the same for both.
-
-    Raises
-    ------
-    InputError
-        For an unknown unit.
-    """
-    key = unit.strip().lower() if isinstance(unit, str) else None
-    if key in LENGTH_UNITS:
-        return LENGTH_UNITS[key]
-    if key:
-        try:
-            from .patterns.units import unit_to_mm
-        except ImportError:  # pragma: no cover - the pattern readers are not installed
-            pass
-        else:
-            try:
-                return unit_to_mm(key) / 1000.0
-            except InputError:
-                pass
-    raise InputError(f"unknown length unit {unit!r}: use one of {', '.join(LENGTH_UNITS)}")
 
 
 def resolve_length_unit(grid: GridLike, length_unit: str | None = None) -> str:

@@ -31,7 +31,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .errors import InputError
-from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, plane_axes, vector_area
+from .geometry import PLANAR_TOL, boundary_loop, plane_axes, vector_area
+from .geometry import plane_frame as geometry_plane_frame
 from .initial import transfinite
 
 __all__ = ["untangle", "corner_jacobians", "plane_frame"]
@@ -68,19 +69,17 @@ def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarra
     InputError
         The boundary is not planar (a curved 3D piece).
     """
-    loop = boundary_loop(points)
     if dim == 2:
-        centre, normal = np.zeros(3), np.array([0.0, 0.0, 1.0])
-    else:
-        centre, normal, dist = best_fit_plane(loop)
-        diag = float(np.linalg.norm(np.ptp(loop, axis=0)))
-        if dist > PLANAR_TOL * diag:
-            raise InputError(
-                f"the fold-free functional is for planar pieces: this piece's boundary is "
-                f"{dist / diag:.3g} of its size away from a plane; use functional 'length'")
-    if vector_area(loop) @ normal < 0:
-        normal = -normal
-    return centre, plane_axes(normal)
+        loop = boundary_loop(points)
+        normal = np.array([0.0, 0.0, 1.0]) if vector_area(loop)[2] >= 0 else np.array([0.0, 0.0, -1.0])
+        return np.zeros(3), plane_axes(normal)
+    centre, basis, dist = geometry_plane_frame(points)
+    diag = float(np.linalg.norm(np.ptp(boundary_loop(points), axis=0)))
+    if dist > PLANAR_TOL * diag:
+        raise InputError(
+            f"the fold-free functional is for planar pieces: this piece's boundary is "
+            f"{dist / diag:.3g} of its size away from a plane; use functional 'length'")
+    return centre, basis
 
 
 def corner_jacobians(X: np.ndarray) -> np.ndarray:

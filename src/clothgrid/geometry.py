@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PLANAR_TOL", "boundary_loop", "vector_area", "best_fit_plane", "plane_axes"]
+__all__ = ["PLANAR_TOL", "boundary_loop", "vector_area", "best_fit_plane", "plane_axes", "plane_frame"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
 PLANAR_TOL = 1e-9
@@ -46,3 +46,30 @@ def plane_axes(normal: np.ndarray) -> np.ndarray:
     e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
     return np.stack([e1, np.cross(normal, e1)])
+
+
+def plane_frame(points: np.ndarray, fit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """The oriented best-fit plane of a grid: centre, in-plane axes and the farthest distance from it.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        ``(nu, nv, 3)`` nodes.
+    fit : numpy.ndarray, optional
+        ``(n, 3)`` points the plane is fitted to (default: the boundary loop).
+
+    Returns
+    -------
+    centre : (3,) array
+    basis : (2, 3) array
+        Orthonormal in-plane axes, chosen so that the boundary loop (bottom,
+        right, top reversed, left reversed) turns counter-clockwise in the
+        coordinates ``(p - centre) @ basis.T``.
+    distance : float
+        The largest distance of a fitted point from the plane.
+    """
+    loop = boundary_loop(points)
+    centre, normal, dist = best_fit_plane(loop if fit is None else fit)
+    if vector_area(loop) @ normal < 0:
+        normal = -normal
+    return centre, plane_axes(normal), dist

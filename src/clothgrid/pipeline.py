@@ -36,7 +36,7 @@ from .generate import generate, parse_nodes
 from .grid import Grid
 from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
                        is_pattern_file, nodes_for_edge_length, piece_boundary, piece_info, read_pieces)
-from .patterns.units import parse_length
+from .units import parse_length
 from .quality import Quality, quality
 from .readers import load_boundary
 

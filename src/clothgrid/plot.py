@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 
 from .errors import InputError
 from .grid import Grid
-from .geometry import best_fit_plane, boundary_loop, plane_axes, vector_area
+from .geometry import boundary_loop, plane_frame
 from .quality import Quality
 from .writers import atomic_write
 
@@ -28,11 +28,8 @@ def plane_coordinates(grid: Grid) -> np.ndarray:
     points = np.asarray(grid.points, dtype=np.float64)
     if grid.dim == 2:
         return points[..., :2].copy()
-    flat = points.reshape(-1, 3)
-    centre, normal, _ = best_fit_plane(flat)
-    if vector_area(boundary_loop(points)) @ normal < 0:
-        normal = -normal
-    return (points - centre) @ plane_axes(normal).T
+    centre, basis, _ = plane_frame(points, fit=points.reshape(-1, 3))
+    return (points - centre) @ basis.T
 
 
 def _subsample(n: int, max_lines: int) -> np.ndarray:

@@ -35,7 +35,7 @@ from .corners import (MIN_TURN_DEG, CornerCandidate, CornerChoice, choose_corner
                       corner_candidates, turn_angles)
 from .piece import Piece
 from .sampling import DEFAULT_REL_TOL
-from .units import UNITS, parse_length
+from ..units import UNITS, parse_length
 
 __all__ = [
     "Piece", "CornerCandidate", "CornerChoice", "PATTERN_READERS", "register_pattern_reader",
@@ -134,7 +134,7 @@ def read_pieces(path: str | Path, *, units: str | None = None,
     path = Path(path)
     reader = reader_for(path, PATTERN_READERS, "pattern")
     if units is not None:
-        from .units import unit_to_mm
+        from ..units import unit_to_mm
 
         unit_to_mm(units, what="--units")
     if isinstance(rel_tol, bool) or not isinstance(rel_tol, (int, float)) \

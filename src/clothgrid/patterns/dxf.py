@@ -41,11 +41,11 @@ import numpy as np
 from ..errors import InputError
 from .piece import Piece, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
-from .units import UNITS, unit_to_mm
+from ..units import UNITS, unit_to_mm
 
 __all__ = ["read_dxf", "INSUNITS"]
 
-#: $INSUNITS code -> unit name (see clothgrid.patterns.units.UNITS)
+#: $INSUNITS code -> unit name (see clothgrid.units.UNITS)
 INSUNITS: dict[int, str] = {1: "in", 2: "ft", 4: "mm", 5: "cm", 6: "m", 8: "um", 9: "mil",
                             10: "yd", 13: "um", 14: "dm"}
 _INSUNITS_NAMES = {0: "unitless", 3: "miles", 7: "km", 8: "microinches", 11: "angstroms",

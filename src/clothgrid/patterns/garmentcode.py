@@ -200,7 +200,7 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
         Invalid JSON, no panels, a malformed panel or edge, edges that do not
         form a loop, bad units, or a panel with fewer than 4 outline points.
     """
-    from .units import unit_to_mm
+    from ..units import unit_to_mm
 
     path = Path(path)
     where = str(path)

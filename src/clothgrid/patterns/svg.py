@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import InputError
 from .piece import Piece, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
-from .units import UNITS, unit_to_mm
+from ..units import UNITS, unit_to_mm
 
 __all__ = ["read_svg"]
 

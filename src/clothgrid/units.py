@@ -1,4 +1,4 @@
-"""Length units of pattern files and of ``--edge-length``.
+"""Length units: of pattern files, of ``--edge-length`` and ``--units``, of the outputs.
 
 Pattern pieces are always returned in millimetres; :data:`UNITS` gives the
 size of every known unit in millimetres and :func:`parse_length` reads a
@@ -10,9 +10,9 @@ from __future__ import annotations
 import math
 import re
 
-from ..errors import InputError
+from .errors import InputError
 
-__all__ = ["UNITS", "unit_to_mm", "parse_length", "format_length"]
+__all__ = ["UNITS", "LENGTH_UNITS", "unit_to_mm", "length_scale", "parse_length", "format_length"]
 
 #: unit name -> millimetres (CSS: 96 px and 72 pt per inch)
 UNITS: dict[str, float] = {
@@ -116,3 +116,26 @@ def parse_length(text: str | float, default_unit: str | None = "mm", *,
 def format_length(mm: float) -> str:
     """``"12.5 mm"``: a length in millimetres for messages."""
     return f"{mm:.6g} mm"
+
+
+#: Metres per length unit of the outputs and ``--units``, by name (any of :data:`UNITS` is accepted too).
+LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048,
+                                  "yd": 0.9144}
+
+
+def length_scale(unit: str) -> float:
+    """Metres per ``unit``: one of :data:`LENGTH_UNITS` (case-insensitive), or another unit
+    of :data:`UNITS` (``px``, ``pt``, ``inch``, ``metres``, ...), so that ``--units`` means the
+    same for boundary files and pattern files.
+
+    Raises
+    ------
+    InputError
+        For an unknown unit.
+    """
+    key = unit.strip().lower() if isinstance(unit, str) else None
+    if key in LENGTH_UNITS:
+        return LENGTH_UNITS[key]
+    if key and _unit_name(key) is not None:
+        return unit_to_mm(key) / 1000.0
+    raise InputError(f"unknown length unit {unit!r}: use one of {', '.join(LENGTH_UNITS)}")
