@@ -366,7 +366,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     many = len(jobs) > 1 or pattern
     results = []
     for job in jobs:
-        result = pipeline.run_job(job, options, progress)
+        result = pipeline.run_job(job, progress)
         _report(result, pattern)
         if not result.grid.info.get("converged", True):
             _say(f"warning: {f'piece {job.name}: ' if many else ''}writing a grid that is not converged "
@@ -445,7 +445,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         (job,) = pipeline.read_jobs(source, [folder / f"{name}.obj", folder / f"{name}.npz"], folder / f"{name}.png",
                                     options=options)
     t_load = time.perf_counter() - t0
-    result = pipeline.run_job(job, options, _say)
+    result = pipeline.run_job(job, _say)
     t0 = time.perf_counter()
     written = pipeline.write_result(result)
     t_write = time.perf_counter() - t0

@@ -126,6 +126,10 @@ class Job:
         For a pattern piece, what ``grid.info["piece"]`` records (corners, grain line, ...).
     corners : str or None
         For a pattern piece, how its corners were chosen (one line).
+    edge_length : float or None
+        The target edge length the size came from, if any.
+    options : GridOptions
+        How the grid is made.
     """
 
     name: str
@@ -137,6 +141,7 @@ class Job:
     piece: dict[str, Any] | None = None
     corners: str | None = None
     edge_length: float | None = None
+    options: GridOptions = field(default_factory=GridOptions)
 
 
 @dataclass
@@ -309,7 +314,7 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
         nodes, h = _size(boundary, options, pattern=False)
         unit = units or getattr(boundary, "length_unit", None) or "m"
         return [Job(boundary.name or source.stem, boundary, nodes, paths, plot_path, length_unit=unit,
-                    edge_length=h)]
+                    edge_length=h, options=options)]
     chosen = select_pieces(source, pieces, units=units)
     if progress:
         progress(f"read {len(chosen)} piece{'s' if len(chosen) != 1 else ''} from {source} in "
@@ -331,21 +336,21 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
         boundary = piece_boundary(piece, choice=choice)
         nodes, h = _size(boundary, options, pattern=True)
         jobs.append(Job(piece.name, boundary, nodes, paths, plot_path, length_unit="mm",
-                        piece=piece_info(piece, choice, h), corners=choice.message, edge_length=h))
+                        piece=piece_info(piece, choice, h), corners=choice.message, edge_length=h,
+                        options=options))
     return jobs
 
 
 # --------------------------------------------------------------------------- gridding and writing
 
 
-def run_job(job: Job, options: GridOptions = GridOptions(),
-            progress: Callable[[str], None] | None = None) -> Result:
-    """Grid one job: :func:`clothgrid.generate`, then its quality (once).
+def run_job(job: Job, progress: Callable[[str], None] | None = None) -> Result:
+    """Grid one job: :func:`clothgrid.generate` with the job's options, then its quality (once).
 
     Raises what :func:`clothgrid.generate` raises (InputError, NotConvergedError).
     """
     t0 = time.perf_counter()
-    grid = generate(job.boundary, job.nodes, progress=progress, **options.generate_kwargs())
+    grid = generate(job.boundary, job.nodes, progress=progress, **job.options.generate_kwargs())
     seconds = time.perf_counter() - t0
     if job.piece is not None:
         grid.info["piece"] = job.piece
