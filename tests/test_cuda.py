@@ -189,7 +189,7 @@ def test_cupy_without_a_gpu_says_what_cuda_says(monkeypatch, fresh_probe, device
 
 @without_gpu
 def test_real_cupy_without_a_gpu(fresh_probe):
-    """The installed CuPy (the test extra has it; no GPU is needed to import it) on this GPU-less machine."""
+    """An installed CuPy (not in the test extra: skipped without it) on a GPU-less machine."""
     cupy = pytest.importorskip("cupy")
     ok, why = cuda.available()
     assert not ok and f"CuPy {cupy.__version__} is installed, but CUDA says CUDARuntimeError: cudaError" in why
