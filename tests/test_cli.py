@@ -244,12 +244,32 @@ def test_bad_plot_extension(capsys, horn, tmp_path):
     assert _files(tmp_path) == ["roache-horn.json"]
 
 
-def test_output_dir_missing(capsys, horn, tmp_path):
+def test_output_dir_missing_is_created(capsys, horn, tmp_path):
     code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz",
-                       "-o", tmp_path / "missing" / "g.obj")
+                       "-o", tmp_path / "missing" / "deeper" / "g.obj", "--nodes", "9")
+    assert code == 0, err
+    assert (tmp_path / "missing" / "deeper" / "g.obj").is_file()
+
+
+def test_output_dir_under_a_file_is_refused(capsys, horn, tmp_path):
+    (tmp_path / "afile").write_text("x")
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz",
+                       "-o", tmp_path / "afile" / "sub" / "g.obj")
     assert code == 2
-    assert "missing" in err and "does not exist" in err
-    assert _files(tmp_path) == ["roache-horn.json"]
+    assert "afile" in err and "is not a folder" in err
+    assert _files(tmp_path) == ["afile", "roache-horn.json"]
+
+
+def test_failed_run_removes_the_folders_it_made(capsys, horn, tmp_path, monkeypatch):
+    import clothgrid.writers as writers
+
+    def broken(grid, path, **kw):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    monkeypatch.setattr(writers, "save", broken)
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "new" / "g.npz", "--nodes", "9")
+    assert code == 2 and "permission denied" in err.lower()
+    assert _files(tmp_path) == ["roache-horn.json"] and not (tmp_path / "new").exists()
 
 
 def test_failed_second_output_removes_first(capsys, horn, tmp_path, monkeypatch):
@@ -341,3 +361,23 @@ def test_demo_piece_is_valid():
     A, B, C, D = a[:, None], b[:, None], a[None], b[None]
     cross = (side(A, B, C) * side(A, B, D) < 0) & (side(C, D, A) * side(C, D, B) < 0)
     assert not cross.any()
+
+
+def test_closed_pipe_ends_quietly(tmp_path):
+    """``clothgrid pieces FILE | head -1``: no traceback, exit 141 (128 + SIGPIPE)."""
+    import subprocess
+    import sys
+
+    rects = "".join(f'<rect id="p{k}" x="{k % 50 * 30}" y="{k // 50 * 30}" width="20" height="10"/>'
+                    for k in range(1500))
+    svg = tmp_path / "many.svg"
+    svg.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" width="2000mm" height="2000mm" '
+                   f'viewBox="0 0 2000 2000">{rects}</svg>')
+    p = subprocess.Popen([sys.executable, "-m", "clothgrid", "pieces", str(svg)], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    first = p.stdout.readline()
+    p.stdout.close()           # the reader goes away, like `head -1`
+    err = p.stderr.read().decode()
+    p.wait(timeout=120)
+    assert b"1500 pieces" in first
+    assert p.returncode == 141 and "Traceback" not in err and "BrokenPipe" not in err, err

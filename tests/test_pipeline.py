@@ -57,8 +57,9 @@ def test_outputs_checked_before_any_grid(tmp_path):
     opts = GridOptions(nodes=9)
     with pytest.raises(InputError, match="unknown output format"):
         read_jobs(REGION, [tmp_path / "g.xyz"], options=opts)
-    with pytest.raises(InputError, match="does not exist"):
-        read_jobs(REGION, [tmp_path / "missing" / "g.npz"], options=opts)
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(InputError, match="is not a folder"):
+        read_jobs(REGION, [tmp_path / "afile" / "g.npz"], options=opts)
     with pytest.raises(InputError, match="for pattern files"):
         read_jobs(REGION, [tmp_path / "g.npz"], options=opts, pieces=["front"])
 

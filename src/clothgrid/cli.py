@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 import sys
 import time
@@ -464,6 +465,15 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- entry point
 
 
+def _quiet_stdout() -> None:
+    """Point stdout at /dev/null so that the interpreter's final flush into a closed pipe is silent."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):   # no real stdout (captured in tests)
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``clothgrid`` command line and return its exit code.
 
@@ -476,7 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     -------
     int
         0 on success, 2 on bad input or usage, 3 when not converged, 130 when
-        interrupted. Unexpected exceptions propagate with their traceback.
+        interrupted, 141 when the reader of the output closed the pipe. Unexpected exceptions propagate with their traceback.
     """
     parser = build_parser()
     try:
@@ -488,6 +498,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return args.func(args)
+    except BrokenPipeError:   # `clothgrid pieces FILE | head`: the reader has what it wanted
+        _quiet_stdout()
+        return 141
     except KeyboardInterrupt:
         _say("interrupted")
         return 130

@@ -17,12 +17,14 @@ Output names: with one job every output path is used as given; with several,
 ``out.obj`` becomes ``out_<piece>.obj``, or ``{piece}`` in a path is replaced by
 the piece's name (``-o meshes/{piece}.obj``). Names are made file-safe
 (characters other than letters, digits, ``.``, ``_`` and ``-`` become ``_``).
-Unknown output formats, missing output folders and two jobs writing one file are
-reported by :func:`read_jobs`, before any grid is made.
+Unknown output formats, output folders that cannot be made and two jobs writing one
+file are reported by :func:`read_jobs`, before any grid is made; missing output
+folders are created when the outputs are written (and removed again if writing fails).
 """
 
 from __future__ import annotations
 
+import os
 import re
 import time
 from dataclasses import dataclass, field, replace
@@ -153,6 +155,7 @@ class Result:
     quality: Quality
     seconds: float
     written: list[Path] = field(default_factory=list)
+    folders: list[Path] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- names
@@ -209,11 +212,41 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
             raise InputError(f"{str(plot)!r} is given both as an output and as the plot")
     for path in paths + ([plot_path] if plot_path is not None else []):
         folder = path.parent
+        while not folder.exists() and folder != folder.parent:   # missing folders are made when writing
+            folder = folder.parent
         if not folder.is_dir():
-            raise InputError(f"output folder {str(folder)!r} does not exist (for {str(path)!r})")
+            raise InputError(f"output folder {str(folder)!r} is not a folder (for {str(path)!r})")
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise InputError(f"output folder {str(folder)!r} is not writable (for {str(path)!r})")
         if path.is_dir():
             raise InputError(f"output {str(path)!r} is a folder")
     return paths, plot_path
+
+
+def _make_folders(paths: Sequence[Path]) -> list[Path]:
+    """Create the missing parent folders of ``paths``; return those created, deepest first."""
+    made: list[Path] = []
+    for path in paths:
+        missing = []
+        folder = path.parent
+        while not folder.exists() and folder != folder.parent:
+            missing.append(folder)
+            folder = folder.parent
+        for f in reversed(missing):
+            try:
+                f.mkdir()
+            except OSError as exc:
+                raise InputError(f"cannot create the output folder {str(f)!r}: {exc.strerror or exc}") from exc
+            made.append(f)
+    return made[::-1]
+
+
+def _remove_folders(folders: Sequence[Path]) -> None:
+    for f in folders:            # deepest first; only what is still empty
+        try:
+            f.rmdir()
+        except OSError:
+            pass
 
 
 # --------------------------------------------------------------------------- reading
@@ -366,7 +399,9 @@ def write_result(result: Result, options: OutputOptions = OutputOptions()) -> li
     """
     job = result.job
     written: list[Path] = []
+    made: list[Path] = []
     try:
+        made = _make_folders(job.outputs + ([job.plot] if job.plot is not None else []))
         for path in job.outputs:
             written.append(Path(writers.save(result.grid, path, **options.for_writer(path.suffix))))
         if job.plot is not None:
@@ -376,23 +411,28 @@ def write_result(result: Result, options: OutputOptions = OutputOptions()) -> li
     except BaseException as exc:
         for path in written:
             path.unlink(missing_ok=True)
+        _remove_folders(made)
         if isinstance(exc, OSError):
             name = getattr(exc, "filename", None) or "output"
             raise InputError(f"cannot write {name}: {exc.strerror or exc}") from exc
         raise
     result.written = written
+    result.folders = made
     return written
 
 
 def write_results(results: Sequence[Result], options: OutputOptions = OutputOptions()) -> list[Path]:
     """Write every result (:func:`write_result`); on any failure remove every file this call wrote."""
     written: list[Path] = []
+    folders: list[Path] = []
     try:
         for r in results:
             written += write_result(r, options)
+            folders = r.folders + folders
     except BaseException:
         for p in written:
             p.unlink(missing_ok=True)
+        _remove_folders(folders)
         raise
     return written
 
