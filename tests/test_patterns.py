@@ -16,9 +16,9 @@ import pytest
 
 from clothgrid import InputError, generate
 from clothgrid.cli import main
-from clothgrid.patterns import (Piece, choose_corners, corner_candidates,
-                                load_single_boundary, nodes_for_edge_length, parse_length,
-                                piece_boundary, read_pieces)
+from clothgrid.patterns import (Piece, choose_corners, corner_candidates, nodes_for_edge_length,
+                                parse_length, piece_boundary)
+from clothgrid.readers import load_single_boundary, read_pieces
 from clothgrid.patterns.piece import piece_from_polygon
 from clothgrid.pipeline import generate_piece
 from clothgrid.patterns.sampling import Bezier, EllipseArc, bspline_to_beziers, sample_loop

@@ -37,10 +37,10 @@ from .errors import InputError
 from .generate import generate, parse_nodes
 from .grid import Grid
 from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
-                       is_pattern_file, nodes_for_edge_length, piece_boundary, piece_info, read_pieces)
+                       nodes_for_edge_length, piece_boundary, piece_info)
 from .units import parse_length
 from .quality import Quality, quality
-from .readers import load_boundary
+from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Result", "read_jobs", "run_job", "write_result",
            "write_results", "generate_piece", "piece_listing", "select_pieces", "corner_choice",
@@ -334,21 +334,21 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     """
     source = Path(source)
     t0 = time.perf_counter()
-    if not is_pattern_file(source):
+    got = read_input(source, units=units)
+    if isinstance(got, Boundary):
         used = [name for name, v in (("--piece", pieces), ("--corners", corners), ("--corners-near", corners_near),
                                      ("--min-turn", min_turn)) if v]
         if used:
             raise InputError(f"{', '.join(used)} {'is' if len(used) == 1 else 'are'} for pattern files "
                              f"(.svg, .dxf, GarmentCode .json), not for the boundary file {source}")
         paths, plot_path = check_outputs(outputs, plot)
-        boundary = load_boundary(source)
         if progress:
             progress(f"loaded {source} in {time.perf_counter() - t0:.3f} s")
-        nodes, h = _size(boundary, options, pattern=False)
-        unit = units or getattr(boundary, "length_unit", None) or "m"
-        return [Job(boundary.name or source.stem, boundary, nodes, paths, plot_path, length_unit=unit,
+        nodes, h = _size(got, options, pattern=False)
+        unit = units or getattr(got, "length_unit", None) or "m"
+        return [Job(got.name or source.stem, got, nodes, paths, plot_path, length_unit=unit,
                     edge_length=h, options=options)]
-    chosen = select_pieces(source, pieces, units=units)
+    chosen = _select(got, pieces, source)
     if progress:
         progress(f"read {len(chosen)} piece{'s' if len(chosen) != 1 else ''} from {source} in "
                  f"{time.perf_counter() - t0:.3f} s")

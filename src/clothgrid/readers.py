@@ -1,7 +1,12 @@
-"""Read a :class:`~clothgrid.boundary.Boundary` from a file.
+"""Read the input files: boundary JSON, pattern files (SVG, DXF, GarmentCode JSON), grids (NPZ).
 
-Readers are chosen by file extension from :data:`READERS`; add a format with
-:func:`register_reader`. Every error names the file and is an
+One registry, :data:`READERS`, chooses the reader by file extension (and a
+``.json`` file by its content: GarmentCode patterns have a ``"pattern"``
+object); add a format with :func:`register_reader`. :func:`read_input` gives
+what a file holds, a :class:`~clothgrid.boundary.Boundary` or a list of
+:class:`~clothgrid.patterns.Piece`; :func:`load_boundary` and
+:func:`read_pieces` ask for one of the two. The pattern formats' parsers live in
+:mod:`clothgrid.patterns`. Every error names the file and is an
 :class:`~clothgrid.errors.InputError` (a :class:`~clothgrid.errors.BoundaryError`
 when the file is readable but its curves are not a valid piece).
 
@@ -16,19 +21,24 @@ the second being the format of the test regions (see ``MATH.md``).
 
 from __future__ import annotations
 
+import inspect
 import json
 
 import numpy as np
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from .boundary import SIDES, Boundary
 from .errors import BoundaryError, InputError
 from .grid import Grid
+from .patterns import Piece, piece_boundary
+from .patterns.sampling import DEFAULT_REL_TOL
+from .units import unit_to_mm
 
-__all__ = ["READERS", "register_reader", "load_boundary", "read_json", "load_npz"]
+__all__ = ["READERS", "register_reader", "read_input", "read_pieces", "is_pattern_file", "load_boundary",
+           "load_single_boundary", "read_json", "load_npz"]
 
-Reader = Callable[[Path], Boundary]
+Reader = Callable[..., "Boundary | list[Piece]"]
 
 
 def read_json(path: str | Path) -> Boundary:
@@ -84,22 +94,58 @@ def read_json(path: str | Path) -> Boundary:
                      f"'outline' and 'corners' (a region); found {keys}")
 
 
-#: file extension (lower case, with the dot) -> reader
-READERS: dict[str, Reader] = {".json": read_json}
+def _read_json_input(path: Path, **kw: Any) -> "Boundary | list[Piece]":
+    """A ``.json`` file: a GarmentCode pattern when it has a ``"pattern"`` object, else a boundary."""
+    if _is_garmentcode(path):
+        from .patterns.garmentcode import read_garmentcode
+
+        return read_garmentcode(path, **kw)
+    return read_json(path)
+
+
+def _read_svg(path: Path, **kw: Any) -> list[Piece]:
+    from .patterns.svg import read_svg   # svgpathtools: only when an SVG is read
+
+    return read_svg(path, **kw)
+
+
+def _read_dxf(path: Path, **kw: Any) -> list[Piece]:
+    from .patterns.dxf import read_dxf   # ezdxf: only when a DXF is read
+
+    return read_dxf(path, **kw)
+
+
+def _is_garmentcode(path: Path) -> bool:
+    try:
+        text = path.read_text(encoding="utf-8")
+        if '"pattern"' not in text:          # cheap: most boundary files never parse twice
+            return False
+        data = json.loads(text)
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and "pattern" in data
+
+
+#: The one registry of input formats: file extension (lower case, with the dot) ->
+#: ``reader(path, **options)`` returning a :class:`Boundary` (a boundary file) or a list of
+#: :class:`~clothgrid.patterns.Piece` (a pattern file). Pattern readers take ``units`` and
+#: ``rel_tol``.
+READERS: dict[str, Reader] = {".json": _read_json_input, ".svg": _read_svg, ".dxf": _read_dxf}
 
 
 def register_reader(ext: str, func: Reader) -> None:
-    """Register ``func(path) -> Boundary`` as the reader for extension ``ext`` (e.g. ``".svg"``)."""
+    """Register ``func(path, **options) -> Boundary | list[Piece]`` as the reader for ``ext`` (e.g. ``".svg"``)."""
     ext = ext.lower()
     READERS[ext if ext.startswith(".") else "." + ext] = func
 
 
-def reader_for(path: Path, registry: dict, kind: str):
-    """The reader in ``registry`` for ``path``'s extension, after checking the file exists.
+def reader_for(path: Path, registry: dict | None = None, kind: str = "input"):
+    """The reader in ``registry`` (default :data:`READERS`) for ``path``'s extension, after checking the file.
 
     Raises :class:`InputError` naming the problem for a missing file, a
     directory, or an extension no reader is registered for.
     """
+    registry = READERS if registry is None else registry
     if not path.exists():
         raise InputError(f"{path}: no such file")
     if path.is_dir():
@@ -111,18 +157,104 @@ def reader_for(path: Path, registry: dict, kind: str):
     return reader
 
 
-def load_boundary(path: str | Path) -> Boundary:
-    """Read a boundary from ``path``, the format chosen by its extension.
+def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | None = None) -> "Boundary | list[Piece]":
+    """What the file holds: a :class:`Boundary` (boundary JSON) or the pieces of a pattern file.
+
+    ``units`` and ``rel_tol`` go to pattern readers (see :func:`read_pieces`).
+    """
+    path = Path(path)
+    reader = reader_for(path, READERS, "input")
+    options = {k: v for k, v in (("units", units), ("rel_tol", rel_tol)) if v is not None}
+    if reader is _read_json_input and not _is_garmentcode(path):
+        options = {}                           # a boundary JSON has no units to override
+    elif options and reader not in (_read_svg, _read_dxf, _read_json_input):
+        params = inspect.signature(reader).parameters      # a registered reader takes what it names
+        if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            options = {k: v for k, v in options.items() if k in params}
+    return reader(path, **options)
+
+
+def is_pattern_file(path: str | Path) -> bool:
+    """Is ``path`` a pattern file (SVG, DXF, GarmentCode JSON) rather than a boundary file?
+
+    Decided by extension, and for ``.json`` by the ``"pattern"`` object of
+    GarmentCode; a reader registered for another extension counts as a pattern
+    reader. Unreadable files give False (the boundary reader then reports the problem).
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in READERS:
+        return False
+    if ext == ".json":
+        return _is_garmentcode(path)
+    return True
+
+
+def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
+    """Read all pieces of a pattern file, the format chosen by extension.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``.svg``, ``.dxf`` or GarmentCode ``.json`` file.
+    units : str, optional
+        Read the file's coordinates in these units (``"mm"``, ``"cm"``,
+        ``"in"``, ``"px"``, ...) instead of the ones it states; needed for a
+        DXF that states none.
+    rel_tol : float
+        Largest distance of an outline chord from the true curve, relative to
+        the piece's size (default ``1e-7``).
+
+    Returns
+    -------
+    list of Piece
+        In file order; outlines in millimetres, counter-clockwise.
 
     Raises
     ------
     InputError
-        The file does not exist, has an unknown extension, or cannot be parsed.
+        A missing or unreadable file, an unknown extension, a boundary file,
+        malformed content (a truncated file), unknown units, no closed piece,
+        or a piece with fewer than 4 points.
+    """
+    path = Path(path)
+    if units is not None:
+        unit_to_mm(units, what="--units")
+    if isinstance(rel_tol, bool) or not isinstance(rel_tol, (int, float)) or not 0 < rel_tol <= 1e-2:
+        raise InputError(f"rel_tol must be a number in (0, 0.01], not {rel_tol!r}")
+    got = read_input(path, units=units, rel_tol=rel_tol)
+    if isinstance(got, Boundary):
+        raise InputError(f"{path}: is a boundary file, not a pattern file: read it with load_boundary")
+    return got
+
+
+def load_boundary(path: str | Path, **options: Any) -> Boundary:
+    """Read a boundary from ``path``, the format chosen by its extension.
+
+    A boundary file gives its boundary; a pattern file with exactly one piece
+    gives that piece's (automatic corners; ``options`` as for :func:`read_pieces`).
+
+    Raises
+    ------
+    InputError
+        The file does not exist, has an unknown extension, cannot be parsed, or
+        is a pattern file with several pieces.
     BoundaryError
         The file's curves are not a valid piece.
     """
     path = Path(path)
-    return reader_for(path, READERS, "boundary")(path)
+    got = read_input(path, **options)
+    if isinstance(got, Boundary):
+        return got
+    if len(got) != 1:
+        names = ", ".join(p.name for p in got[:8]) + (", ..." if len(got) > 8 else "")
+        raise InputError(f"{path}: has {len(got)} pieces ({names}); load them with "
+                         "clothgrid.readers.read_pieces() and piece_boundary(), or pick one with "
+                         "--piece NAME")
+    return piece_boundary(got[0])
+
+
+load_single_boundary = load_boundary
 
 
 def load_npz(path: str | Path) -> Grid:
