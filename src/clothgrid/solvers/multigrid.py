@@ -43,8 +43,7 @@ import numpy as np
 
 from ..backends.protocol import Backend, MultigridOps
 from ..errors import InputError
-from ..multigrid_levels import (Level, Separable, build_hierarchy, coarse_rows, coarsen_separable,  # noqa: F401
-                                fine_level, galerkin_1d, hierarchy_bytes)
+from ..multigrid_levels import Level, Separable, build_hierarchy, coarse_rows
 from ..weights import Weights
 from .bounds import barrier_max
 from .problem import Problem, SolveResult
