@@ -226,7 +226,7 @@ def child(label: str, sizes: list[int], tmp: Path) -> None:
     for n in sizes:
         row = {"method": label, "side": n, "nodes": n * n}
         try:
-            estimate = be.device_bytes(solver, n, n, coords=k, separable=True) if hasattr(be, "device_bytes") else None
+            estimate = be.device_bytes(solver, n, n, coords=k, separable=True) or None   # 0: none (cpu)
             best = None
             for _ in range(3 if n <= 4096 else 1):
                 free_device_pool()

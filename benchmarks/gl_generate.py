@@ -67,14 +67,16 @@ class _Timed:
         self.ops, self.times, self.cpu, self.levels = ops, times, cpu, ops.levels
         self.ctx = ops.dev.ctx
 
-    def _call(self, name, *args):
+    def _call(self, name, *args, key=None):
+        """``ops.name(*args)``, drained, its time counted under ``key`` (default ``name``)."""
+        key = key or name
         t0, c0 = time.perf_counter(), time.process_time()
         out = getattr(self.ops, name)(*args)
-        if name != "solution":
+        if key != "solution":
             self.ctx.finish()
-        self.times[name] += time.perf_counter() - t0
-        self.cpu[name] += time.process_time() - c0
-        self.times["n_" + name] += 1
+        self.times[key] += time.perf_counter() - t0
+        self.cpu[key] += time.process_time() - c0
+        self.times["n_" + key] += 1
         return out
 
     def smooth(self, level, reverse=False):
@@ -91,6 +93,23 @@ class _Timed:
 
     def solution(self):
         return self._call("solution")
+
+    # The rest of MultigridOps (clothgrid.backends.protocol): the full-multigrid start's passes
+    # count as restriction and prolongation, the download as the solution.
+    def restrict_full(self, level):
+        return self._call("restrict_full", level, key="restrict")
+
+    def prolong_full(self, level):
+        return self._call("prolong_full", level, key="prolong")
+
+    def solution_into(self, out):
+        return self._call("solution_into", out, key="solution")
+
+    def synchronize(self):
+        self.ops.synchronize()
+
+    def extra(self):
+        return self.ops.extra()
 
 
 def _clock() -> tuple[float, float]:

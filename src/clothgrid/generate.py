@@ -192,8 +192,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     }
     if res.extra:
         info.update(res.extra)
-    if hasattr(be, "describe"):
-        info.update(be.describe())  # e.g. the GL renderer: EGL falls back to llvmpipe silently
+    info.update(be.describe())  # e.g. the GL renderer: EGL falls back to llvmpipe silently ({} on the cpu)
     flip = boundary.dim == 2 and boundary.orientation < 0
     grid = Grid.from_points(res.points, info=info, dim=boundary.dim, flip=flip)
     say(f"{name}: {res.iterations} iterations, error bound {res.error_estimate:.3g} (tol {tol:.3g}), {seconds:.3f} s")

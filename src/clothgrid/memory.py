@@ -63,7 +63,7 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
     elif solver == "jacobi":
         total += 24 * n
     elif solver == "multigrid":
-        from .solvers.multigrid import hierarchy_bytes
+        from .multigrid_levels import hierarchy_bytes
 
         total += hierarchy_bytes(nu, nv)
     return int(total)

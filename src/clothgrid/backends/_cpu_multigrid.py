@@ -1,4 +1,4 @@
-"""Fused Numba kernels of the CPU multigrid (:mod:`clothgrid.solvers.multigrid`).
+"""Fused Numba kernels of the CPU multigrid (:mod:`clothgrid.solvers.multigrid`) and its operations.
 
 Iterates are ``(nu, nv, k)`` arrays (``k`` coordinates). Level 0 works in
 float64 straight from the edge weights ``wu``, ``wv`` (for the paper's and
@@ -14,14 +14,20 @@ residual is zero, so restriction reads the even rows only; and the
 post-smoothing sweep starts by solving the odd rows from their neighbours, so
 prolongation only adds the correction to the even rows.
 
-Imported on first use (Numba's start-up costs ~0.5 s), compiled once and
-cached on disk.
+:class:`CpuMultigrid` turns the hierarchy (plain data from
+:func:`clothgrid.multigrid_levels.build_hierarchy`) into the CPU backend's
+:class:`~clothgrid.backends.protocol.MultigridOps`. Imported on first use
+(Numba's start-up costs ~0.5 s), compiled once and cached on disk.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
+
+from ..multigrid_levels import Level
 
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
 
@@ -141,7 +147,7 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
 def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb):
     """Coarse levels of separable weights: :func:`_relax9` with the stencil formed on the fly.
 
-    The stencil is ``Ku (x) M + Du (x) K`` (:class:`~clothgrid.solvers.multigrid.Separable`):
+    The stencil is ``Ku (x) M + Du (x) K`` (:class:`~clothgrid.multigrid_levels.Separable`):
     ``cu``, ``kud`` (``Ku``'s diagonal), ``du`` over columns ``i``; ``md``, ``mu``, ``kd``,
     ``ku`` over rows, own (``o``) and other (``t``) parity. A sweep streams only the iterate.
     """
@@ -405,97 +411,6 @@ def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     return np.sqrt(rowmax.max())
 
 
-@numba.njit(inline="always", error_model="numpy")
-def _gal(lo, c, up, nv, J, nc):
-    """Coarse (diag, up) of P^T T P at coarse row J, for one column's tridiagonal T.
-
-    ``lo(j)``, ``c(j)``, ``up(j)`` are T[j, j-1], T[j, j], T[j, j+1] as arrays over j.
-    """
-    f = 2 * J
-    d = c[f] + 0.25 * c[f - 1] + 0.5 * (lo[f] + up[f - 1])
-    if f + 1 <= nv - 2:
-        d += 0.25 * c[f + 1] + 0.5 * (up[f] + lo[f + 1])
-    u = 0.0
-    if J + 1 <= nc - 2:
-        u = 0.5 * up[f] + 0.25 * c[f + 1] + 0.5 * up[f + 1]
-    return d, u
-
-
-@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
-    """Galerkin coarse stencil ``P^T A P`` (linear interpolation along j).
-
-    On level 0 (``nine`` False) ``E``, ``N`` are ``wu``, ``wv`` and ``C``, ``NE``,
-    ``NW`` are unused. Fills the coarse arrays' interior rows; the rest is zero.
-    """
-    nu = Cc.shape[0]
-    nc = Cc.shape[1]
-    nv = N.shape[1] + (0 if nine else 1)
-    for i in numba.prange(nu):
-        lo0 = np.zeros(nv)
-        c0 = np.zeros(nv)
-        up0 = np.zeros(nv)
-        lo1 = np.zeros(nv)
-        c1 = np.zeros(nv)
-        up1 = np.zeros(nv)
-        for j in range(nv):
-            if nine:
-                c0[j] = C[i, j]
-                up0[j] = -N[i, j]
-                if j > 0:
-                    lo0[j] = -N[i, j - 1]
-                if i < nu - 1:
-                    c1[j] = -E[i, j]
-                    up1[j] = -NE[i, j]
-                    if j > 0:
-                        lo1[j] = -NW[i + 1, j - 1]
-            else:
-                s = 0.0
-                if i > 0:
-                    s += E[i - 1, j]
-                if i < nu - 1:
-                    s += E[i, j]
-                    c1[j] = -E[i, j]
-                if j > 0:
-                    s += N[i, j - 1]
-                    lo0[j] = -N[i, j - 1]
-                if j < nv - 1:
-                    s += N[i, j]
-                    up0[j] = -N[i, j]
-                c0[j] = s
-        for J in range(nc):
-            Cc[i, J] = 0.0
-            Ec[i, J] = 0.0
-            Nc[i, J] = 0.0
-            NEc[i, J] = 0.0
-        for J in range(1, nc - 1):
-            d0, u0 = _gal(lo0, c0, up0, nv, J, nc)
-            d1, u1 = _gal(lo1, c1, up1, nv, J, nc)
-            Cc[i, J] = d0
-            Nc[i, J] = -u0
-            Ec[i, J] = -d1
-            NEc[i, J] = -u1
-    # NW: coupling (i, J) -> (i-1, J+1) is the di=+1 operator of column i-1 at (J+1 -> J)
-    for i in numba.prange(nu):
-        for J in range(nc):
-            NWc[i, J] = 0.0
-        if i == 0:
-            continue
-        lo1 = np.zeros(nv)
-        c1 = np.zeros(nv)
-        for j in range(nv):
-            if nine:
-                c1[j] = -E[i - 1, j]
-                if j > 0:
-                    lo1[j] = -NW[i, j - 1]
-            else:
-                c1[j] = -E[i - 1, j]
-        for J in range(1, nc - 2):
-            # T_c[J+1, J] = 0.5 lo[f] + 0.25 c[f-1] + 0.5 lo[f-1] with f = 2(J+1)
-            f = 2 * (J + 1)
-            NWc[i, J] = -(0.5 * lo1[f] + 0.25 * c1[f - 1] + 0.5 * lo1[f - 1])
-
-
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_grid(x, xe, xo):
     """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""
@@ -564,19 +479,19 @@ def _split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class CpuMultigrid:
-    """The CPU backend's :class:`~clothgrid.solvers.multigrid.MultigridOps`.
+    """The CPU backend's :class:`~clothgrid.backends.protocol.MultigridOps`.
 
     Parameters
     ----------
     levels : list of Level
-        The hierarchy, finest first (:func:`~clothgrid.solvers.multigrid.build_hierarchy`).
+        The hierarchy, finest first (:func:`~clothgrid.multigrid_levels.build_hierarchy`).
     x0 : numpy.ndarray
         ``(nu, nv, k)`` level-0 iterate (boundary nodes hold the data).
     rhs : numpy.ndarray, optional
         ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
     """
 
-    def __init__(self, levels, x0: np.ndarray, rhs: np.ndarray | None = None):
+    def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None):
         self.levels = len(levels)
         self._shape = x0.shape
         k = x0.shape[2]
@@ -611,6 +526,7 @@ class CpuMultigrid:
                 self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
 
     def smooth(self, level: int, reverse: bool = False) -> None:
+        """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
         for p in ((1, 0) if reverse else (0, 1)):
             own, other = (xe, xo) if p == 0 else (xo, xe)
@@ -633,6 +549,8 @@ class CpuMultigrid:
                                                     (NWe, NWo)[p], (NWe, NWo)[q], p, nv, self.mb)
 
     def restrict(self, level: int) -> None:
+        """``b[l+1] = P^T (b[l] - A x[l])`` from the even rows (the odd rows' residual is zero
+        after pre-smoothing); ``x[l+1] = 0``."""
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
         if level == 0:
@@ -648,6 +566,7 @@ class CpuMultigrid:
                                                    bce, bco, xce, xco)
 
     def prolong(self, level: int) -> None:
+        """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
         xce, xco = self.x[level + 1]
         _pick("_prolong", self.nodes[level])(self.x[level][0], xce, xco)
 
@@ -670,11 +589,13 @@ class CpuMultigrid:
         _pick("_prolong_full", self.nodes[level])(xe, xo, *self.x[level + 1], self.nv[level])
 
     def max_step(self) -> float:
+        """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         Ee, Eo, Ne, No = self.st[0]
         return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
 
     def solution(self) -> np.ndarray:
+        """Level 0's iterate as a float64 ``(nu, nv, k)`` array."""
         out = np.empty(self._shape)
         self.solution_into(out)
         return out
@@ -683,16 +604,9 @@ class CpuMultigrid:
         """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides)."""
         _pick("_merge_grid", self.nodes[0])(*self.x[0], out)
 
+    def synchronize(self) -> None:
+        """Nothing to wait for: every kernel has returned when its call does."""
 
-def coarsen(level, dtype=np.float32):
-    """The Galerkin coarse level of ``level`` (semi-coarsening along v), stencils in ``dtype``."""
-    from ..solvers.multigrid import Level, coarse_rows
-
-    nu, nv = level.shape
-    nc = len(coarse_rows(nv))
-    out = [np.empty((nu, nc), dtype=dtype) for _ in range(5)]
-    nine = level.C is not None
-    dummy = np.zeros((1, 1))
-    _coarsen(level.C if nine else dummy, level.E, level.N, level.NE if nine else dummy,
-             level.NW if nine else dummy, nine, *out)
-    return Level(C=out[0], E=out[1], N=out[2], NE=out[3], NW=out[4])
+    def extra(self) -> dict[str, Any]:
+        """No keys for the result's info: ``{}``."""
+        return {}

@@ -16,10 +16,11 @@ over from one coordinate to the 3-vector).
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
+from ..backends.protocol import Backend
 from .problem import Problem
 
 __all__ = ["barrier_max", "error_bound"]
@@ -53,7 +54,7 @@ def barrier_max(problem: Problem, solve: Callable[[np.ndarray], np.ndarray] | No
     return float(np.max(solve(d)))
 
 
-def error_bound(points: np.ndarray, problem: Problem, backend, zmax: float, weights=None) -> float:
+def error_bound(points: Any, problem: Problem, backend: Backend, zmax: float, weights: tuple | None = None) -> float:
     """Guaranteed bound on ``max |R* - R|`` (absolute) for the grid ``points``.
 
     ``weights``: ``(wu, wv)`` as arrays of the backend where ``points`` lives

@@ -6,9 +6,12 @@ time and memory grow faster than the grid (fill-in of the factors).
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 from scipy.sparse.linalg import splu
 
+from ..backends.protocol import Backend
 from .bounds import barrier_max, error_bound
 from .problem import Problem, SolveResult
 
@@ -21,7 +24,8 @@ def factorize(problem: Problem):
                 options={"SymmetricMode": True})
 
 
-def solve_direct(problem: Problem, *, backend, progress=None, **_) -> SolveResult:
+def solve_direct(problem: Problem, *, backend: Backend, progress: Callable[[str], None] | None = None,
+                 **_: object) -> SolveResult:
     """Solve exactly with a sparse direct factorisation; bound the error a posteriori."""
     nu, nv = problem.shape
     if progress:

@@ -12,9 +12,12 @@ exact up to rounding: two tridiagonal eigenproblems and four dense products.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 from scipy.linalg import eigh_tridiagonal
 
+from ..backends.protocol import Backend
 from ..errors import InputError
 from .bounds import barrier_max, error_bound
 from .problem import Problem, SolveResult
@@ -79,8 +82,8 @@ class FDM:
         return y
 
 
-def solve_fdm(problem: Problem, *, backend, tol: float = 2.0**-12, max_refine: int = 3, progress=None,
-              **_) -> SolveResult:
+def solve_fdm(problem: Problem, *, backend: Backend, tol: float = 2.0**-12, max_refine: int = 3,
+              progress: Callable[[str], None] | None = None, **_: object) -> SolveResult:
     """Solve exactly by fast diagonalisation (separable weights), refined until the bound meets ``tol``.
 
     The products lose accuracy as the weights' range grows (about 1e-11 of the
@@ -88,13 +91,14 @@ def solve_fdm(problem: Problem, *, backend, tol: float = 2.0**-12, max_refine: i
     step solves for the correction from the residual, at the cost of the four
     products again. At most ``max_refine`` steps are made.
 
-    A backend with ``array_module()`` (cuda) keeps the grid, the weights and
-    the products in its arrays; the residual and the bound are then its own.
+    The backend's ``array_module()`` holds the grid, the weights and the
+    products (CuPy for cuda: on the GPU; NumPy on the host); the residual and
+    the bound are the backend's own.
     """
     nu, nv = problem.shape
     if progress:
         progress(f"fdm: eigenproblems of size {nu - 2} and {nv - 2}")
-    xp = backend.array_module() if hasattr(backend, "array_module") else np
+    xp = backend.array_module()
     fdm = FDM(problem.weights, nu, nv, xp)
     coords = problem.active_coords
     wu, wv = xp.asarray(problem.weights.wu), xp.asarray(problem.weights.wv)

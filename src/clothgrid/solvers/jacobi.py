@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Callable
 
+from ..backends.protocol import Backend
 from ..errors import InputError
 from .bounds import barrier_max
 from .problem import Problem, SolveResult
 
-__all__ = ["solve_jacobi", "default_max_iter", "HostSweeper"]
+__all__ = ["solve_jacobi", "default_max_iter"]
 
 
 def default_max_iter(nu: int, nv: int) -> int:
@@ -30,8 +32,9 @@ def default_max_iter(nu: int, nv: int) -> int:
     return max(1000, 8 * max(nu, nv) ** 2)
 
 
-def solve_jacobi(problem: Problem, *, backend, tol: float, stop: str = "error", max_iter: int | None = None,
-                 progress=None, progress_seconds: float = 2.0, **_) -> SolveResult:
+def solve_jacobi(problem: Problem, *, backend: Backend, tol: float, stop: str = "error", max_iter: int | None = None,
+                 progress: Callable[[str], None] | None = None, progress_seconds: float = 2.0,
+                 **_: object) -> SolveResult:
     """Iterate eq. (3) until the stopping rule holds or ``max_iter`` sweeps are done."""
     if stop not in ("error", "paper"):
         raise InputError(f"unknown stop rule {stop!r}: use 'error' or 'paper'")
@@ -44,8 +47,7 @@ def solve_jacobi(problem: Problem, *, backend, tol: float, stop: str = "error", 
     # analytic barrier it costs a direct solve, which only the true rule needs.
     zmax = barrier_max(problem) if (stop == "error" or problem.weights.unit_stencil) else math.nan
     limit = tol * problem.scale / (zmax if stop == "error" else 1.0)
-    factory = getattr(backend, "jacobi_sweeper", None)
-    run = factory(problem, stop=stop) if factory is not None else HostSweeper(problem, backend)
+    run = backend.jacobi_sweeper(problem, stop=stop)   # a JacobiSweeper (clothgrid.backends.protocol)
     step = math.inf
     it = 0
     last_report, last_it, last_step = time.perf_counter(), 0, None
@@ -72,37 +74,3 @@ def solve_jacobi(problem: Problem, *, backend, tol: float, stop: str = "error", 
     err = bound_step * zmax / problem.scale if not math.isnan(zmax) else math.nan
     return SolveResult(points, iterations=it, error_estimate=err, converged=converged, bound=not math.isnan(zmax),
                        extra=extra)
-
-
-class HostSweeper:
-    """The sweep loop's operations on host arrays, one ``backend.sweep`` at a time (the CPU backend).
-
-    A backend may supply its own as ``backend.jacobi_sweeper(problem, stop=...)``
-    (the gl backend: sweeps on the device, the largest step read back only now
-    and then). The protocol: ``sweeps(n, limit) -> (sweeps made, last step)``
-    makes at most ``n`` sweeps and stops after the first whose step is
-    ``<= limit``; ``result(step) -> (points, bound step)`` returns the grid and
-    the step that, times ``max z``, bounds its error; ``extra()`` adds to the
-    result's info; ``close()`` frees what the sweeper holds.
-    """
-
-    def __init__(self, problem: Problem, backend):
-        self.backend = backend
-        self.wu, self.wv = problem.weights.wu, problem.weights.wv
-        self.a = problem.r0.copy()
-        self.b = self.a.copy()
-
-    def sweeps(self, n: int, limit: float) -> tuple[int, float]:
-        step = self.backend.sweep(self.a, self.b, self.wu, self.wv)
-        self.a, self.b = self.b, self.a
-        return 1, step
-
-    def result(self, step: float):
-        # The last sweep's step bounds the grid it produced too (J z <= z, clothgrid.solvers.bounds).
-        return self.a, step
-
-    def extra(self) -> dict:
-        return {}
-
-    def close(self) -> None:
-        pass

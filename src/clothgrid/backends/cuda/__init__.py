@@ -21,18 +21,28 @@ for CuPy, numba.cuda or libNVVM unusable.
 
 from __future__ import annotations
 
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, NoReturn
+
+import numpy as np
+
 from ...errors import InputError, SizeError
 from ...memory import format_bytes
+from ...multigrid_levels import Level
 from ...weights import interior_diagonal
 from ..cpu import residual
+from ..protocol import ProblemData
 from . import _device, _sim
 
+if TYPE_CHECKING:   # annotations only: the operations' module loads on first use (numba.cuda)
+    from ._multigrid import CudaMultigrid
+
 __all__ = ["name", "solvers", "require", "available", "on_gpu", "array_module", "info", "describe", "summary",
-           "device_bytes", "check_size", "residual", "max_step", "multigrid"]
+           "device_bytes", "check_size", "residual", "max_step", "multigrid", "jacobi_sweeper"]
 
 name = "cuda"
 #: Solvers that run on this backend (``auto`` picks the first).
-solvers = ("multigrid", "fdm")
+solvers: tuple[str, ...] = ("multigrid", "fdm")
 
 
 def require() -> _device.Device:
@@ -52,13 +62,13 @@ def on_gpu() -> bool:
     return not isinstance(dev, str) and not dev.simulated
 
 
-def array_module():
+def array_module() -> ModuleType:
     """The module of the device's arrays: CuPy on a GPU, NumPy under the simulator."""
     require()
     return _sim.array_module()
 
 
-def describe() -> dict:
+def describe() -> dict[str, Any]:
     """``cuda_*`` keys of a grid's info: ``cuda_device`` (name), ``cuda_compute_capability``,
     ``cuda_memory`` (bytes), ``cuda_cupy`` (version), ``cuda_simulator``."""
     return require().describe()
@@ -120,7 +130,7 @@ def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0, coords: int =
     return need
 
 
-def max_step(r, wu, wv) -> float:
+def max_step(r: Any, wu: Any, wv: Any) -> float:
     """The largest step a Jacobi sweep would make from the device grid ``r``, in float64 on the device.
 
     ``max |D^-1 (b - A r)|`` (Euclidean per node) from device arrays ``r``,
@@ -132,10 +142,10 @@ def max_step(r, wu, wv) -> float:
     return float((xp.sqrt(xp.sum(res * res, axis=-1)) / interior_diagonal(wu, wv)).max())
 
 
-def multigrid(levels, x0, rhs=None):
-    """The multigrid operations (:class:`~clothgrid.solvers.multigrid.MultigridOps`) on the device.
+def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> CudaMultigrid:
+    """The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) on the device.
 
-    ``levels`` from :func:`~clothgrid.solvers.multigrid.build_hierarchy`; ``x0``
+    ``levels`` from :func:`~clothgrid.multigrid_levels.build_hierarchy`; ``x0``
     the ``(nu, nv, k)`` level-0 iterate and ``rhs`` the optional interior
     right-hand side, both host arrays, uploaded once.
     """
@@ -143,3 +153,9 @@ def multigrid(levels, x0, rhs=None):
     from ._multigrid import CudaMultigrid
 
     return CudaMultigrid(levels, x0, rhs)
+
+
+def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> NoReturn:
+    """Jacobi does not run on this backend: raises :class:`~clothgrid.errors.InputError` saying so."""
+    raise InputError(f"solver 'jacobi' does not run on backend 'cuda': use one of {', '.join(solvers)} "
+                     "(or backend 'cpu' or 'gl')")

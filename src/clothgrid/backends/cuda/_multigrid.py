@@ -1,6 +1,6 @@
-"""The cuda backend's :class:`~clothgrid.solvers.multigrid.MultigridOps`: the CPU multigrid on a GPU.
+"""The cuda backend's :class:`~clothgrid.backends.protocol.MultigridOps`: the CPU multigrid on a GPU.
 
-The hierarchy (:func:`~clothgrid.solvers.multigrid.build_hierarchy`, NumPy on
+The hierarchy (:func:`~clothgrid.multigrid_levels.build_hierarchy`, NumPy on
 the host) is uploaded once: level 0's iterate and right-hand side as float64
 parity planes, its edge weights split by row parity (the paper's and uniform
 weights as their 1D factors, read through stride flags: no ``(nu, nv)`` array),
@@ -13,9 +13,11 @@ reads back one float, :meth:`solution_into` the grid, once.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
+from ...multigrid_levels import Level
 from . import _kernels as K
 from ._sim import array_module, kernel_array
 
@@ -59,7 +61,7 @@ def _planes(n_rows: int) -> tuple[int, int]:
     return (n_rows + 1) // 2, n_rows // 2
 
 
-def _coarse_stencil(level, xp, p: int) -> tuple:
+def _coarse_stencil(level: Level, xp: Any, p: int) -> tuple:
     """Rows ``J`` of parity ``p`` of a coarse level's ``C, E, N, NE, NW``, float32 arrays of ``xp``.
 
     Separable levels are formed by ``xp`` from their 1D factors (on the GPU with
@@ -85,7 +87,8 @@ class CudaMultigrid:
         Columns per block of the line solves (default :func:`line_block`).
     """
 
-    def __init__(self, levels, x0: np.ndarray, rhs: np.ndarray | None = None, block: int | None = None):
+    def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
+                 block: int | None = None):
         nu, nv, k = x0.shape
         if k > K.MAX_COORDS:
             raise ValueError(f"the cuda multigrid solves at most {K.MAX_COORDS} coordinates, not {k}")
@@ -264,3 +267,7 @@ class CudaMultigrid:
         rows = max(1, DOWNLOAD_BYTES // (8 * nv * k))
         for i in range(0, nu, rows):
             out[i:i + rows] = to_host(grid[i:i + rows])
+
+    def extra(self) -> dict[str, Any]:
+        """No keys for the result's info: ``{}`` (the backend's ``describe`` adds the ``cuda_*`` keys)."""
+        return {}

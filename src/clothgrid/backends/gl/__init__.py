@@ -18,10 +18,23 @@ context can be made.
 
 from __future__ import annotations
 
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
 from ...errors import InputError
+from ...multigrid_levels import Level
+from ..cpu import max_step, residual
+from ..protocol import ProblemData
+
+if TYPE_CHECKING:   # annotations only: the device's modules load on first use (moderngl)
+    from ._device import Device
+    from ._jacobi import GLJacobi
+    from ._multigrid import GLMultigrid
 
 __all__ = ["name", "solvers", "require", "available", "info", "describe", "summary", "check_size", "device_bytes",
-           "jacobi_sweeper", "multigrid"]
+           "array_module", "residual", "max_step", "jacobi_sweeper", "multigrid"]
 
 name = "gl"
 #: Solvers that run on this backend (``auto`` picks the first).
@@ -30,7 +43,7 @@ solvers = ("multigrid", "jacobi")
 HOST_FP64 = False
 
 
-def require():
+def require() -> Device:
     """The GL device; raises BackendUnavailableError (with the reason) when there is none."""
     from ._device import device
 
@@ -47,7 +60,7 @@ def available() -> tuple[bool, str]:
         return False, str(exc)
 
 
-def describe() -> dict:
+def describe() -> dict[str, Any]:
     """``gl_*`` keys of a grid's info: renderer, vendor, version, texture size limit, and where
     the float64 steps run (``gl_fp64``: ``device`` with GL doubles, else ``host``)."""
     dev = require()
@@ -97,15 +110,25 @@ def check_size(nu: int, nv: int, solver: str, host_bytes: int = 0, coords: int =
     return need
 
 
-def jacobi_sweeper(problem, *, stop: str = "error"):
+def array_module() -> ModuleType:
+    """NumPy: the grids a solver hands over and gets back are host arrays (the device holds textures).
+
+    :func:`residual` and :func:`max_step` are the CPU backend's, in float64 on the
+    host: the error bound of a solve whose grid is on the host (the device's
+    own solvers compute it on the device, see ``docs/gl.md``).
+    """
+    return np
+
+
+def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> GLJacobi:
     """Jacobi sweeps on the device for :func:`clothgrid.solvers.jacobi.solve_jacobi`."""
     from ._jacobi import GLJacobi
 
     return GLJacobi(problem, stop=stop, host_fp64=HOST_FP64)
 
 
-def multigrid(levels, x0, rhs=None):
-    """The multigrid operations (:class:`~clothgrid.solvers.multigrid.MultigridOps`) on the device."""
+def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> GLMultigrid:
+    """The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) on the device."""
     from ._multigrid import GLMultigrid
 
     return GLMultigrid(levels, x0, rhs, host_fp64=HOST_FP64)

@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 
+from ..protocol import ProblemData
 from ._device import Level0, device
 
 __all__ = ["GLJacobi", "MAX_CHUNK"]
@@ -31,9 +32,9 @@ FOLD_EVERY = 8.0
 
 
 class GLJacobi:
-    """The sweep loop's operations on the GL device (see :class:`clothgrid.solvers.jacobi.HostSweeper`)."""
+    """The sweep loop's operations (:class:`~clothgrid.backends.protocol.JacobiSweeper`) on the GL device."""
 
-    def __init__(self, problem, *, stop: str = "error", host_fp64: bool = False):
+    def __init__(self, problem: ProblemData, *, stop: str = "error", host_fp64: bool = False):
         self.dev = dev = device()
         self.stop = stop
         t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""The multigrid operations of :mod:`clothgrid.solvers.multigrid` as GL passes.
+"""The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) as GL passes.
 
 :func:`~clothgrid.solvers.multigrid.vcycle` drives these operations exactly as
 it drives the CPU's. The hierarchy (Galerkin coarse operators, built once on the
@@ -25,9 +25,11 @@ textures (a residual texture only if the general restriction is ever needed).
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
+from ...multigrid_levels import Level
 from ._device import Level0, device
 
 __all__ = ["GLMultigrid", "stencil_textures"]
@@ -35,8 +37,8 @@ __all__ = ["GLMultigrid", "stencil_textures"]
 _LOCAL = 32   # LINE_SOLVE's local_size_x
 
 
-def full_stencil(level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``C, E, N`` of a :class:`~clothgrid.solvers.multigrid.Level` as float64 ``(nu, nv)`` arrays.
+def full_stencil(level: Level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``C, E, N`` of a :class:`~clothgrid.multigrid_levels.Level` as float64 ``(nu, nv)`` arrays.
 
     The finest level holds only its edge weights (``E = wu`` ``(nu-1, nv)``,
     ``N = wv`` ``(nu, nv-1)``, ``C`` None): they are padded with zeros and
@@ -57,8 +59,8 @@ def full_stencil(level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return C, E, N
 
 
-def stencil_textures(level) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """``t1, t2, t3`` float32 ``(nu, nv, 4)`` arrays of one coarse :class:`~clothgrid.solvers.multigrid.Level`.
+def stencil_textures(level: Level) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """``t1, t2, t3`` float32 ``(nu, nv, 4)`` arrays of one coarse :class:`~clothgrid.multigrid_levels.Level`.
 
     ``t3`` holds only ``C``; the THOMAS pass adds the factors on the device. ``t2`` is
     None on a 5-point level.
@@ -122,12 +124,12 @@ class _Level:
 
 
 class GLMultigrid:
-    """:class:`~clothgrid.solvers.multigrid.MultigridOps` on the GL device.
+    """:class:`~clothgrid.backends.protocol.MultigridOps` on the GL device.
 
     Parameters
     ----------
     levels : list of Level
-        The hierarchy from :func:`~clothgrid.solvers.multigrid.build_hierarchy`.
+        The hierarchy from :func:`~clothgrid.multigrid_levels.build_hierarchy`.
     x0 : numpy.ndarray
         ``(nu, nv, k)`` level-0 iterate, boundary nodes holding the data (``k <= 3``).
     rhs : numpy.ndarray, optional
@@ -136,7 +138,8 @@ class GLMultigrid:
         Run the float64 fold and residual in NumPy instead of on the device.
     """
 
-    def __init__(self, levels, x0: np.ndarray, rhs: np.ndarray | None = None, *, host_fp64: bool = False):
+    def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None, *,
+                 host_fp64: bool = False):
         self.dev = dev = device()
         t0 = time.perf_counter()
         self.levels = len(levels)
@@ -249,7 +252,13 @@ class GLMultigrid:
         self.dev.release_thread()
         return x
 
-    def extra(self) -> dict:
+    def solution_into(self, out: np.ndarray) -> None:
+        """:meth:`solution` written into the host array ``out`` (``(nu, nv, k)``, any strides); ends the
+        solve likewise. The texture read-back is a whole grid anyway: no saving over :meth:`solution`."""
+        out[...] = self.solution()
+
+    def extra(self) -> dict[str, Any]:
+        """``gl_*`` keys: the device, where the float64 steps ran, pass counts and seconds."""
         return {**self.dev.describe(), "gl_fp64": "device" if self.l0.device_fp64 else "host",
                 "gl_passes": dict(self.counts), "gl_seconds": {**self.seconds, **self.l0.timings}}
 

@@ -1,0 +1,223 @@
+"""What a backend supplies: the :class:`Backend` protocol and the operations its solvers drive.
+
+A backend is a module (``clothgrid.backends.cpu``, ``.gl``, ``.cuda``) that
+satisfies :class:`Backend` structurally: every attribute below is present and,
+where it is a function, callable. Solvers never probe a backend with
+``hasattr``: where a backend has nothing to do it supplies a no-op (the cpu
+backend's ``describe`` returns ``{}``, its ``check_size`` checks nothing on a
+device). The objects a backend's factories return satisfy
+:class:`MultigridOps` (``multigrid``) and :class:`JacobiSweeper`
+(``jacobi_sweeper``), every operation present.
+
+The backends are found by name through the registry of
+:mod:`clothgrid.backends` (:data:`~clothgrid.backends.REGISTRY`), loaded on
+demand. ``tests/test_architecture.py`` checks every backend module and every
+operations class against these protocols; ``docs/architecture_backends.md``
+says how to add a backend or a solver.
+
+This module imports nothing of :mod:`clothgrid.solvers` (the solvers import it):
+the multigrid hierarchy that :meth:`Backend.multigrid` takes is plain data from
+:mod:`clothgrid.multigrid_levels`, and a problem is read through
+:class:`ProblemData`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..multigrid_levels import Level
+from ..weights import Weights
+
+__all__ = ["Backend", "MultigridOps", "JacobiSweeper", "ProblemData", "members", "BACKEND_MEMBERS",
+           "MULTIGRID_OPERATIONS", "JACOBI_OPERATIONS"]
+
+
+class ProblemData(Protocol):
+    """What a backend reads of a problem: :class:`clothgrid.solvers.problem.Problem` is one.
+
+    Backends take the solvers' problem by this shape and never import
+    :mod:`clothgrid.solvers` (which imports them).
+
+    Attributes
+    ----------
+    r0 : numpy.ndarray
+        ``(nu, nv, 3)`` initial grid; its boundary nodes are the fixed data.
+    weights : Weights
+        Edge weights.
+    """
+
+    r0: np.ndarray
+    weights: Weights
+
+
+@runtime_checkable
+class MultigridOps(Protocol):
+    """The operations :func:`~clothgrid.solvers.multigrid.solve_multigrid` drives on a backend.
+
+    The backend holds, per level ``l``, the iterate ``x[l]`` and right-hand side
+    ``b[l]``; level 0's iterate is the grid itself (boundary nodes fixed, ``b``
+    zero unless given), coarser levels hold corrections with zero boundary.
+    :func:`~clothgrid.solvers.multigrid.vcycle` uses ``smooth``, ``restrict``
+    and ``prolong``; :func:`~clothgrid.solvers.multigrid.fmg` (the full
+    multigrid start) also ``restrict_full`` and ``prolong_full``.
+
+    Attributes
+    ----------
+    levels : int
+        Number of levels, finest (0) first.
+    """
+
+    levels: int
+
+    def smooth(self, level: int, reverse: bool = False) -> None:
+        """One zebra line sweep on ``level``: even rows then odd rows (odd then even if ``reverse``)."""
+
+    def restrict(self, level: int) -> None:
+        """``b[l+1] = P^T (b[l] - A_l x[l])`` and ``x[l+1] = 0``, right after a pre-smoothing sweep.
+
+        A backend may use that the odd rows' residual is then zero.
+        """
+
+    def prolong(self, level: int) -> None:
+        """``x[l] += P x[l+1]`` where the next (reversed) sweep needs it: at least on the even rows."""
+
+    def restrict_full(self, level: int) -> None:
+        """Full-multigrid start: ``b[l+1] = P^T (b[l] - A_l x[l])`` with every row's residual; ``x[l+1] = 0``."""
+
+    def prolong_full(self, level: int) -> None:
+        """Full-multigrid start: ``x[l] += P x[l+1]`` on every row (odd rows the mean of their neighbours)."""
+
+    def max_step(self) -> float:
+        """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node), in float64.
+
+        Reads one float back from a device: the operations issued before it have finished.
+        """
+
+    def solution(self) -> np.ndarray:
+        """Level 0's iterate as a float64 ``(nu, nv, k)`` host array."""
+
+    def solution_into(self, out: np.ndarray) -> None:
+        """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides)."""
+
+    def synchronize(self) -> None:
+        """Wait until the device has done the work issued so far (a no-op where nothing is queued)."""
+
+    def extra(self) -> dict[str, Any]:
+        """Keys the solve adds to its result's info (e.g. the gl backend's pass counts); ``{}`` if none."""
+
+
+@runtime_checkable
+class JacobiSweeper(Protocol):
+    """The sweep loop :func:`~clothgrid.solvers.jacobi.solve_jacobi` drives on a backend."""
+
+    def sweeps(self, n: int, limit: float) -> tuple[int, float]:
+        """At most ``n`` sweeps, stopping after the first whose step is ``<= limit``.
+
+        Returns
+        -------
+        (int, float)
+            Sweeps made and the last sweep's step (absolute).
+        """
+
+    def result(self, step: float) -> tuple[np.ndarray, float]:
+        """The grid (float64 ``(nu, nv, 3)`` host array) and the step that, times ``max z``, bounds its error."""
+
+    def extra(self) -> dict[str, Any]:
+        """Keys the solve adds to its result's info; ``{}`` if none."""
+
+    def close(self) -> None:
+        """Free what the sweeper holds (device textures); a no-op where there is nothing."""
+
+
+@runtime_checkable
+class Backend(Protocol):
+    """A backend module: where the solvers' array operations run.
+
+    Attributes
+    ----------
+    name : str
+        The name :func:`~clothgrid.backends.get_backend` knows it by.
+    solvers : tuple of str
+        The solvers that run on the backend's device, the first being what
+        ``solver="auto"`` picks there. Empty for a host backend (cpu), on which
+        every solver of :data:`clothgrid.solvers.SOLVERS` runs and ``auto``
+        picks by size (:func:`clothgrid.solvers.choose_solver`).
+    """
+
+    name: str
+    solvers: tuple[str, ...]
+
+    def require(self) -> object:
+        """The backend's device; raises :class:`~clothgrid.errors.BackendUnavailableError` (with the reason)
+        when it cannot be used. The cpu backend returns None (always usable)."""
+
+    def available(self) -> tuple[bool, str]:
+        """``(True, what runs: a device name)`` or ``(False, why not)``, without raising."""
+
+    def describe(self) -> dict[str, Any]:
+        """Keys added to every grid's info (``gl_*``, ``cuda_*``); ``{}`` where there is nothing to say."""
+
+    def summary(self) -> str:
+        """One line about the device, for progress messages."""
+
+    def device_bytes(self, solver: str, nu: int, nv: int, coords: int = 3, separable: bool = False) -> int:
+        """Bytes of device memory a solve of an ``nu x nv`` grid allocates (0 on the host)."""
+
+    def check_size(self, nu: int, nv: int, solver: str, host_bytes: int = 0, coords: int = 3,
+                   separable: bool = False) -> int:
+        """Raise :class:`~clothgrid.errors.SizeError` before allocating a grid the device cannot hold;
+        return the device bytes counted (0 on the host, whose memory :func:`clothgrid.memory.check_memory`
+        checks)."""
+
+    def array_module(self) -> Any:
+        """The module of the backend's arrays (NumPy on the host, CuPy on a GPU)."""
+
+    def residual(self, r: Any, wu: Any, wv: Any) -> Any:
+        """``b - A r`` over the interior nodes, ``(nu-2, nv-2, 3)``, for arrays of :meth:`array_module`."""
+
+    def max_step(self, r: Any, wu: Any, wv: Any) -> float:
+        """``max |D^-1 (b - A r)|`` (Euclidean per node): the factor of the guaranteed error bound."""
+
+    def multigrid(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> MultigridOps:
+        """The multigrid operations on this backend.
+
+        Parameters
+        ----------
+        levels : list of Level
+            The hierarchy (:func:`~clothgrid.multigrid_levels.build_hierarchy`), finest first.
+        x0 : numpy.ndarray
+            ``(nu, nv, k)`` level-0 iterate, boundary nodes holding the data.
+        rhs : numpy.ndarray, optional
+            ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
+        """
+
+    def jacobi_sweeper(self, problem: ProblemData, *, stop: str = "error") -> JacobiSweeper:
+        """The Jacobi sweep loop on this backend; raises :class:`~clothgrid.errors.InputError` where
+        ``jacobi`` does not run."""
+
+
+def members(protocol: type) -> tuple[str, ...]:
+    """The names a protocol asks for: its annotated attributes and its methods, in definition order.
+
+    Parameters
+    ----------
+    protocol : type
+        :class:`Backend`, :class:`MultigridOps` or :class:`JacobiSweeper`.
+
+    Returns
+    -------
+    tuple of str
+    """
+    names = list(protocol.__dict__.get("__annotations__", {}))
+    names += [k for k, v in protocol.__dict__.items() if callable(v) and not k.startswith("_")]
+    return tuple(names)
+
+
+#: Every name a backend module supplies.
+BACKEND_MEMBERS = members(Backend)
+#: Every operation of a backend's multigrid operations (``levels`` is an attribute of the instance).
+MULTIGRID_OPERATIONS = tuple(n for n in members(MultigridOps) if n != "levels")
+#: Every operation of a backend's Jacobi sweeper.
+JACOBI_OPERATIONS = members(JacobiSweeper)
