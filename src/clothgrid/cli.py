@@ -18,7 +18,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from .backends import BACKENDS
 from .errors import ClothgridError, InputError, NotConvergedError
+from .solvers import SOLVERS
 
 __all__ = ["main", "parse_nodes", "parse_tol"]
 
@@ -168,9 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="edge weights (default: paper, eq. 2)")
     g.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
                    help="the factor k of the v weights in eq. 2 (default: 1)")
-    g.add_argument("--solver", choices=("auto", "direct", "fdm", "jacobi", "multigrid"), default="auto",
+    g.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",
                    help="solver (default: auto)")
-    g.add_argument("--backend", choices=("auto", "cpu", "gl", "cuda"), default="auto",
+    g.add_argument("--backend", choices=BACKENDS, default="auto",
                    help="where the solver runs: cpu; gl (OpenGL through headless EGL: the GPU's "
                         "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi); or cuda "
                         "(an NVIDIA GPU through CuPy, pip install 'clothgrid[cuda]'; solvers multigrid "

@@ -154,7 +154,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         raise InputError("functional 'foldfree' is for planar pieces: this 3D piece is curved; "
                          "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
     separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
-    on_device = getattr(be, "solvers", None)  # a backend that runs only some solvers (gl, cuda)
+    on_device = be.solvers  # the solvers a device backend runs (gl, cuda); () on the CPU: all
     if on_device and solver != "auto" and solver not in on_device:
         raise InputError(f"solver {solver!r} does not run on backend {be.name!r}: use one of auto, "
                          f"{', '.join(on_device)} (or backend 'cpu')")

@@ -12,7 +12,7 @@ device). The objects a backend's factories return satisfy
 The backends are found by name through the registry of
 :mod:`clothgrid.backends` (:data:`~clothgrid.backends.REGISTRY`), loaded on
 demand. ``tests/test_architecture.py`` checks every backend module and every
-operations class against these protocols; ``docs/architecture_backends.md``
+operations class against these protocols; ``docs/architecture.md``
 says how to add a backend or a solver.
 
 This module imports nothing of :mod:`clothgrid.solvers` (the solvers import it):
