@@ -27,7 +27,7 @@ from __future__ import annotations
 import os
 import re
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -211,9 +211,8 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
         if plot_path in paths:
             raise InputError(f"{str(plot)!r} is given both as an output and as the plot")
     for path in paths + ([plot_path] if plot_path is not None else []):
-        folder = path.parent
-        while not folder.exists() and folder != folder.parent:   # missing folders are made when writing
-            folder = folder.parent
+        missing = _missing_folders(path)   # made when writing
+        folder = missing[-1].parent if missing else path.parent
         if not folder.is_dir():
             raise InputError(f"output folder {str(folder)!r} is not a folder (for {str(path)!r})")
         if not os.access(folder, os.W_OK | os.X_OK):
@@ -223,16 +222,21 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
     return paths, plot_path
 
 
+def _missing_folders(path: Path) -> list[Path]:
+    """The parent folders of ``path`` that do not exist yet, deepest first."""
+    missing = []
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
+
+
 def _make_folders(paths: Sequence[Path]) -> list[Path]:
     """Create the missing parent folders of ``paths``; return those created, deepest first."""
     made: list[Path] = []
     for path in paths:
-        missing = []
-        folder = path.parent
-        while not folder.exists() and folder != folder.parent:
-            missing.append(folder)
-            folder = folder.parent
-        for f in reversed(missing):
+        for f in reversed(_missing_folders(path)):
             try:
                 f.mkdir()
             except OSError as exc:
@@ -498,8 +502,3 @@ def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, can
                                    corner_candidates(piece, MIN_TURN_DEG if min_turn is None else min_turn)]
         out.append(entry)
     return out
-
-
-def with_options(options: GridOptions, **changes: Any) -> GridOptions:
-    """A copy of ``options`` with ``changes`` (checked again)."""
-    return replace(options, **changes)

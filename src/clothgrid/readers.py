@@ -35,7 +35,7 @@ from .patterns import Piece, piece_boundary
 from .patterns.sampling import DEFAULT_REL_TOL
 from .units import unit_to_mm
 
-__all__ = ["READERS", "register_reader", "read_input", "read_pieces", "is_pattern_file", "load_boundary",
+__all__ = ["READERS", "register_reader", "read_input", "read_pieces", "load_boundary",
            "load_single_boundary", "read_json", "load_npz"]
 
 Reader = Callable[..., "Boundary | list[Piece]"]
@@ -165,29 +165,11 @@ def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | N
     path = Path(path)
     reader = reader_for(path, READERS, "input")
     options = {k: v for k, v in (("units", units), ("rel_tol", rel_tol)) if v is not None}
-    if reader is _read_json_input and not _is_garmentcode(path):
-        options = {}                           # a boundary JSON has no units to override
-    elif options and reader not in (_read_svg, _read_dxf, _read_json_input):
+    if options and reader not in (_read_svg, _read_dxf, _read_json_input):   # (a boundary JSON ignores them)
         params = inspect.signature(reader).parameters      # a registered reader takes what it names
         if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
             options = {k: v for k, v in options.items() if k in params}
     return reader(path, **options)
-
-
-def is_pattern_file(path: str | Path) -> bool:
-    """Is ``path`` a pattern file (SVG, DXF, GarmentCode JSON) rather than a boundary file?
-
-    Decided by extension, and for ``.json`` by the ``"pattern"`` object of
-    GarmentCode; a reader registered for another extension counts as a pattern
-    reader. Unreadable files give False (the boundary reader then reports the problem).
-    """
-    path = Path(path)
-    ext = path.suffix.lower()
-    if ext not in READERS:
-        return False
-    if ext == ".json":
-        return _is_garmentcode(path)
-    return True
 
 
 def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:

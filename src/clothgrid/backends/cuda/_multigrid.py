@@ -69,7 +69,7 @@ def _coarse_stencil(level: Level, xp: Any, p: int) -> tuple:
     """
     if level.sep is not None:
         return level.sep.stencil(np.float32, xp=xp, rows=slice(p, None, 2))
-    return tuple(xp.ascontiguousarray(xp.asarray(a)[:, p::2]) for a in (level.C, level.E, level.N, level.NE, level.NW))
+    return tuple(xp.asarray(np.ascontiguousarray(a[:, p::2])) for a in (level.C, level.E, level.N, level.NE, level.NW))
 
 
 class CudaMultigrid:
