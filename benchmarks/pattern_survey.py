@@ -1,0 +1,118 @@
+"""Survey: the default `generate` on every piece of every real pattern file.
+
+    python benchmarks/pattern_survey.py [--edge-length 10mm] [FILES...] [--json out.json]
+
+Per piece: corners method, folded cells, smallest/largest angle (corner cells
+aside), edge spread, seconds. A summary at the end.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from clothgrid.errors import ClothgridError  # noqa: E402
+from clothgrid.pipeline import GridOptions, read_jobs, run_job  # noqa: E402
+
+SHARED = ROOT.parent / "shared" / "patterns"
+
+
+def angles(P: np.ndarray) -> tuple[float, float]:
+    X = P[..., :2]
+    c = [X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]]
+    amin = np.full(X.shape[0] - 1 and (X.shape[0] - 1, X.shape[1] - 1), 180.0)
+    amax = np.zeros_like(amin)
+    for k in range(4):
+        a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
+        cr = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+        dt = (a * b).sum(-1)
+        ang = np.degrees(np.arctan2(cr, dt))
+        ang = np.where(ang < 0, 0.0, ang)
+        amin = np.minimum(amin, ang)
+        amax = np.maximum(amax, ang)
+    for ii, jj in ((0, 0), (-1, 0), (0, -1), (-1, -1)):
+        amin[ii, jj] = 180.0
+        amax[ii, jj] = 0.0
+    return float(amin.min()), float(amax.max())
+
+
+def spread(P: np.ndarray) -> tuple[float, float]:
+    eu = np.linalg.norm(np.diff(P, axis=0), axis=-1)
+    ev = np.linalg.norm(np.diff(P, axis=1), axis=-1)
+    e = np.concatenate([eu.ravel(), ev.ravel()])
+    return float(e.max() / max(e.min(), 1e-300)), float(e.min())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("files", nargs="*")
+    ap.add_argument("--edge-length", default=None)
+    ap.add_argument("--functional", default=None)
+    ap.add_argument("--weights", default=None)
+    ap.add_argument("--json")
+    a = ap.parse_args(argv)
+    files = [Path(f) for f in a.files] or sorted(p for p in SHARED.iterdir()
+                                                 if p.suffix.lower() in (".svg", ".dxf", ".json"))
+    kw = {}
+    if a.edge_length:
+        kw["edge_length"] = a.edge_length
+    if a.functional:
+        kw["functional"] = a.functional
+    if a.weights:
+        kw["weights"] = a.weights
+    opts = GridOptions(**kw)
+    rows = []
+    for f in files:
+        t0 = time.perf_counter()
+        try:
+            jobs = read_jobs(f, ["/tmp/survey_{piece}.npz"], options=opts)
+        except ClothgridError as exc:
+            rows.append({"file": f.name, "piece": None, "error": str(exc)})
+            print(f"{f.name}: FILE ERROR {exc}", flush=True)
+            continue
+        for job in jobs:
+            t1 = time.perf_counter()
+            try:
+                r = run_job(job)
+            except ClothgridError as exc:
+                rows.append({"file": f.name, "piece": job.name, "error": str(exc)})
+                print(f"  {f.name}:{job.name}: ERROR {exc}", flush=True)
+                continue
+            P = r.grid.points
+            amin, amax = angles(P)
+            sp, emin = spread(P)
+            row = {"file": f.name, "piece": job.name, "nodes": list(P.shape[:2]),
+                   "method": job.piece["corners"]["method"], "folded": int(r.quality.folded),
+                   "min_angle": amin, "max_angle": amax, "spread": sp, "shortest": emin,
+                   "edge_length": job.edge_length, "seconds": time.perf_counter() - t1}
+            rows.append(row)
+        print(f"{f.name}: {len(jobs)} pieces, {time.perf_counter() - t0:.1f} s, folded pieces "
+              f"{sum(1 for r in rows if r['file'] == f.name and r.get('folded'))}", flush=True)
+    ok = [r for r in rows if "folded" in r]
+    err = [r for r in rows if "error" in r]
+    if ok:
+        ang = np.array([r["min_angle"] for r in ok])
+        sp = np.array([r["spread"] for r in ok])
+        print(f"\npieces {len(ok)}, errors {len(err)}, folded pieces {sum(r['folded'] > 0 for r in ok)} "
+              f"({sum(r['folded'] for r in ok)} cells)")
+        print(f"min angle >= 10: {np.mean(ang >= 10) * 100:.1f} %, >= 3: {np.mean(ang >= 3) * 100:.1f} %, "
+              f"worst {ang.min():.2f}")
+        print(f"edge spread median {np.median(sp):.2f}, max {sp.max():.1f}")
+        print(f"seconds total {sum(r['seconds'] for r in ok):.1f}")
+        worst = sorted(ok, key=lambda r: r["min_angle"])[:10]
+        for r in worst:
+            print(f"  {r['file']}:{r['piece']} {r['method']} folded {r['folded']} angle {r['min_angle']:.1f} spread {r['spread']:.1f}")
+    if a.json:
+        Path(a.json).write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
