@@ -348,12 +348,14 @@ def test_resampled_boundary():
     for s in ("bottom", "right", "top", "left"):
         assert np.array_equal(getattr(r, s)[[0, -1]], getattr(b, s)[[0, -1]])
     assert np.array_equal(r.left[0], r.bottom[0]) and np.array_equal(r.right[-1], r.top[-1])
-    np.testing.assert_allclose(np.diff(r.bottom[:, 0] + r.bottom[:, 1]), 3.0 / 8, rtol=1e-12)
+    # bottom: 2 long then 1 up, 8 segments split 5 + 3 at the kept corner
+    np.testing.assert_allclose(np.diff(r.bottom[:6, 0]), 2.0 / 5, rtol=1e-12)
+    np.testing.assert_allclose(np.diff(r.bottom[5:, 1]), 1.0 / 3, rtol=1e-12)
     np.testing.assert_allclose(np.diff(r.top[:, 0]), 2.0 / 8, rtol=1e-12)
     np.testing.assert_allclose(np.diff(r.right[:, 1]), 2.0 / 3, rtol=1e-12)
-    # the resampled bottom cuts the L's corner (2, 0); the other sides are straight
-    assert r.side_lengths[1:] == pytest.approx(b.side_lengths[1:])
-    assert r.side_lengths[0] < b.side_lengths[0]
+    # the L's corner (2, 0) turns by 90 degrees: it is kept as a node, so no side is cut short
+    assert any(np.array_equal(p[:2], [2.0, 0.0]) for p in r.bottom)
+    assert r.side_lengths == pytest.approx(b.side_lengths)
 
 
 @pytest.mark.parametrize("nu, nv", [(1, 5), (5, 0), (2.0, 5), ("3", 4), (True, 4)])
@@ -447,3 +449,18 @@ def test_register_reader(tmp_path, monkeypatch):
     assert b.name == "thing" and calls == [tmp_path / "thing.sq"]
     with pytest.raises(InputError, match=r"known: .*\.json, \.sq"):
         load_boundary(write(tmp_path, "thing.txt", ""))
+
+
+def test_resample_keeps_sharp_vertices_and_spreads_the_rest_by_length():
+    from clothgrid.boundary import sharp_vertices
+    # a dart: along, down into the V, up, along (turns of about 100 and 160 degrees)
+    p = np.array([[0, 0], [4, 0], [4.2, -3], [4.4, 0], [10, 0]], float)
+    keep = sharp_vertices(p)
+    assert list(keep) == [1, 2, 3]
+    q = resample_polyline(p, 21, keep)
+    for k in keep:                                  # every sharp vertex is a node, exactly
+        assert any(np.array_equal(x[:2], p[k]) for x in q)
+    assert np.all(np.diff(q[:, 0]) >= 0)            # in order along the side
+    assert np.array_equal(q[0, :2], p[0]) and np.array_equal(q[-1, :2], p[-1])
+    smooth = np.c_[np.linspace(0, 1, 50), np.sin(np.linspace(0, 1, 50))]
+    assert len(sharp_vertices(smooth)) == 0       # a sampled smooth curve keeps nothing

@@ -81,7 +81,30 @@ def _check_count(n: Any, what: str) -> int:
     return int(n)
 
 
-def resample_polyline(points: Any, n: int) -> np.ndarray:
+#: A polyline vertex that turns by at least this (degrees) is kept as a node when a side is
+#: resampled (:meth:`Boundary.resampled`): a dart's tip and mouth, a notch, a kink.
+SHARP_TURN_DEG = 30.0
+
+
+def sharp_vertices(points: Any, min_turn: float = SHARP_TURN_DEG) -> np.ndarray:
+    """Indices of the inner vertices of a polyline that turn by at least ``min_turn`` degrees."""
+    pts = _to3d(_as_points(points, "the polyline"))
+    if len(pts) < 3:
+        return np.zeros(0, dtype=np.int64)
+    d = np.diff(pts, axis=0)
+    ln = np.linalg.norm(d, axis=1)
+    ok = ln > 0
+    idx = np.flatnonzero(ok)
+    if len(idx) < 2:
+        return np.zeros(0, dtype=np.int64)
+    u = d[idx] / ln[idx, None]
+    cosang = np.clip((u[:-1] * u[1:]).sum(axis=1), -1.0, 1.0)
+    turn = np.degrees(np.arccos(cosang))
+    # the vertex between segment idx[k] and idx[k+1] is idx[k+1]
+    return (idx[1:][turn >= min_turn]).astype(np.int64)
+
+
+def resample_polyline(points: Any, n: int, keep: Any = None) -> np.ndarray:
     """Resample a polyline to ``n`` points uniformly spaced in arc length.
 
     Parameters
@@ -91,13 +114,18 @@ def resample_polyline(points: Any, n: int) -> np.ndarray:
         allowed.
     n : int
         Number of points wanted, ``n >= 2``.
+    keep : sequence of int, optional
+        Inner vertices of ``points`` that must be nodes: the polyline is cut
+        there and each piece gets a share of the ``n - 1`` segments in
+        proportion to its length (at least one each; where there are more
+        such vertices than inner nodes, those of the shortest pieces are dropped).
 
     Returns
     -------
     numpy.ndarray
         ``(n, 3)`` float64 points on the polyline, equally spaced in its arc
-        length; the first and last points are exactly ``points[0]`` and
-        ``points[-1]``.
+        length (piecewise, with ``keep``); the first and last points are
+        exactly ``points[0]`` and ``points[-1]``.
     """
     n = _check_count(n, "the number of points")
     pts = _to3d(_as_points(points, "the polyline"))
@@ -106,12 +134,49 @@ def resample_polyline(points: Any, n: int) -> np.ndarray:
     s = _arc_length(pts)
     if s[-1] <= 0.0:
         raise BoundaryError("cannot resample a polyline of zero length")
-    keep = np.concatenate([[True], np.diff(s) > 0.0])   # strictly increasing for interp
-    s, q = s[keep], pts[keep]
-    t = np.linspace(0.0, s[-1], n)
-    out = np.column_stack([np.interp(t, s, q[:, k]) for k in range(3)])
+    cuts = sorted({int(i) for i in (keep if keep is not None else ()) if 0 < int(i) < len(pts) - 1})
+    if cuts and n > 2:
+        t = _piecewise_targets(s, cuts, n)
+    else:
+        t = np.linspace(0.0, s[-1], n)
+    nz = np.concatenate([[True], np.diff(s) > 0.0])   # strictly increasing for interp
+    sk, q = s[nz], pts[nz]
+    out = np.column_stack([np.interp(t, sk, q[:, k]) for k in range(3)])
     out[0], out[-1] = pts[0], pts[-1]
+    if cuts and n > 2:
+        exact = {float(s[i]): pts[i] for i in cuts}
+        for k, x in enumerate(t):
+            if float(x) in exact:
+                out[k] = exact[float(x)]
     return out
+
+
+def _piecewise_targets(s: np.ndarray, cuts: list[int], n: int) -> np.ndarray:
+    """Arc positions of ``n`` nodes: every cut vertex a node, the rest spread by length."""
+    total = float(s[-1])
+    pos = [float(s[i]) for i in cuts]
+    pos = [p for p in pos if 0.0 < p < total]
+    while True:
+        bounds = [0.0] + pos + [total]
+        lens = np.diff(bounds)
+        if len(pos) <= n - 2 and (lens > 0).all():
+            break
+        # too many cuts: drop the one that ends the shortest piece
+        k = int(np.argmin(lens))
+        pos.pop(min(k, len(pos) - 1))
+        if not pos:
+            return np.linspace(0.0, total, n)
+    segs = len(lens)
+    share = lens / total * (n - 1)
+    cnt = np.maximum(1, np.floor(share)).astype(np.int64)
+    while cnt.sum() > n - 1:                              # at least one each: take from the richest
+        k = int(np.argmax(np.where(cnt > 1, cnt - share, -np.inf)))
+        cnt[k] -= 1
+    while cnt.sum() < n - 1:                              # largest remainders
+        k = int(np.argmax(share - cnt))
+        cnt[k] += 1
+    t = [np.linspace(bounds[k], bounds[k + 1], int(cnt[k]) + 1)[:-1] for k in range(segs)]
+    return np.concatenate(t + [[total]])
 
 
 def _segments_intersect(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
@@ -469,8 +534,10 @@ class Boundary:
         """The boundary with ``nu`` points on bottom and top, ``nv`` on left and right.
 
         Sides with a different count are resampled uniformly by arc length
-        (:func:`resample_polyline`), keeping the corners exactly; sides that
-        already have the requested count are kept as they are.
+        (:func:`resample_polyline`), keeping the corners exactly and, as nodes,
+        the vertices where a side turns by :data:`SHARP_TURN_DEG` or more (a
+        dart's tip and mouth; the side is spaced uniformly between them);
+        sides that already have the requested count are kept as they are.
 
         Raises
         ------
@@ -480,7 +547,8 @@ class Boundary:
         nu, nv = _check_count(nu, "nu"), _check_count(nv, "nv")
         want = {"bottom": nu, "top": nu, "left": nv, "right": nv}
         new = {s: (getattr(self, s) if len(getattr(self, s)) == n
-                   else resample_polyline(getattr(self, s), n)) for s, n in want.items()}
+                   else resample_polyline(getattr(self, s), n, sharp_vertices(getattr(self, s))))
+               for s, n in want.items()}
         return Boundary(**new, dim=self.dim, name=self.name)
 
     def __repr__(self) -> str:

@@ -35,7 +35,7 @@ from .geometry import PLANAR_TOL, boundary_loop, plane_axes, vector_area
 from .geometry import plane_frame as geometry_plane_frame
 from .initial import transfinite
 
-__all__ = ["untangle", "corner_jacobians", "plane_frame"]
+__all__ = ["untangle", "relax", "corner_jacobians", "plane_frame"]
 
 #: ``eps`` of the delta rule, relative to the mean cell area.
 EPS = 1e-2
@@ -280,3 +280,135 @@ def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_it
             "untangled": bool(stats["min_corner_jacobian"] > 0),
             "min_corner_jacobian": float(stats["min_corner_jacobian"]), "seconds": time.perf_counter() - t0}
     return out, info
+
+
+#: Cells whose smallest corner sine is below this are "poor" and get relaxed (about 20 degrees).
+POOR_SINE = 0.34
+#: Nodes within this many grid lines of a poor cell are moved with it.
+MARGIN = 4
+#: Most untangling rounds of :func:`relax` per active set.
+RELAX_ROUNDS = 30
+#: Most Gauss-Seidel sweeps per round.
+RELAX_SWEEPS = 60
+
+
+def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
+    """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells)."""
+    nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
+    near = np.zeros((nu, nv), dtype=bool)
+    ci, cj = np.nonzero(poor)
+    for di in (0, 1):
+        for dj in (0, 1):
+            near[ci + di, cj + dj] = True
+    if margin > 0:
+        # dilate by `margin` in the max norm (separable running max)
+        for axis in (0, 1):
+            grown = near.copy()
+            for s in range(1, margin + 1):
+                if axis == 0:
+                    grown[s:] |= near[:-s]
+                    grown[:-s] |= near[s:]
+                else:
+                    grown[:, s:] |= near[:, :-s]
+                    grown[:, :-s] |= near[:, s:]
+            near = grown
+    near[0, :] = near[-1, :] = near[:, 0] = near[:, -1] = False
+    return np.argwhere(near).astype(np.int64)
+
+
+def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:
+    from .foldfree_kernels import cell_min_sine
+
+    s = cell_min_sine(X)
+    s[0, 0] = s[-1, 0] = s[0, -1] = s[-1, -1] = 1.0     # a grid corner's angle is the outline's
+    return s < poor_sine
+
+
+def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
+          whole: bool = False, progress: Callable[[str], None] | None = None
+          ) -> tuple[np.ndarray, dict[str, Any]]:
+    """Unfold and improve the poor cells of a planar grid, moving only the nodes near them.
+
+    The energy is :func:`untangle`'s, minimised node by node (Newton steps,
+    :mod:`clothgrid.foldfree_kernels`) over the interior nodes within
+    ``margin`` grid lines of a cell that is folded or has a corner angle whose
+    sine is below ``poor_sine``; the margin doubles while folds remain
+    (up to the whole grid). Cost follows the size of the poor region.
+
+    Parameters
+    ----------
+    points : array_like
+        ``(nu, nv, 3)`` grid (``z = 0`` for 2D pieces); boundary nodes are kept exactly.
+    dim : int
+        2 for a grid in the xy-plane, else 3 (then the grid must be planar).
+    poor_sine, margin :
+        Which cells are relaxed and how far around them.
+    whole : bool
+        Relax every interior node (then ``poor_sine`` and ``margin`` are unused).
+    progress : callable, optional
+        Called with a line of text per stage.
+
+    Returns
+    -------
+    points : numpy.ndarray
+        ``(nu, nv, 3)`` nodes.
+    info : dict
+        ``moved`` (nodes in the last active set), ``sweeps``, ``rounds``,
+        ``untangled``, ``min_corner_jacobian`` (relative to the mean cell
+        area, grid-corner terms aside), ``seconds``, ``method`` ("relax", or
+        "untangle" when the global fallback ran).
+    """
+    from .foldfree_kernels import corner_min, sweep_nodes
+
+    t0 = time.perf_counter()
+    say = progress or (lambda _msg: None)
+    R = np.array(points, dtype=np.float64)
+    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
+        raise InputError(f"relax needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
+    if not np.isfinite(R).all():
+        raise InputError("relax needs finite node coordinates")
+    centre, basis = plane_frame(R, dim)
+    X = (R - centre) @ basis.T
+    nu, nv = X.shape[:2]
+    loop = boundary_loop(X)
+    area = 0.5 * float(np.sum(loop[:, 0] * np.roll(loop[:, 1], -1) - loop[:, 1] * np.roll(loop[:, 0], -1)))
+    if not area > 0:
+        raise InputError("the piece's boundary encloses no area")
+    scale = np.sqrt(area / ((nu - 1) * (nv - 1)))
+    shift = loop.mean(axis=0)
+    Xs = np.ascontiguousarray((X - shift) / scale)
+    stats: dict[str, Any] = {"sweeps": 0, "rounds": 0, "moved": 0, "method": "relax"}
+    poor = np.ones((nu - 1, nv - 1), bool) if whole else _poor_cells(Xs, poor_sine)
+    if not poor.any():
+        stats.update(untangled=bool(corner_min(Xs, True) > 0), min_corner_jacobian=float(corner_min(Xs, True)),
+                     seconds=time.perf_counter() - t0)
+        return R, stats
+    m = max(nu, nv) if whole else margin
+    while True:
+        nodes = _active_nodes(poor, m)
+        stats["moved"] = int(len(nodes))
+        jmin = float(corner_min(Xs, True))
+        rounds = 0
+        while jmin <= 0 and rounds < RELAX_ROUNDS and len(nodes):
+            rounds += 1
+            done, _ = sweep_nodes(Xs, nodes, EPS * (EPS - jmin), RELAX_SWEEPS, 1e-3)
+            stats["sweeps"] += int(done)
+            jmin = float(corner_min(Xs, True))
+        stats["rounds"] += rounds
+        if jmin > 0 and len(nodes):
+            done, _ = sweep_nodes(Xs, nodes, DELTA_SMOOTH ** 2, RELAX_SWEEPS, 1e-3)
+            stats["sweeps"] += int(done)
+            jmin = float(corner_min(Xs, True))
+        say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {rounds} untangling "
+            f"rounds, min corner Jacobian {jmin:.3g}")
+        if jmin > 0 or m >= max(nu, nv):
+            break
+        m *= 2
+        poor = poor | _poor_cells(Xs, poor_sine)
+    stats.update(untangled=bool(jmin > 0), min_corner_jacobian=jmin)
+    out = R.copy()
+    out[1:-1, 1:-1] = centre + (Xs[1:-1, 1:-1] * scale + shift) @ basis
+    if dim == 2:
+        out[1:-1, 1:-1, 2] = 0.0
+    stats["seconds"] = time.perf_counter() - t0
+    return out, stats

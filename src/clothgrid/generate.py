@@ -215,12 +215,10 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
 
     q = quality(grid)
     grid.info.update(functional="length", folded_before=q.folded, folded=q.folded)
-    if functional == "auto" and q.folded == 0:
-        return grid
-    from .foldfree import untangle
+    from .foldfree import relax
 
     try:
-        points, ff = untangle(grid.points, dim=grid.dim, progress=say)
+        points, ff = relax(grid.points, dim=grid.dim, whole=functional == "foldfree", progress=say)
     except InputError as exc:
         if functional == "foldfree":
             raise

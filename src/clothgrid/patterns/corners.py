@@ -142,8 +142,13 @@ def _arc(outline: np.ndarray) -> tuple[np.ndarray, float]:
     return np.concatenate([[0.0], np.cumsum(seg)[:-1]]), float(seg.sum())
 
 
-def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float) -> list[int]:
-    """The 4 of ``idx`` (outline order) with the best score; ``q``, ``s`` per outline point."""
+def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
+               outline: np.ndarray | None = None) -> list[int]:
+    """The 4 of ``idx`` (outline order) with the best score; ``q``, ``s`` per outline point.
+
+    With ``outline``, the :data:`GRID_RANKED` best by the quick score are
+    ranked again by the quality of a coarse grid (:func:`grid_score`).
+    """
     idx = sorted(idx)
     if len(idx) > MAX_SCORED:
         keep = sorted(idx, key=lambda i: -q[i])[:MAX_SCORED]
@@ -159,7 +164,92 @@ def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float) -
         r2 = np.minimum(sides[:, 1], sides[:, 3]) / np.maximum(sides[:, 1], sides[:, 3])
     balance = np.nan_to_num(r1 * r2)
     score = q[c].sum(axis=1) + balance
-    return [int(x) for x in c[int(np.argmax(score))]]
+    if outline is None or len(c) == 1:
+        return [int(x) for x in c[int(np.argmax(score))]]
+    top = np.argsort(-score, kind="stable")[:GRID_RANKED]
+    return _rank_by_grid(outline, [list(c[k]) for k in top], q)
+
+
+
+#: Corner sets scored by a coarse grid (the best by the quick score go on to it).
+GRID_RANKED = 24
+#: Cells of the coarse grid that scores a corner set.
+COARSE_CELLS = 240
+
+
+def _side_points(outline: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Outline points from index ``a`` to ``b`` (forward, wrapping), both ends included."""
+    n = len(outline)
+    if b <= a:
+        b += n
+    return outline[np.arange(a, b + 1) % n]
+
+
+def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE_CELLS
+                ) -> np.ndarray:
+    """A coarse fold-free ``(nu, nv, 3)`` grid of ``outline`` with these 4 corners (outline order).
+
+    Sides sampled uniformly by arc length, about ``cells`` cells of about
+    equal size, the interior by transfinite interpolation (eq. 4), then
+    relaxed by :func:`clothgrid.foldfree.relax` over the whole grid.
+    """
+    from ..boundary import resample_polyline
+    from ..foldfree import relax
+    from ..initial import transfinite
+
+    c = list(corners)
+    sides = [_side_points(outline, c[k], c[(k + 1) % 4]) for k in range(4)]
+    lens = [float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides]
+    area = abs(0.5 * float(np.sum(outline[:, 0] * np.roll(outline[:, 1], -1)
+                                  - outline[:, 1] * np.roll(outline[:, 0], -1))))
+    h = math.sqrt(area / cells) if area > 0 else max(lens) / 8
+    nu = int(min(64, max(3, round(max(lens[0], lens[2]) / h) + 1)))
+    nv = int(min(64, max(3, round(max(lens[1], lens[3]) / h) + 1)))
+    r = np.zeros((nu, nv, 3))
+    r[:, 0] = resample_polyline(sides[0], nu)
+    r[-1, :] = resample_polyline(sides[1], nv)
+    r[:, -1] = resample_polyline(sides[2], nu)[::-1]
+    r[0, :] = resample_polyline(sides[3], nv)[::-1]
+    transfinite(r)
+    out, _ = relax(r, dim=2, whole=True)
+    return out
+
+
+def grid_score(points: np.ndarray) -> float:
+    """Higher is better: folds first, then the smallest and mean corner sines, then the edge spread.
+
+    The four grid-corner cells are left out (their angle is the outline's).
+    """
+    from ..foldfree_kernels import cell_min_sine
+
+    X = np.ascontiguousarray(points[..., :2])
+    s = cell_min_sine(X)
+    mask = np.ones(s.shape, bool)
+    mask[0, 0] = mask[-1, 0] = mask[0, -1] = mask[-1, -1] = False
+    if not mask.any():
+        mask[:] = True
+    sv = s[mask]
+    folded = float(np.mean(sv <= 0))
+    if folded > 0:
+        return -10.0 - folded
+    eu = np.hypot(*np.diff(X, axis=0).reshape(-1, 2).T)
+    ev = np.hypot(*np.diff(X, axis=1).reshape(-1, 2).T)
+    e = np.concatenate([eu, ev])
+    spread = float(e.max() / max(e.min(), 1e-300))
+    return float(2.0 * sv.min() + sv.mean() - 0.25 * math.log10(spread))
+
+
+def _rank_by_grid(outline: np.ndarray, combos: list[list[int]], q: np.ndarray) -> list[int]:
+    """The corner set of ``combos`` whose coarse grid scores best (corner quality ``q`` breaks near-ties)."""
+    best, best_c = -np.inf, combos[0]
+    for c in combos:
+        try:
+            score = grid_score(coarse_grid(outline, c)) + 0.25 * float(np.mean(q[c]))
+        except (InputError, ValueError, FloatingPointError):
+            continue
+        if score > best:
+            best, best_c = score, c
+    return [int(i) for i in best_c]
 
 
 def _split(outline: np.ndarray, corners: list[int]) -> tuple[np.ndarray, list[int], list[int]]:
@@ -322,7 +412,7 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
         method = "turn-points" if pool is tps else "candidates"
         message = f"the {k_desc} are the corners"
     elif pool is not None:
-        chosen, method = _best_four(pool, q, s, perimeter), "scored"
+        chosen, method = _best_four(pool, q, s, perimeter, outline), "scored"
         left = [i for i in pool if i not in chosen]
         what = (k_desc if pool is tps
                 else f"{len(pool)} corner candidates (turns of {min_turn:g}° or more"

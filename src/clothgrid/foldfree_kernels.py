@@ -1,0 +1,234 @@
+"""Numba kernels of the fold-free step: node-by-node minimisation of the corner energy.
+
+The energy of :mod:`clothgrid.foldfree` (the regularised Winslow energy of the
+four corner triangles of every cell),
+
+    f = (|a|^2 + |b|^2) / (J + sqrt(J^2 + 4 delta^2)),   J = a x b,
+
+is minimised one interior node at a time (nonlinear Gauss-Seidel, as Escobar
+et al. do it): the node moves by a Newton step on the energy of its four cells
+(analytic 2 x 2 gradient and Hessian, a gradient step where the Hessian is
+not positive definite), shortened until the energy goes down. ``delta`` is
+given relative to the local cell area (the mean squared length of the node's
+four edges), so that small cells of a graded grid are untangled like large ones. ``J`` is linear in
+the node's position and ``|a|^2 + |b|^2`` quadratic, so both derivatives are exact.
+
+Only the nodes listed are moved (an *active set*: where cells are folded or
+poorly shaped, and a margin around them), so the cost follows the size of the
+bad region, not of the grid. Coordinates are planar ``(nu, nv, 2)``, oriented
+counter-clockwise, scaled so that the mean cell area is about 1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["sweep_nodes", "corner_min", "cell_min_sine"]
+
+# Node offsets of the four corners of cell (ci, cj) in quad order.
+_DI = np.array([0, 1, 1, 0], dtype=np.int64)
+_DJ = np.array([0, 0, 1, 1], dtype=np.int64)
+
+
+@njit(cache=True, fastmath=False)
+def _node_energy(X, i, j, px, py, d4, want):
+    """Energy of the 4 cells around node (i, j) with the node at (px, py); gradient, Hessian if want."""
+    E = 0.0
+    gx = 0.0
+    gy = 0.0
+    hxx = 0.0
+    hxy = 0.0
+    hyy = 0.0
+    for c in range(4):
+        ci = i - 1 + (c & 1)
+        cj = j - 1 + (c >> 1)
+        # local index m of the node in this cell
+        m = -1
+        for k in range(4):
+            if ci + _DI[k] == i and cj + _DJ[k] == j:
+                m = k
+        for t in range(3):          # the three corners whose triangle holds the node
+            k = (m + t - 1) % 4     # m-1 (node is a's end), m (apex), m+1 (node is b's end)
+            k1 = (k + 1) % 4
+            k3 = (k + 3) % 4
+            # corner points, with the node replaced by (px, py)
+            if k == m:
+                x0, y0 = px, py
+            else:
+                x0 = X[ci + _DI[k], cj + _DJ[k], 0]
+                y0 = X[ci + _DI[k], cj + _DJ[k], 1]
+            if k1 == m:
+                x1, y1 = px, py
+            else:
+                x1 = X[ci + _DI[k1], cj + _DJ[k1], 0]
+                y1 = X[ci + _DI[k1], cj + _DJ[k1], 1]
+            if k3 == m:
+                x3, y3 = px, py
+            else:
+                x3 = X[ci + _DI[k3], cj + _DJ[k3], 0]
+                y3 = X[ci + _DI[k3], cj + _DJ[k3], 1]
+            ax = x1 - x0
+            ay = y1 - y0
+            bx = x3 - x0
+            by = y3 - y0
+            J = ax * by - ay * bx
+            N = ax * ax + ay * ay + bx * bx + by * by
+            s = np.sqrt(J * J + d4)
+            D = J + s
+            if D <= 0.0:
+                return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
+            f = N / D
+            E += f
+            if not want:
+                continue
+            if k == m:          # apex: a = P1 - p, b = P3 - p
+                nx = -2.0 * (ax + bx)
+                ny = -2.0 * (ay + by)
+                h2 = 4.0
+                jx = ay - by
+                jy = bx - ax
+            elif k1 == m:       # a = p - P0
+                nx = 2.0 * ax
+                ny = 2.0 * ay
+                h2 = 2.0
+                jx = by
+                jy = -bx
+            else:               # b = p - P0
+                nx = 2.0 * bx
+                ny = 2.0 * by
+                h2 = 2.0
+                jx = -ay
+                jy = ax
+            Dp = 1.0 + J / s
+            Dpp = d4 / (s * s * s)
+            gx += nx / D - N * Dp / (D * D) * jx
+            gy += ny / D - N * Dp / (D * D) * jy
+            cjj = 2.0 * N * Dp * Dp / (D * D * D) - N * Dpp / (D * D)
+            cnj = Dp / (D * D)
+            hxx += h2 / D - cnj * 2.0 * nx * jx + cjj * jx * jx
+            hyy += h2 / D - cnj * 2.0 * ny * jy + cjj * jy * jy
+            hxy += -cnj * (nx * jy + jx * ny) + cjj * jx * jy
+    return E, gx, gy, hxx, hxy, hyy
+
+
+@njit(cache=True)
+def sweep_nodes(X, nodes, delta2, sweeps, tol):
+    """Gauss-Seidel sweeps of node-wise Newton steps over ``nodes`` ((K, 2) int64).
+
+    Returns ``(sweeps done, largest move of the last sweep)``; moves are
+    measured in the scaled coordinates (mean cell area 1). Stops early when
+    no node moves more than ``tol``.
+    """
+    done = 0
+    last = 0.0
+    for _ in range(sweeps):
+        done += 1
+        big = 0.0
+        for q in range(nodes.shape[0]):
+            i = nodes[q, 0]
+            j = nodes[q, 1]
+            px = X[i, j, 0]
+            py = X[i, j, 1]
+            loc = 0.0                # local cell area: mean squared length of the 4 edges at the node
+            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                ex = X[i + di, j + dj, 0] - px
+                ey = X[i + di, j + dj, 1] - py
+                loc += 0.25 * (ex * ex + ey * ey)
+            d4 = 4.0 * delta2 * loc * loc
+            E, gx, gy, hxx, hxy, hyy = _node_energy(X, i, j, px, py, d4, True)
+            if not np.isfinite(E):
+                continue
+            det = hxx * hyy - hxy * hxy
+            if hxx > 0.0 and det > 1e-30 * (hxx * hyy + 1e-300):
+                dx = -(hyy * gx - hxy * gy) / det
+                dy = -(hxx * gy - hxy * gx) / det
+            else:               # not positive definite: a gradient step scaled by the diagonal
+                sc = max(abs(hxx), abs(hyy), 1e-12)
+                dx = -gx / sc
+                dy = -gy / sc
+            # keep the step within the node's neighbourhood
+            lim = 0.0
+            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+                ex = X[i + di, j + dj, 0] - px
+                ey = X[i + di, j + dj, 1] - py
+                lim = max(lim, np.sqrt(ex * ex + ey * ey))
+            step = np.sqrt(dx * dx + dy * dy)
+            if step > lim and step > 0.0:
+                dx *= lim / step
+                dy *= lim / step
+            t = 1.0
+            moved = False
+            for _ls in range(12):
+                E1, _a, _b, _c, _d, _e = _node_energy(X, i, j, px + t * dx, py + t * dy, d4, False)
+                if E1 < E:
+                    moved = True
+                    break
+                t *= 0.5
+            if moved:
+                X[i, j, 0] = px + t * dx
+                X[i, j, 1] = py + t * dy
+                mv = t * np.sqrt(dx * dx + dy * dy)
+                if mv > big:
+                    big = mv
+        last = big
+        if big < tol:
+            break
+    return done, last
+
+
+@njit(cache=True)
+def corner_min(X, skip_grid_corners):
+    """Smallest ``a x b / (|a|^2 + |b|^2)`` of all cell corners (1/2 for a square; the 4 fixed grid-corner terms skipped if asked)."""
+    nu = X.shape[0]
+    nv = X.shape[1]
+    best = np.inf
+    for ci in range(nu - 1):
+        for cj in range(nv - 1):
+            for k in range(4):
+                i0 = ci + _DI[k]
+                j0 = cj + _DJ[k]
+                if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
+                    continue
+                k1 = (k + 1) % 4
+                k3 = (k + 3) % 4
+                ax = X[ci + _DI[k1], cj + _DJ[k1], 0] - X[i0, j0, 0]
+                ay = X[ci + _DI[k1], cj + _DJ[k1], 1] - X[i0, j0, 1]
+                bx = X[ci + _DI[k3], cj + _DJ[k3], 0] - X[i0, j0, 0]
+                by = X[ci + _DI[k3], cj + _DJ[k3], 1] - X[i0, j0, 1]
+                J = ax * by - ay * bx
+                N = ax * ax + ay * ay + bx * bx + by * by
+                v = J / N if N > 0.0 else -1.0
+                if v < best:
+                    best = v
+    return best
+
+
+@njit(cache=True)
+def cell_min_sine(X):
+    """``(nu-1, nv-1)`` smallest signed corner sine ``a x b / (|a| |b|)`` of every cell (<= 0: folded)."""
+    nu = X.shape[0]
+    nv = X.shape[1]
+    out = np.empty((nu - 1, nv - 1))
+    for ci in range(nu - 1):
+        for cj in range(nv - 1):
+            best = np.inf
+            for k in range(4):
+                i0 = ci + _DI[k]
+                j0 = cj + _DJ[k]
+                k1 = (k + 1) % 4
+                k3 = (k + 3) % 4
+                ax = X[ci + _DI[k1], cj + _DJ[k1], 0] - X[i0, j0, 0]
+                ay = X[ci + _DI[k1], cj + _DJ[k1], 1] - X[i0, j0, 1]
+                bx = X[ci + _DI[k3], cj + _DJ[k3], 0] - X[i0, j0, 0]
+                by = X[ci + _DI[k3], cj + _DJ[k3], 1] - X[i0, j0, 1]
+                la = np.sqrt(ax * ax + ay * ay)
+                lb = np.sqrt(bx * bx + by * by)
+                if la == 0.0 or lb == 0.0:
+                    v = -1.0
+                else:
+                    v = (ax * by - ay * bx) / (la * lb)
+                if v < best:
+                    best = v
+            out[ci, cj] = best
+    return out
