@@ -612,9 +612,12 @@ def _bad_files() -> dict[str, tuple[str, str | bytes, tuple[str, ...]]]:
         "svg-no-closed-path": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
                                'height="10mm"><path d="M0 0 L5 5 L9 1"/></svg>',
                                ("no closed path",)),
-        "svg-three-points": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
-                             'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0 0,9"/></svg>',
-                             ("only 3", "at least 4")),
+        "svg-two-points": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                           'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0"/></svg>',
+                           ("only 2", "at least 3")),
+        "svg-no-area": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                        'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0 4,0"/></svg>',
+                        ("no area",)),
         "svg-unknown-units": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10em" '
                               'height="10em"><rect width="5" height="5"/></svg>',
                               ("unknown unit", "em")),
