@@ -27,9 +27,14 @@ import os
 
 from .errors import SizeError
 
-__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes"]
+__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes", "FIT_FRACTION",
+           "KEPT_BYTES_PER_NODE"]
 
 PIPELINE_BYTES_PER_NODE = 80
+#: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
+KEPT_BYTES_PER_NODE = 72
+#: a grid fits when its estimate is at most this fraction of the available memory
+FIT_FRACTION = 0.9
 QUALITY_BYTES_PER_CELL = 200
 
 
@@ -70,25 +75,36 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
 
 
 def format_bytes(b: float) -> str:
-    """``1.5 GiB``-style text."""
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if b < 1024 or unit == "TiB":
-            return f"{b:.3g} {unit}"
+    """``1.5 GiB``-style text (3 significant digits; binary units up to EiB)."""
+    units = ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB")
+    for unit in units:
+        if b < 999.5 or unit == units[-1]:
+            return f"{b:.3g} {unit}" if b < 999.5 else f"{b:,.0f} {unit}"
         b /= 1024
     raise AssertionError
 
 
-def check_memory(solver: str, nu: int, nv: int, available: int | None = None) -> int:
+def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
+                 kept: int = 0, what: str = "") -> int:
     """Raise :class:`SizeError` if the grid would not fit; return the estimate.
 
-    A grid fits when its estimate is at most 90 % of the available memory.
+    A grid fits when its estimate (plus ``kept``: bytes already held that the
+    available memory does not yet show, e.g. the grids of earlier pieces kept
+    until every output is written) is at most :data:`FIT_FRACTION` (90 %) of
+    the available memory. ``what`` starts the message (``"piece 'front': "``).
+    The message gives the numbers of that rule: what is needed, what is
+    available and the 90 % of it a solve may take.
     """
     need = estimate_bytes(solver, nu, nv)
     have = available_bytes() if available is None else available
-    if need > 0.9 * have:
-        hint = "use fewer nodes"
+    total = need + max(int(kept), 0)
+    if total > FIT_FRACTION * have:
+        hint = "use fewer nodes or a longer edge length"
         if solver == "direct":
             hint = "use solver 'fdm' (separable weights) or fewer nodes"
-        raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of memory, "
-                        f"more than the 90 % of the {format_bytes(have)} available that a solve may take: {hint}")
+        held = (f" ({format_bytes(need)} for the grid and {format_bytes(kept)} for the grids made "
+                "before it, kept until the outputs are written)" if kept > 0 else "")
+        raise SizeError(f"{what}a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(total)} of "
+                        f"memory{held}, more than the {FIT_FRACTION:.0%} of the {format_bytes(have)} available "
+                        f"({format_bytes(FIT_FRACTION * have)}) that a solve may take: {hint}")
     return need

@@ -7,7 +7,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, PiecesError
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
 __all__ = ["Piece", "PieceFailure", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
@@ -151,19 +151,16 @@ def piece_failure(name: str, exc: BaseException, where: str = "", stage: str = "
 
 def pattern_pieces(pieces: Sequence[Piece], failed: Sequence[PieceFailure], where: str,
                    none: str | None = None) -> Pieces:
-    """The reader's answer: the good pieces and the failed ones, or an :class:`InputError` when
-    no piece could be made (the one failure's message, or every failure's reason)."""
+    """The reader's answer: the good pieces and the failed ones, or a :class:`PiecesError` (an
+    InputError) when no piece could be made (the one failure's message, or every failure's reason)."""
     if pieces:
         return Pieces(pieces, failed)
     if not failed:
         raise InputError(none or f"{where}: no pattern piece found")
     if len(failed) == 1:
-        exc = InputError(failed[0].message(where))
-    else:
-        exc = InputError(f"{where}: none of its {len(failed)} pieces could be read: "
-                         + "; ".join(f.message() for f in failed))
-    exc.failed = list(failed)   # type: ignore[attr-defined]
-    raise exc
+        raise PiecesError(failed[0].message(where), failed, where)
+    raise PiecesError(f"{where}: none of its {len(failed)} pieces could be read: "
+                      + "; ".join(f.message() for f in failed), failed, where)
 
 
 def _signed_area(p: np.ndarray) -> float:
