@@ -74,12 +74,13 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
     return int(total)
 
 
-def format_bytes(b: float) -> str:
-    """``1.5 GiB``-style text (3 significant digits; binary units up to EiB)."""
+def format_bytes(b: float, digits: int = 3) -> str:
+    """``1.5 GiB``-style text (``digits`` significant digits; binary units up to EiB)."""
     units = ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB")
+    top = 10**digits - 0.5          # what still rounds below 10**digits
     for unit in units:
-        if b < 999.5 or unit == units[-1]:
-            return f"{b:.3g} {unit}" if b < 999.5 else f"{b:,.0f} {unit}"
+        if b < top or unit == units[-1]:
+            return f"{b:.{digits}g} {unit}" if b < top else f"{b:,.0f} {unit}"
         b /= 1024
     raise AssertionError
 
@@ -104,7 +105,11 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
             hint = "use solver 'fdm' (separable weights) or fewer nodes"
         held = (f" ({format_bytes(need)} for the grid and {format_bytes(kept)} for the grids made "
                 "before it, kept until the outputs are written)" if kept > 0 else "")
+        # the two numbers of the rule in one unit and 4 digits, so that 90 % of the one is the other
+        unit_of = format_bytes(have).split()[1]
+        scale = 1024 ** ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB").index(unit_of)
         raise SizeError(f"{what}a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(total)} of "
-                        f"memory{held}, more than the {FIT_FRACTION:.0%} of the {format_bytes(have)} available "
-                        f"({format_bytes(FIT_FRACTION * have)}) that a solve may take: {hint}")
+                        f"memory{held}, more than a solve may take: {FIT_FRACTION:.0%} of the "
+                        f"{have / scale:.4g} {unit_of} available is {FIT_FRACTION * have / scale:.4g} {unit_of}: "
+                        f"{hint}")
     return need
