@@ -381,3 +381,116 @@ def test_closed_pipe_ends_quietly(tmp_path):
     p.wait(timeout=120)
     assert b"1500 pieces" in first
     assert p.returncode == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+# --------------------------------------------------------------------------- one bad piece, the others go on
+
+_MIXED_SVG = ('<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="100mm" viewBox="0 0 200 100">'
+              '<rect id="good" x="10" y="10" width="60" height="40"/>'
+              '<path id="line" d="M 100 10 L 150 10 Z"/>'                 # two distinct points
+              '<polygon id="flat" points="100,60 150,60 180,60"/>'        # three points, no area
+              '</svg>')
+
+
+@pytest.fixture
+def mixed_svg(tmp_path: Path) -> Path:
+    path = tmp_path / "mixed.svg"
+    path.write_text(_MIXED_SVG)
+    return path
+
+
+def test_generate_writes_the_good_pieces_and_names_the_bad_ones(capsys, tmp_path, mixed_svg):
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "generate", mixed_svg, "-o", out / "{piece}.npz", "--edge-length", "10mm")
+    assert code == cli.EXIT_PARTIAL == 4
+    assert sorted(p.name for p in out.iterdir()) == ["good.npz"]
+    assert "piece good:" in stdout
+    lines = [ln for ln in err.splitlines() if ln.startswith("clothgrid: error:")]
+    assert lines == [f"clothgrid: error: {mixed_svg}: piece 'line': only 2 distinct points; a piece needs "
+                     "at least 3 and must enclose an area",
+                     f"clothgrid: error: {mixed_svg}: piece 'flat': encloses no area (its outline runs "
+                     "back over itself)"]
+    assert "2 of 3 pieces failed" in err and "the other 1 was written" in err
+
+
+def test_pieces_lists_the_good_and_the_failed_pieces(capsys, mixed_svg):
+    code, out, err = run(capsys, "pieces", mixed_svg)
+    assert code == cli.EXIT_PARTIAL
+    assert out.splitlines()[0] == f"{mixed_svg}: 1 piece, 2 failed (coordinates in mm)"
+    assert out.splitlines()[1].startswith("good: 60 x 40 mm")
+    assert "line: FAILED (cannot be read): only 2 distinct points" in out
+    assert "flat: FAILED (cannot be read): encloses no area" in out
+    assert f"clothgrid: error: {mixed_svg}: piece 'line': only 2 distinct points" in err
+    code, out, _ = run(capsys, "pieces", mixed_svg, "--json")
+    assert code == cli.EXIT_PARTIAL
+    listing = json.loads(out)
+    assert [p["name"] for p in listing["pieces"]] == ["good"]
+    assert [(f["name"], f["stage"]) for f in listing["failed"]] == [("line", "read"), ("flat", "read")]
+    assert "only 2 distinct points" in listing["failed"][0]["reason"]
+
+
+def test_piece_good_works_beside_a_bad_piece_and_piece_bad_is_an_error(capsys, tmp_path, mixed_svg):
+    code, _, err = run(capsys, "generate", mixed_svg, "--piece", "good", "-o", tmp_path / "g.npz", "-q")
+    assert code == 0 and (tmp_path / "g.npz").exists() and "error" not in err
+    code, out, _ = run(capsys, "pieces", mixed_svg, "--piece", "good")
+    assert code == 0 and "FAILED" not in out
+    code, _, err = run(capsys, "generate", mixed_svg, "--piece", "line", "-o", tmp_path / "h.npz")
+    assert code == 2 and f"{mixed_svg}: piece 'line': only 2 distinct points" in err
+    assert not (tmp_path / "h.npz").exists()
+    code, _, err = run(capsys, "pieces", mixed_svg, "--piece", "flat")
+    assert code == 2 and "encloses no area" in err
+
+
+def test_a_file_with_no_good_piece_still_fails(capsys, tmp_path):
+    path = tmp_path / "bad.svg"
+    path.write_text(_MIXED_SVG.replace('<rect id="good" x="10" y="10" width="60" height="40"/>', ""))
+    code, _, err = run(capsys, "generate", path, "-o", tmp_path / "out" / "{piece}.npz")
+    assert code == 2 and not (tmp_path / "out").exists()
+    assert f"{path}: piece 'line': only 2" in err and f"{path}: piece 'flat': encloses no area" in err
+    assert "none of its 2 pieces could be used" in err
+    code, out, err = run(capsys, "pieces", path)
+    assert code == 2 and out == "" and "piece 'line'" in err
+
+
+def test_a_piece_that_fails_in_generate_does_not_block_the_others(capsys, tmp_path, monkeypatch):
+    """Gridding errors (InputError, BoundaryError, NotConvergedError) are per piece too."""
+    from clothgrid import pipeline
+
+    path = tmp_path / "two.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" viewBox="0 0 100 50">'
+                    '<rect id="a" x="0" y="0" width="40" height="40"/>'
+                    '<rect id="b" x="50" y="0" width="40" height="40"/></svg>')
+    real = pipeline.generate
+
+    def generate(boundary, nodes, **kw):
+        if boundary.name == "b":
+            raise clothgrid.NotConvergedError("solver 'multigrid' did not reach error <= 0.000244 (test)")
+        return real(boundary, nodes, **kw)
+
+    monkeypatch.setattr(pipeline, "generate", generate)
+    code, _, err = run(capsys, "generate", path, "-o", tmp_path / "o" / "{piece}.npz", "-q")
+    assert code == cli.EXIT_PARTIAL and sorted(p.name for p in (tmp_path / "o").iterdir()) == ["a.npz"]
+    assert f"clothgrid: error: {path}: piece 'b': solver 'multigrid' did not reach" in err
+    # the only piece asked for fails: its own error and exit code (3: not converged), nothing written
+    code, _, err = run(capsys, "generate", path, "--piece", "b", "-o", tmp_path / "b.npz")
+    assert code == 3 and "raise --max-iter" in err and not (tmp_path / "b.npz").exists()
+
+
+def test_a_failed_write_still_removes_every_output_when_a_piece_failed(capsys, tmp_path, monkeypatch):
+    """A failure while writing (not gridding) is the run's: every file written is removed, exit 2."""
+    from clothgrid import writers
+
+    path = tmp_path / "two.svg"
+    path.write_text(_MIXED_SVG.replace('<polygon', '<rect id="second" x="100" y="10" width="30" height="30"/>'
+                                       '<polygon'))
+    real = writers.save
+
+    def save(grid, out, **kw):
+        if Path(out).name == "second.obj":
+            raise OSError(28, "No space left on device", str(out))
+        return real(grid, out, **kw)
+
+    monkeypatch.setattr(writers, "save", save)
+    code, _, err = run(capsys, "generate", path, "-o", tmp_path / "o" / "{piece}.obj", "-q")
+    assert code == 2 and "cannot write" in err and "second.obj" in err
+    assert not (tmp_path / "o").exists()            # good.obj and the folder made for it are gone

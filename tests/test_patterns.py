@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from clothgrid import InputError, generate
-from clothgrid.cli import main
+from clothgrid.cli import EXIT_PARTIAL, main
 from clothgrid.patterns import (Piece, choose_corners, corner_candidates, nodes_for_edge_length,
                                 parse_length, piece_boundary)
 from clothgrid.readers import load_single_boundary, read_pieces
@@ -612,9 +612,12 @@ def _bad_files() -> dict[str, tuple[str, str | bytes, tuple[str, ...]]]:
         "svg-no-closed-path": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
                                'height="10mm"><path d="M0 0 L5 5 L9 1"/></svg>',
                                ("no closed path",)),
-        "svg-three-points": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
-                             'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0 0,9"/></svg>',
-                             ("only 3", "at least 4")),
+        "svg-two-points": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                           'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0"/></svg>',
+                           ("only 2", "at least 3")),
+        "svg-no-area": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10mm" '
+                        'height="10mm" viewBox="0 0 10 10"><polygon points="0,0 9,0 4,0"/></svg>',
+                        ("no area",)),
         "svg-unknown-units": ("p.svg", '<svg xmlns="http://www.w3.org/2000/svg" width="10em" '
                               'height="10em"><rect width="5" height="5"/></svg>',
                               ("unknown unit", "em")),
@@ -686,3 +689,70 @@ def test_data_files_read():
     assert len(pieces) == 1 and pieces[0].extent == pytest.approx((100.0, 60.0))
     grid = generate(piece_boundary(pieces[0]), NODES)
     assert grid.shape == NODES
+
+
+# --------------------------------------------------------------------------- triangles and bad pieces
+
+SHARED = Path(__file__).parents[2] / "shared" / "patterns"
+needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason=f"no third-party pattern files in {SHARED}")
+
+
+def test_piece_from_polygon_takes_a_triangle_and_refuses_less():
+    tri = piece_from_polygon("godet", np.array([[0.0, 0.0], [0.0, 30.0], [10.0, 0.0]]))   # clockwise in
+    assert len(tri.outline) == 3 and tri.area == pytest.approx(150.0)        # counter-clockwise out
+    with pytest.raises(InputError, match=r"piece 'two': only 2 distinct points; a piece needs at least 3"):
+        piece_from_polygon("two", np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 0.0], [0.0, 0.0]]))
+    with pytest.raises(InputError, match="encloses no area"):
+        piece_from_polygon("flat", np.array([[0.0, 0.0], [10.0, 0.0], [4.0, 0.0]]))
+
+
+def test_a_triangle_svg_path_reads_as_a_piece(tmp_path):
+    path = tmp_path / "godet.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="100mm" '
+                    'viewBox="0 0 100 100"><path id="godet" d="M 10 90 L 90 90 L 50 10 Z"/></svg>')
+    (piece,) = read_pieces(path)
+    assert piece.name == "godet" and len(piece.outline) == 3 and piece.area == pytest.approx(3200.0)
+    assert read_pieces(path).failed == []
+    # through reading: whatever the corner choice makes of it, a job or a named per-piece failure
+    from clothgrid.pipeline import GridOptions, read_jobs
+    try:
+        jobs = read_jobs(path, [tmp_path / "{piece}.npz"], options=GridOptions(edge_length="10mm"))
+    except InputError as exc:
+        assert "piece 'godet'" in str(exc)
+    else:
+        assert [j.name for j in jobs] == ["godet"]
+
+
+@needs_shared
+def test_godet_skirt_reads_its_triangles_and_grids_every_piece_it_can(capsys, tmp_path):
+    """gcn_rand_IMB4RPKGCM: 4 triangular godets (3 points each) once failed the whole file."""
+    src = SHARED / "gcn_rand_IMB4RPKGCM_specification.json"
+    pieces = read_pieces(src)
+    assert pieces.failed == [] and len(pieces) == 8
+    godets = sorted(p.name for p in pieces if len(p.outline) == 3)
+    assert godets == ["ins_skirt_back_0", "ins_skirt_back_1", "ins_skirt_front_0", "ins_skirt_front_1"]
+    code, out, err = run(capsys, "pieces", src)
+    assert code == 0 and out.splitlines()[0].endswith("8 pieces (coordinates in mm)")
+    code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--edge-length", "20mm", "-q")
+    written = {p.stem for p in tmp_path.glob("*.npz")}
+    named = {n for n in godets if f"piece '{n}': " in err}
+    assert written >= {p.name for p in pieces if len(p.outline) > 3}       # every other piece
+    assert written | named == {p.name for p in pieces} and not written & named
+    assert code == (EXIT_PARTIAL if named else 0), err     # a godet that fails later fails alone
+
+
+@needs_shared
+def test_real_file_with_two_point_paths_writes_the_others(capsys, tmp_path):
+    """fs_florent_layout.svg: paths '55' and '56' are lines (2 points); the 6 real pieces are written."""
+    src = SHARED / "fs_florent_layout.svg"
+    pieces = read_pieces(src)
+    assert [f.name for f in pieces.failed] == ["55", "56"] and len(pieces) == 6
+    code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--edge-length", "20mm", "-q")
+    assert code == EXIT_PARTIAL
+    assert sorted(p.stem for p in tmp_path.glob("*.npz")) == sorted(p.name for p in pieces)
+    for name in ("55", "56"):
+        assert f"clothgrid: error: {src}: piece '{name}': only 2 distinct points" in err
+    code, _, err = run(capsys, "generate", src, "--piece", "2", "-o", tmp_path / "two.npz", "-q")
+    assert code == 0 and (tmp_path / "two.npz").exists()
+    code, _, err = run(capsys, "generate", src, "--piece", "55", "-o", tmp_path / "x.npz")
+    assert code == 2 and "piece '55': only 2 distinct points" in err and not (tmp_path / "x.npz").exists()

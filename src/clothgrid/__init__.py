@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from .boundary import Boundary
 from .errors import (BackendUnavailableError, BoundaryError, ClothgridError, InputError, NotConvergedError,
-                     SizeError)
+                     PiecesError, SizeError)
 from .generate import generate
 from .grid import Grid
 from .quality import Quality, quality
@@ -24,6 +24,6 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Boundary", "Grid", "Quality", "Weights", "generate", "load_boundary", "make_weights", "quality",
-    "ClothgridError", "InputError", "BoundaryError", "SizeError", "BackendUnavailableError", "NotConvergedError",
+    "ClothgridError", "InputError", "BoundaryError", "SizeError", "PiecesError", "BackendUnavailableError", "NotConvergedError",
     "__version__",
 ]

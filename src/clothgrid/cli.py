@@ -2,7 +2,9 @@
 
 Exit codes: 0 success, 2 bad input or options (including usage errors),
 3 an iterative solve did not converge within ``--max-iter`` or, with
-``--strict``, the grid has folded cells, 130 interrupted.
+``--strict``, the grid has folded cells, 4 (:data:`EXIT_PARTIAL`) some pieces
+of a pattern file failed and the others were written (``generate``) or listed
+(``pieces``), 130 interrupted.
 Any output file of a failed run is removed, so a failure leaves no output.
 """
 
@@ -19,10 +21,13 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from .backends import BACKENDS
-from .errors import ClothgridError, InputError, NotConvergedError
+from .errors import ClothgridError, InputError, NotConvergedError, PiecesError
 from .solvers import SOLVERS
 
-__all__ = ["main", "parse_nodes", "parse_tol"]
+__all__ = ["main", "parse_nodes", "parse_tol", "EXIT_PARTIAL"]
+
+#: exit code: some pieces of a pattern file failed (each named on stderr), the others were written
+EXIT_PARTIAL = 4
 
 DEMO_PIECE = "tshirt_front.json"
 _NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
@@ -367,18 +372,20 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                               units=args.units, progress=progress)
     pattern = jobs[0].piece is not None
     many = len(jobs) > 1 or pattern
-    results = []
-    for job in jobs:
-        result = pipeline.run_job(job, progress)
+
+    def done(result: Any) -> None:
         _report(result, pattern)
+        job = result.job
         if not result.grid.info.get("converged", True):
             _say(f"warning: {f'piece {job.name}: ' if many else ''}writing a grid that is not converged "
                  f"(error estimate {_fmt(result.grid.info.get('error_estimate'), '.2e')} > tol "
                  f"{_fmt(args.tol, '.2e')}) because of --allow-unconverged")
-        results.append(result)
+
+    results, failed = pipeline.run_jobs(jobs, progress, done)
     folded = [r for r in results if r.quality.folded]
     hint = "try --functional auto" if args.functional == "length" else ""
     if folded and args.strict:
+        _say_failed(args.input, failed)
         r = folded[0]
         _say(f"error: {f'piece {r.job.name}: ' if many else ''}the grid has {folded_text(r.quality)}; "
              f"no output written ({hint or '--strict'})")
@@ -391,7 +398,19 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     written = pipeline.write_results(results, out)
     if progress:
         progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
+    if failed:
+        _say_failed(args.input, failed)
+        n = len(results) + len(failed)
+        _say(f"{len(failed)} of {n} pieces failed (above); the other {len(results)} "
+             f"{'were' if len(results) != 1 else 'was'} written (exit code {EXIT_PARTIAL})")
+        return EXIT_PARTIAL
     return 0
+
+
+def _say_failed(source: Any, failed: Sequence[Any]) -> None:
+    """One ``clothgrid: error: FILE: piece 'NAME': reason`` line per failed piece."""
+    for f in failed:
+        _say(f"error: {f.message(source)}")
 
 
 def _cmd_pieces(args: argparse.Namespace) -> int:
@@ -402,11 +421,20 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
 
     source = Path(args.input)
     pieces = pipeline.select_pieces(source, args.piece, units=args.units)
-    listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json)
+    failed = list(pieces.failed)
+    listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json,
+                                     failed=failed)
+    if not listing:
+        raise pipeline.no_piece_left(source, failed, "listed")
+    code = EXIT_PARTIAL if failed else 0
     if args.json:
-        print(json.dumps({"file": str(source), "pieces": listing}, indent=2))
-        return 0
-    print(f"{source}: {len(pieces)} piece{'s' if len(pieces) != 1 else ''} (coordinates in mm)")
+        print(json.dumps({"file": str(source), "pieces": listing,
+                          "failed": [f.as_dict() for f in failed]}, indent=2))
+        sys.stdout.flush()
+        _say_failed(source, failed)
+        return code
+    bad = f", {len(failed)} failed" if failed else ""
+    print(f"{source}: {len(listing)} piece{'s' if len(listing) != 1 else ''}{bad} (coordinates in mm)")
     for e in listing:
         w, h = e["size_mm"]
         print(f"{e['name']}: {w:.6g} x {h:.6g} mm, perimeter {e['perimeter_mm']:.6g} mm, "
@@ -428,8 +456,11 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
                 x, y = cand["point"]
                 tp = ", turn point" if cand["turn_point"] else ""
                 print(f"    {cand['index']}: {x:.6g}, {y:.6g}, turn {cand['turn']:+.1f}{tp}")
+    for f in failed:
+        print(f"{f.name}: FAILED ({'cannot be read' if f.stage == 'read' else 'no corners'}): {f.reason}")
     sys.stdout.flush()
-    return 0
+    _say_failed(source, failed)
+    return code
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -487,7 +518,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 2 on bad input or usage, 3 when not converged, 130 when
+        0 on success, 2 on bad input or usage, 3 when not converged, 4
+        (:data:`EXIT_PARTIAL`) when some pieces of a pattern file failed and the
+        others were written or listed, 130 when
         interrupted, 141 when the reader of the output closed the pipe. Unexpected exceptions propagate with their traceback.
     """
     parser = build_parser()
@@ -506,6 +539,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         _say("interrupted")
         return 130
+    except PiecesError as exc:
+        if len(exc.failed) < 2 or exc.source is None:
+            _say(f"error: {exc}")
+        else:
+            _say_failed(exc.source, exc.failed)
+            _say(f"error: {exc.source}: none of its {len(exc.failed)} pieces could be used (above); "
+                 "no output written")
+        if exc.failed and all(isinstance(f.error, NotConvergedError) for f in exc.failed):
+            return 3
+        return 2
     except NotConvergedError as exc:
         _say(f"error: {exc}")
         _say("no output written; raise --max-iter or pass --allow-unconverged to keep the grid")

@@ -2,7 +2,9 @@
 
 Every error a user can cause derives from :class:`ClothgridError`; the CLI maps
 :class:`InputError` (and its subclasses) to exit code 2 and
-:class:`NotConvergedError` to exit code 3.
+:class:`NotConvergedError` to exit code 3. A pattern file some of whose pieces
+fail while others are written is no exception: ``clothgrid generate`` and
+``clothgrid pieces`` then exit with code 4 (``clothgrid.cli.EXIT_PARTIAL``).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ __all__ = [
     "InputError",
     "BoundaryError",
     "SizeError",
+    "PiecesError",
     "NotConvergedError",
     "BackendUnavailableError",
     "MissingDependencyError",
@@ -32,6 +35,19 @@ class BoundaryError(InputError):
 
 class SizeError(InputError):
     """The requested grid does not fit (memory, texture size, ...)."""
+
+
+class PiecesError(InputError):
+    """No piece of a pattern file could be read or gridded.
+
+    ``failed`` lists each piece and why
+    (:class:`clothgrid.patterns.piece.PieceFailure`); ``source`` is the file.
+    """
+
+    def __init__(self, message: str, failed=(), source=None):
+        super().__init__(message)
+        self.failed = list(failed)
+        self.source = source
 
 
 class BackendUnavailableError(InputError):

@@ -17,7 +17,7 @@ from .memory import check_memory, estimate_bytes, format_bytes
 from .solvers import SOLVERS, Problem, choose_solver, solve
 from .weights import Weights, make_weights
 
-__all__ = ["generate", "parse_nodes"]
+__all__ = ["generate", "parse_nodes", "check_size"]
 
 STOPS = ("error", "paper")
 FUNCTIONALS = ("length", "foldfree", "auto")
@@ -153,24 +153,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     if functional == "foldfree" and not boundary.planar:
         raise InputError("functional 'foldfree' is for planar pieces: this 3D piece is curved; "
                          "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
-    separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
-    on_device = be.solvers  # the solvers a device backend runs (gl, cuda); () on the CPU: all
-    if on_device and solver != "auto" and solver not in on_device:
-        raise InputError(f"solver {solver!r} does not run on backend {be.name!r}: use one of auto, "
-                         f"{', '.join(on_device)} (or backend 'cpu')")
-    if solver != "auto":
-        name = solver
-    elif on_device:  # the paper's rule is Jacobi's: on a device, auto with stop="paper" is the paper's method
-        name = "jacobi" if stop == "paper" and "jacobi" in on_device else on_device[0]
-    else:
-        name = choose_solver(separable, nu, nv)
-    device_need = 0
-    if on_device:  # the device's texture size and memory, before anything is allocated (SizeError)
-        device_need = be.check_size(nu, nv, name, estimate_bytes(name, nu, nv),
-                                    coords=2 if boundary.dim == 2 else 3, separable=separable)
-    need = check_memory(name, nu, nv)
-    if name == "jacobi" and not separable and stop == "error":
-        need = max(need, check_memory("direct", nu, nv))  # the bound's barrier takes one direct solve
+    name, need, device_need = _plan(be, nu, nv, solver, weights, stop, boundary.dim)
+    on_device = be.solvers
     say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
     if on_device:
         say(f"backend {be.name}: {be.summary()}; about {format_bytes(device_need)} of device memory")
@@ -207,6 +191,59 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         grid.info["functional"] = "length"
         return grid
     return _apply_functional(grid, functional, say, t0, flip)
+
+
+def _plan(be, nu: int, nv: int, solver: str, weights, stop: str, dim: int, *, kept: int = 0,
+          what: str = "") -> tuple[str, int, int]:
+    """The solver that will run and the host and device bytes it needs, checked (SizeError) before
+    anything is allocated; ``kept`` and ``what`` as for :func:`clothgrid.memory.check_memory`."""
+    separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
+    on_device = be.solvers  # the solvers a device backend runs (gl, cuda); () on the CPU: all
+    if on_device and solver != "auto" and solver not in on_device:
+        raise InputError(f"solver {solver!r} does not run on backend {be.name!r}: use one of auto, "
+                         f"{', '.join(on_device)} (or backend 'cpu')")
+    if solver != "auto":
+        name = solver
+    elif on_device:  # the paper's rule is Jacobi's: on a device, auto with stop="paper" is the paper's method
+        name = "jacobi" if stop == "paper" and "jacobi" in on_device else on_device[0]
+    else:
+        name = choose_solver(separable, nu, nv)
+    device_need = 0
+    if on_device:  # the device's texture size and memory, before anything is allocated (SizeError)
+        device_need = be.check_size(nu, nv, name, estimate_bytes(name, nu, nv),
+                                    coords=2 if dim == 2 else 3, separable=separable)
+    need = check_memory(name, nu, nv, kept=kept, what=what)
+    if name == "jacobi" and not separable and stop == "error":  # the bound's barrier takes one direct solve
+        need = max(need, check_memory("direct", nu, nv, kept=kept, what=what))
+    return name, need, device_need
+
+
+def check_size(nodes, *, solver: str = "auto", backend: str = "auto", weights="paper", stop: str = "error",
+               dim: int = 2, kept: int = 0, what: str = "") -> tuple[str, int]:
+    """Check, allocating nothing, that :func:`generate` can make an ``nodes`` grid with these options.
+
+    The same check :func:`generate` makes first: host memory (and a device's
+    memory and texture size). ``kept`` bytes are counted as already taken
+    (grids made before, not yet written); ``what`` starts the message.
+
+    Returns
+    -------
+    (str, int)
+        The solver that would run and its host memory estimate in bytes.
+
+    Raises
+    ------
+    SizeError
+        The grid does not fit; the message says how much it needs, how much is
+        available and the rule (90 % of it).
+    InputError
+        Bad nodes, an unknown solver, a solver the backend does not run.
+    """
+    nu, nv = parse_nodes(nodes)
+    _check_options("tfi", solver, stop, 0.5, None)
+    be = get_backend(backend, solver)
+    name, need, _ = _plan(be, nu, nv, solver, weights, stop, dim, kept=kept, what=what)
+    return name, need
 
 
 def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool) -> Grid:

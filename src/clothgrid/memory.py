@@ -27,9 +27,14 @@ import os
 
 from .errors import SizeError
 
-__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes"]
+__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes", "FIT_FRACTION",
+           "KEPT_BYTES_PER_NODE"]
 
 PIPELINE_BYTES_PER_NODE = 80
+#: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
+KEPT_BYTES_PER_NODE = 72
+#: a grid fits when its estimate is at most this fraction of the available memory
+FIT_FRACTION = 0.9
 QUALITY_BYTES_PER_CELL = 200
 
 
@@ -69,26 +74,42 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
     return int(total)
 
 
-def format_bytes(b: float) -> str:
-    """``1.5 GiB``-style text."""
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if b < 1024 or unit == "TiB":
-            return f"{b:.3g} {unit}"
+def format_bytes(b: float, digits: int = 3) -> str:
+    """``1.5 GiB``-style text (``digits`` significant digits; binary units up to EiB)."""
+    units = ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB")
+    top = 10**digits - 0.5          # what still rounds below 10**digits
+    for unit in units:
+        if b < top or unit == units[-1]:
+            return f"{b:.{digits}g} {unit}" if b < top else f"{b:,.0f} {unit}"
         b /= 1024
     raise AssertionError
 
 
-def check_memory(solver: str, nu: int, nv: int, available: int | None = None) -> int:
+def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
+                 kept: int = 0, what: str = "") -> int:
     """Raise :class:`SizeError` if the grid would not fit; return the estimate.
 
-    A grid fits when its estimate is at most 90 % of the available memory.
+    A grid fits when its estimate (plus ``kept``: bytes already held that the
+    available memory does not yet show, e.g. the grids of earlier pieces kept
+    until every output is written) is at most :data:`FIT_FRACTION` (90 %) of
+    the available memory. ``what`` starts the message (``"piece 'front': "``).
+    The message gives the numbers of that rule: what is needed, what is
+    available and the 90 % of it a solve may take.
     """
     need = estimate_bytes(solver, nu, nv)
     have = available_bytes() if available is None else available
-    if need > 0.9 * have:
-        hint = "use fewer nodes"
+    total = need + max(int(kept), 0)
+    if total > FIT_FRACTION * have:
+        hint = "use fewer nodes or a longer edge length"
         if solver == "direct":
             hint = "use solver 'fdm' (separable weights) or fewer nodes"
-        raise SizeError(f"a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(need)} of memory, "
-                        f"more than the 90 % of the {format_bytes(have)} available that a solve may take: {hint}")
+        held = (f" ({format_bytes(need)} for the grid and {format_bytes(kept)} for the grids made "
+                "before it, kept until the outputs are written)" if kept > 0 else "")
+        # the two numbers of the rule in one unit and 4 digits, so that 90 % of the one is the other
+        unit_of = format_bytes(have).split()[1]
+        scale = 1024 ** ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB").index(unit_of)
+        raise SizeError(f"{what}a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(total)} of "
+                        f"memory{held}, more than a solve may take: {FIT_FRACTION:.0%} of the "
+                        f"{have / scale:.4g} {unit_of} available is {FIT_FRACTION * have / scale:.4g} {unit_of}: "
+                        f"{hint}")
     return need

@@ -7,8 +7,20 @@ it came from::
     from clothgrid.pipeline import GridOptions, OutputOptions, read_jobs, run_job, write_results
 
     jobs = read_jobs("pattern.dxf", ["meshes/{piece}.obj"], options=GridOptions(edge_length="5mm"))
-    results = [run_job(job) for job in jobs]        # generate + quality, once per grid
+    results, failed = run_jobs(jobs)                 # generate + quality, once per grid
     write_results(results, OutputOptions())          # atomic; a failure removes what it wrote
+    failed                                           # jobs.failed + the pieces generate refused
+
+One bad piece never blocks the others: a pattern piece that cannot be read,
+whose corners or four-sided boundary cannot be made, whose grid would not fit
+in memory, or whose gridding fails (:class:`~clothgrid.errors.InputError`,
+:class:`~clothgrid.errors.NotConvergedError`) becomes a
+:class:`~clothgrid.patterns.piece.PieceFailure` (name, reason, stage) and the
+other pieces go on. A file with no piece left fails as a whole
+(:class:`~clothgrid.errors.PiecesError`, an InputError, or the one piece's own
+error). A piece asked for by name (``pieces=[...]``) that cannot be read is an
+error. Writing is all or nothing, as before: a failure while writing removes
+every file written.
 
 The command line (:mod:`clothgrid.cli`) is this module plus argument parsing and
 printing.
@@ -33,16 +45,19 @@ from typing import Any, Callable, Sequence
 
 from . import writers
 from .boundary import Boundary
-from .errors import InputError
-from .generate import generate, parse_nodes
+from .errors import InputError, NotConvergedError, PiecesError, SizeError
+from .generate import check_size, generate, parse_nodes
+from .memory import KEPT_BYTES_PER_NODE
 from .grid import Grid
 from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
                        nodes_for_edge_length, piece_boundary, piece_info)
+from .patterns.piece import PieceFailure, Pieces, piece_failure
 from .units import parse_length
 from .quality import Quality, quality
 from .readers import read_input, read_pieces
 
-__all__ = ["GridOptions", "OutputOptions", "Job", "Result", "read_jobs", "run_job", "write_result",
+__all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
+           "run_jobs", "no_piece_left", "write_result",
            "write_results", "generate_piece", "piece_listing", "select_pieces", "corner_choice",
            "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES"]
 
@@ -144,6 +159,17 @@ class Job:
     corners: str | None = None
     edge_length: float | None = None
     options: GridOptions = field(default_factory=GridOptions)
+
+
+class Jobs(list):
+    """The jobs of one input file (a plain ``list`` of :class:`Job`), with :attr:`failed`: the
+    pattern pieces that could not be made into a job (:class:`PieceFailure`, in file order)
+    and :attr:`source`, the file."""
+
+    def __init__(self, jobs: Any = (), failed: Any = (), source: Path | None = None) -> None:
+        super().__init__(jobs)
+        self.failed: list[PieceFailure] = list(failed)
+        self.source = source
 
 
 @dataclass
@@ -256,25 +282,56 @@ def _remove_folders(folders: Sequence[Path]) -> None:
 # --------------------------------------------------------------------------- reading
 
 
-def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> list[Piece]:
+def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> Pieces:
+    """The pieces named in ``wanted`` (in that order; all if None), with the failures among them.
+
+    A name in ``wanted`` that names a piece that could not be read is an error (its reason).
+    """
+    failed = list(getattr(pieces, "failed", ()))
     if not wanted:
-        return pieces
+        return Pieces(pieces, failed)
     by_name = {p.name: p for p in pieces}
+    bad = {f.name: f for f in failed}
+    for w in wanted:
+        if w not in by_name and w in bad:
+            raise InputError(bad[w].message(source))
     missing = [w for w in wanted if w not in by_name]
     if missing:
-        names = ", ".join(repr(p.name) for p in pieces)
+        names = ", ".join([repr(p.name) for p in pieces] + [f"{f.name!r} (cannot be read)" for f in failed])
         raise InputError(f"{source}: no piece named {', '.join(repr(m) for m in missing)}; "
                          f"the pieces are {names}")
     out: list[Piece] = []
     for w in wanted:
         if by_name[w] not in out:
             out.append(by_name[w])
-    return out
+    return Pieces(out)
+
+
+def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str = "gridded") -> Exception:
+    """The error of a pattern file none of whose pieces could be used: the one failure's own
+    error (its message naming the file and the piece) or a :class:`PiecesError` listing each."""
+    if len(failed) == 1:
+        f = failed[0]
+        if isinstance(f.error, NotConvergedError):
+            return f.error
+        cls = type(f.error) if isinstance(f.error, InputError) else InputError
+        try:
+            exc = cls(f.message(source))
+        except TypeError:            # an InputError subclass with another constructor
+            exc = InputError(f.message(source))
+        exc.failed = list(failed)    # type: ignore[attr-defined]
+        return exc
+    return PiecesError(f"{source}: none of its {len(failed)} pieces could be {what}: "
+                       + "; ".join(f.message() for f in failed), failed, source)
 
 
 def select_pieces(source: str | Path, wanted: Sequence[str] | None = None, *,
                   units: str | None = None) -> list[Piece]:
-    """The pieces of a pattern file, only those named in ``wanted`` if given (in that order)."""
+    """The pieces of a pattern file, only those named in ``wanted`` if given (in that order).
+
+    A :class:`~clothgrid.patterns.piece.Pieces` list: ``failed`` holds the pieces that could not
+    be read (none when ``wanted`` names pieces: naming one that cannot be read is an InputError).
+    """
     source = Path(source)
     return _select(read_pieces(source, units=units), wanted, source)
 
@@ -330,11 +387,23 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     progress : callable, optional
         Called with a line saying what was read.
 
+    Returns
+    -------
+    Jobs
+        A list of :class:`Job`; its ``failed`` lists the pattern pieces that
+        cannot be gridded (unreadable outline, no corners or boundary, a grid
+        that does not fit in memory), each with its reason: they do not stop
+        the others. The memory of every job is checked here, before any grid
+        is made, counting the grids of the jobs before it (kept until written).
+
     Raises
     ------
     InputError
         An unreadable input, pattern options for a boundary file, an unknown
-        output format, a missing output folder, two jobs writing one file.
+        output format, a missing output folder, two jobs writing one file, a
+        piece asked for by name that cannot be read, no piece left to grid
+        (:class:`PiecesError` when several failed), a boundary file's grid
+        that does not fit in memory (:class:`SizeError`).
     """
     source = Path(source)
     t0 = time.perf_counter()
@@ -350,18 +419,25 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
             progress(f"loaded {source} in {time.perf_counter() - t0:.3f} s")
         nodes, h = _size(got, options, pattern=False)
         unit = units or getattr(got, "length_unit", None) or "m"
-        return [Job(got.name or source.stem, got, nodes, paths, plot_path, length_unit=unit,
-                    edge_length=h, options=options)]
+        job = Job(got.name or source.stem, got, nodes, paths, plot_path, length_unit=unit,
+                  edge_length=h, options=options)
+        _check_size(job)
+        return Jobs([job], source=source)
+    if min_turn is not None and not (0 <= min_turn < 180):
+        raise InputError(f"--min-turn {min_turn!r} must be between 0 and 180 degrees")
     chosen = _select(got, pieces, source)
     if progress:
+        bad = f" ({len(chosen.failed)} more could not be read)" if chosen.failed else ""
         progress(f"read {len(chosen)} piece{'s' if len(chosen) != 1 else ''} from {source} in "
-                 f"{time.perf_counter() - t0:.3f} s")
+                 f"{time.perf_counter() - t0:.3f} s{bad}")
     if (corners is not None or corners_near is not None) and len(chosen) != 1:
         raise InputError("--corners and --corners-near need a single piece: pick one with --piece NAME")
     names = [p.name for p in chosen]
+    order = {n: i for i, n in enumerate([*names, *(f.name for f in chosen.failed)])}
     outs = output_names(outputs, names)
     plots = output_names([plot], names) if plot is not None else None
     jobs: list[Job] = []
+    failed: list[PieceFailure] = list(chosen.failed)
     seen: list[Path] = []
     for k, piece in enumerate(chosen):
         paths, plot_path = check_outputs(outs[k], plots[k][0] if plots else None)
@@ -369,13 +445,44 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
             if p in seen:
                 raise InputError(f"two pieces would write the same file {str(p)!r}: put {{piece}} in the output name")
             seen.append(p)
-        choice = corner_choice(piece, corners, corners_near, min_turn)
-        boundary = piece_boundary(piece, choice=choice)
+        try:
+            choice = corner_choice(piece, corners, corners_near, min_turn)
+            boundary = piece_boundary(piece, choice=choice)
+        except InputError as exc:
+            if (corners is not None or corners_near is not None):
+                raise          # the corners the user gave for this one piece
+            failed.append(piece_failure(piece.name, exc, str(source), stage="corners"))
+            continue
         nodes, h = _size(boundary, options, pattern=True)
         jobs.append(Job(piece.name, boundary, nodes, paths, plot_path, length_unit="mm",
                         piece=piece_info(piece, choice, h), corners=choice.message, edge_length=h,
                         options=options))
-    return jobs
+    fit: list[Job] = []
+    kept = 0
+    for job in jobs:        # memory, before any grid is made: a piece too big is that piece's failure
+        try:
+            kept += _check_size(job, kept, what=f"piece {job.name!r}: ")
+        except InputError as exc:
+            if not isinstance(exc, SizeError):
+                raise       # bad options (a solver the backend does not run): every piece's
+            failed.append(piece_failure(job.name, exc, str(source), stage="size"))
+            continue
+        fit.append(job)
+    failed.sort(key=lambda f: order.get(f.name, len(order)))
+    if not fit:
+        raise no_piece_left(source, failed, "read" if all(f.stage == "read" for f in failed) else "gridded")
+    return Jobs(fit, failed, source)
+
+
+def _check_size(job: Job, kept: int = 0, what: str = "") -> int:
+    """Check that ``job``'s grid fits (memory; SizeError), counting ``kept`` bytes held already;
+    return the bytes its result keeps until it is written."""
+    nodes = job.nodes if job.nodes is not None else job.boundary.shape
+    o = job.options
+    check_size(nodes, solver=o.solver, backend=o.backend, weights=o.weights, stop=o.stop,
+               dim=job.boundary.dim, kept=kept, what=what)
+    nu, nv = parse_nodes(nodes)
+    return KEPT_BYTES_PER_NODE * nu * nv
 
 
 # --------------------------------------------------------------------------- gridding and writing
@@ -394,6 +501,53 @@ def run_job(job: Job, progress: Callable[[str], None] | None = None) -> Result:
     # The writers read the coordinates' unit from info["length_unit"] (clothgrid.cloth).
     grid.info["length_unit"] = job.length_unit
     return Result(job, grid, quality(grid), seconds)
+
+
+def run_jobs(jobs: Sequence[Job], progress: Callable[[str], None] | None = None,
+             done: Callable[[Result], None] | None = None) -> tuple[list[Result], list[PieceFailure]]:
+    """Grid every job (:func:`run_job`); a pattern piece that fails does not stop the others.
+
+    Parameters
+    ----------
+    jobs : Jobs or list of Job
+        From :func:`read_jobs` (its ``failed`` are carried into the answer).
+    progress : callable, optional
+        Passed to :func:`clothgrid.generate`.
+    done : callable, optional
+        Called with each result as soon as it is made.
+
+    Returns
+    -------
+    results : list of Result
+        The grids made, in job order.
+    failed : list of PieceFailure
+        ``jobs.failed`` and then each pattern piece whose gridding raised
+        :class:`InputError` or :class:`NotConvergedError` (stage ``"grid"``).
+
+    Raises
+    ------
+    InputError, NotConvergedError
+        A boundary-file job's error (it has no other piece to go on with), and
+        the error of the only piece when no piece at all could be gridded
+        (:func:`no_piece_left`: a :class:`PiecesError` when several failed).
+    """
+    results: list[Result] = []
+    failed: list[PieceFailure] = list(getattr(jobs, "failed", ()))
+    source = getattr(jobs, "source", None)
+    for job in jobs:
+        try:
+            result = run_job(job, progress)
+        except (InputError, NotConvergedError) as exc:
+            if job.piece is None:
+                raise
+            failed.append(piece_failure(job.name, exc, "" if source is None else str(source), stage="grid"))
+            continue
+        if done is not None:
+            done(result)
+        results.append(result)
+    if not results and failed:
+        raise no_piece_left(source if source is not None else "input", failed)
+    return results, failed
 
 
 def write_result(result: Result, options: OutputOptions = OutputOptions()) -> list[Path]:
@@ -480,14 +634,25 @@ def generate_piece(piece: Piece, nodes: Any = None, *, edge_length: float | str 
     return grid
 
 
-def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, candidates: bool = False
-                  ) -> list[dict[str, Any]]:
-    """What ``clothgrid pieces`` shows of each piece: size, units, outline, corner choice and candidates."""
+def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, candidates: bool = False,
+                  failed: list[PieceFailure] | None = None) -> list[dict[str, Any]]:
+    """What ``clothgrid pieces`` shows of each piece: size, units, outline, corner choice and candidates.
+
+    With a ``failed`` list, a piece whose corners cannot be chosen is appended
+    to it (stage ``"corners"``) and left out of the listing; without, its
+    InputError is raised.
+    """
     from .patterns import corner_candidates
 
     out = []
     for piece in pieces:
-        choice = corner_choice(piece, min_turn=min_turn)
+        try:
+            choice = corner_choice(piece, min_turn=min_turn)
+        except InputError as exc:
+            if failed is None or (min_turn is not None and not (0 <= min_turn < 180)):
+                raise
+            failed.append(piece_failure(piece.name, exc, stage="corners"))
+            continue
         w, h = piece.extent
         entry = {
             "name": piece.name, "source": piece.source, "file_units": piece.units,

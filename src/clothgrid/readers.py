@@ -32,6 +32,7 @@ from .boundary import SIDES, Boundary
 from .errors import BoundaryError, InputError
 from .grid import Grid
 from .patterns import Piece, piece_boundary
+from .patterns.piece import Pieces
 from .patterns.sampling import DEFAULT_REL_TOL
 from .units import unit_to_mm
 
@@ -169,7 +170,10 @@ def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | N
         params = inspect.signature(reader).parameters      # a registered reader takes what it names
         if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
             options = {k: v for k, v in options.items() if k in params}
-    return reader(path, **options)
+    got = reader(path, **options)
+    if isinstance(got, list) and not isinstance(got, Pieces):   # a registered reader's plain list
+        got = Pieces(got)
+    return got
 
 
 def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
@@ -189,15 +193,19 @@ def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = 
 
     Returns
     -------
-    list of Piece
-        In file order; outlines in millimetres, counter-clockwise.
+    Pieces
+        A list of the pieces that could be made, in file order; outlines in
+        millimetres, counter-clockwise. Its ``failed`` attribute lists the
+        pieces that could not (a :class:`~clothgrid.patterns.piece.PieceFailure`
+        each: name and reason, e.g. fewer than 3 distinct points or no area):
+        one bad piece does not stop the others.
 
     Raises
     ------
     InputError
         A missing or unreadable file, an unknown extension, a boundary file,
         malformed content (a truncated file), unknown units, no closed piece,
-        or a piece with fewer than 4 points.
+        or no piece that could be made (the message gives each one's reason).
     """
     path = Path(path)
     if units is not None:
@@ -214,7 +222,7 @@ def load_boundary(path: str | Path, **options: Any) -> Boundary:
     """Read a boundary from ``path``, the format chosen by its extension.
 
     A boundary file gives its boundary; a pattern file with exactly one piece
-    gives that piece's (automatic corners; ``options`` as for :func:`read_pieces`).
+    (that could be read) gives that piece's (automatic corners; ``options`` as for :func:`read_pieces`).
 
     Raises
     ------

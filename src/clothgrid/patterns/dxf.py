@@ -39,7 +39,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import InputError
-from .piece import Piece, piece_from_primitives
+from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
 from ..units import UNITS, unit_to_mm
 
@@ -319,7 +319,7 @@ def _unique(name: str, used: dict[str, int]) -> str:
     return _unique(f"{name}-{used[name]}", used)
 
 
-def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[Piece]:
+def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> Pieces:
     msp = doc.modelspace()
     blocks = {b.name: b for b in doc.blocks if _is_piece_block(b)}
     texts = _texts(msp)
@@ -344,6 +344,7 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[P
     dup = {n for n in names if names.count(n) > 1}
     used: dict[str, int] = {}
     pieces: list[Piece] = []
+    failed: list[PieceFailure] = []
     for (bname, ents, t, handle), pname in zip(jobs, names):
         where = f"{ctx.where}: block {bname!r}"
         notes: list[str] = [f"units: {how}"]
@@ -351,43 +352,46 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[P
         if pname in dup and size:
             pname = f"{pname}_{size}"
         pname = _unique(pname, used)
-        chains, closed = [], []
-        for e in ents:
-            if e.dxf.get("layer", "") != "1" or e.dxftype() not in _CURVES:
-                continue
-            prims, is_closed = _entity_prims(e, ctx)
-            if prims:
-                (closed if is_closed else chains).append(prims)
-        tol = 1e-6 * _extent(chains + closed)
-        loops, left_open = _chain(chains, tol)
-        if not loops and not closed and chains:
-            # the standard's boundary is closed by definition: close the gap with a line
-            joined, _ = _chain(chains, float("inf"))
-            if joined:
-                chain = joined[0]
-                chain.append(Bezier(np.array([chain[-1].end, chain[0].start])))
-                loops, left_open = [chain], 0
-                notes.append("the open boundary was closed with a straight segment")
-        loops += closed
-        if not loops:
-            raise InputError(f"{where}: no closed boundary on layer 1")
-        if len(loops) > 1:
-            notes.append(f"{len(loops) - 1} smaller closed loop(s) on layer 1 were ignored")
-        boundary = max(loops, key=_loop_area)
-        turn = [_xy(e.dxf.location) * scale for e in ents
-                if e.dxftype() == "POINT" and e.dxf.get("layer", "") == "2"]
-        grain = None
-        for e in ents:
-            if e.dxftype() == "LINE" and e.dxf.get("layer", "") == "7":
-                grain = np.array([_xy(e.dxf.start), _xy(e.dxf.end)]) * scale
-                break
-        meta = {"block": bname, "insert": handle, "size": size,
-                **{k: v for k, v in t.items() if k in ("quantity", "material", "category",
-                                                       "annotation")}}
-        pieces.append(piece_from_primitives(
-            pname, _scale(boundary, scale), rel_tol=rel_tol, turn_points=turn,
-            where=f"{ctx.where}: ", grain_line=grain, units=unit, source="aama-dxf",
-            notes=tuple(notes + ctx.notes), meta=meta))
+        try:
+            chains, closed = [], []
+            for e in ents:
+                if e.dxf.get("layer", "") != "1" or e.dxftype() not in _CURVES:
+                    continue
+                prims, is_closed = _entity_prims(e, ctx)
+                if prims:
+                    (closed if is_closed else chains).append(prims)
+            tol = 1e-6 * _extent(chains + closed)
+            loops, left_open = _chain(chains, tol)
+            if not loops and not closed and chains:
+                # the standard's boundary is closed by definition: close the gap with a line
+                joined, _ = _chain(chains, float("inf"))
+                if joined:
+                    chain = joined[0]
+                    chain.append(Bezier(np.array([chain[-1].end, chain[0].start])))
+                    loops, left_open = [chain], 0
+                    notes.append("the open boundary was closed with a straight segment")
+            loops += closed
+            if not loops:
+                raise InputError(f"{where}: no closed boundary on layer 1")
+            if len(loops) > 1:
+                notes.append(f"{len(loops) - 1} smaller closed loop(s) on layer 1 were ignored")
+            boundary = max(loops, key=_loop_area)
+            turn = [_xy(e.dxf.location) * scale for e in ents
+                    if e.dxftype() == "POINT" and e.dxf.get("layer", "") == "2"]
+            grain = None
+            for e in ents:
+                if e.dxftype() == "LINE" and e.dxf.get("layer", "") == "7":
+                    grain = np.array([_xy(e.dxf.start), _xy(e.dxf.end)]) * scale
+                    break
+            meta = {"block": bname, "insert": handle, "size": size,
+                    **{k: v for k, v in t.items() if k in ("quantity", "material", "category",
+                                                           "annotation")}}
+            pieces.append(piece_from_primitives(
+                pname, _scale(boundary, scale), rel_tol=rel_tol, turn_points=turn,
+                where=f"{ctx.where}: ", grain_line=grain, units=unit, source="aama-dxf",
+                notes=tuple(notes + ctx.notes), meta=meta))
+        except InputError as exc:
+            failed.append(piece_failure(pname, exc, ctx.where, labels=(f"block {bname!r}",)))
     return pieces
 
 
@@ -406,7 +410,7 @@ def _flatten(entities: Iterable[Any], ctx: _Ctx, depth: int = 0) -> Iterable[Any
             yield e
 
 
-def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[Piece]:
+def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> Pieces:
     msp = doc.modelspace()
     scale, unit, how = _units(doc, {}, units, ctx.where)
     closed: list[tuple[list[Primitive], Any]] = []
@@ -433,16 +437,21 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> list[
     used: dict[str, int] = {}
     items = [(p, {"layer": e.dxf.get("layer", ""), "handle": e.dxf.handle, "entity": e.dxftype()})
              for p, e in closed] + [(p, {"entity": "chain"}) for p in loops]
+    failed: list[PieceFailure] = []
     for k, (prims, meta) in enumerate(items, start=1):
-        pieces.append(piece_from_primitives(
-            _unique(f"piece{k}", used), _scale(prims, scale), rel_tol=rel_tol,
-            where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + ctx.notes),
-            meta=meta))
-    return pieces
+        name = _unique(f"piece{k}", used)
+        try:
+            pieces.append(piece_from_primitives(
+                name, _scale(prims, scale), rel_tol=rel_tol,
+                where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + ctx.notes),
+                meta=meta))
+        except InputError as exc:
+            failed.append(piece_failure(name, exc, ctx.where))
+    return pattern_pieces(pieces, failed, ctx.where)
 
 
 def read_dxf(path: str | Path, *, units: str | None = None,
-             rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
+             rel_tol: float = DEFAULT_REL_TOL) -> Pieces:
     """Read the pattern pieces of a DXF file (AAMA/ASTM or plain), in millimetres.
 
     Parameters
@@ -458,7 +467,9 @@ def read_dxf(path: str | Path, *, units: str | None = None,
     ------
     InputError
         Not a DXF, a malformed or truncated DXF, no units, no closed boundary,
-        a piece with fewer than 4 points, or curves outside the xy-plane.
+        no piece that could be made, or curves outside the xy-plane. A piece that
+        cannot be made (fewer than 3 distinct points, no area, no closed
+        boundary in its block) is listed in the answer's ``failed`` instead.
     """
     import ezdxf
     from ezdxf.lldxf.const import DXFError

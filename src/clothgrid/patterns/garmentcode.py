@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .piece import Piece, piece_from_primitives
+from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 
 __all__ = ["read_garmentcode", "is_garmentcode"]
@@ -180,7 +180,7 @@ def _reverse_curvature(curv: Any) -> Any:
 
 
 def read_garmentcode(path: str | Path, *, units: str | None = None,
-                     rel_tol: float = DEFAULT_REL_TOL, data: Any = None) -> list[Piece]:
+                     rel_tol: float = DEFAULT_REL_TOL, data: Any = None) -> Pieces:
     """Read every panel of a GarmentCode pattern JSON as a :class:`Piece` (mm).
 
     Parameters
@@ -198,7 +198,8 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
     ------
     InputError
         Invalid JSON, no panels, a malformed panel or edge, edges that do not
-        form a loop, bad units, or a panel with fewer than 4 outline points.
+        form a loop, bad units, in every panel (no panel could be made). A
+        panel that cannot be made is listed in the answer's ``failed``.
     """
     from ..units import unit_to_mm
 
@@ -248,43 +249,45 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
     names = [n for n in order if n in panels] if isinstance(order, list) else []
     names += [n for n in panels if n not in names]
     pieces: list[Piece] = []
+    failed: list[PieceFailure] = []
     for name in names:
         panel = panels[name]
         what = f"{where}: panel {name!r}"
         if panel is None:
             continue
-        if not isinstance(panel, dict):
-            raise InputError(f"{what} must be an object with 'vertices' and 'edges'")
-        verts = panel.get("vertices")
-        edges = panel.get("edges")
-        if not isinstance(verts, list) or not isinstance(edges, list) or not edges:
-            raise InputError(f"{what} needs a list of 'vertices' and a non-empty list of 'edges'")
-        V = np.array([_point(v, f"{what}: vertex {k}") for k, v in enumerate(verts)]) \
-            if verts else np.zeros((0, 2))
-        prims: list[Primitive] = []
-        for s, t, e, rev in _loop(edges, len(V), what):
-            curv = e.get("curvature")
-            if rev:
-                if coords == "relative":
-                    curv = _reverse_curvature(curv)
-                elif isinstance(curv, dict) and curv.get("type") in ("quadratic", "cubic"):
-                    curv = {**curv, "params": list(curv.get("params") or [])[::-1]}
-                elif isinstance(curv, dict) and curv.get("type") == "circle":
-                    curv = _reverse_curvature(curv)
-            prims.append(_edge(V[s], V[t], curv, coords == "absolute",
-                               f"{what}: edge {e.get('endpoints')}"))
-        prims_mm = []
-        for p in prims:
-            if isinstance(p, Bezier):
-                prims_mm.append(Bezier(p.ctrl * scale))
-            else:
-                prims_mm.append(EllipseArc(p.center * scale, p.a * scale, p.b * scale, p.t0, p.t1,
-                                           p.start_point * scale, p.end_point * scale))
-        corner_pts = [V[s] * scale for s, *_ in _loop(edges, len(V), what)]
-        meta = {k: panel[k] for k in ("translation", "rotation") if k in panel}
-        pieces.append(piece_from_primitives(
-            str(name), prims_mm, rel_tol=rel_tol, turn_points=corner_pts, where=f"{where}: ",
-            units=unit, source="garmentcode", notes=tuple(notes), meta=meta))
-    if not pieces:
-        raise InputError(f"{where}: the pattern has no panels")
-    return pieces
+        try:
+            if not isinstance(panel, dict):
+                raise InputError(f"{what} must be an object with 'vertices' and 'edges'")
+            verts = panel.get("vertices")
+            edges = panel.get("edges")
+            if not isinstance(verts, list) or not isinstance(edges, list) or not edges:
+                raise InputError(f"{what} needs a list of 'vertices' and a non-empty list of 'edges'")
+            V = np.array([_point(v, f"{what}: vertex {k}") for k, v in enumerate(verts)]) \
+                if verts else np.zeros((0, 2))
+            prims: list[Primitive] = []
+            for s, t, e, rev in _loop(edges, len(V), what):
+                curv = e.get("curvature")
+                if rev:
+                    if coords == "relative":
+                        curv = _reverse_curvature(curv)
+                    elif isinstance(curv, dict) and curv.get("type") in ("quadratic", "cubic"):
+                        curv = {**curv, "params": list(curv.get("params") or [])[::-1]}
+                    elif isinstance(curv, dict) and curv.get("type") == "circle":
+                        curv = _reverse_curvature(curv)
+                prims.append(_edge(V[s], V[t], curv, coords == "absolute",
+                                   f"{what}: edge {e.get('endpoints')}"))
+            prims_mm = []
+            for p in prims:
+                if isinstance(p, Bezier):
+                    prims_mm.append(Bezier(p.ctrl * scale))
+                else:
+                    prims_mm.append(EllipseArc(p.center * scale, p.a * scale, p.b * scale, p.t0, p.t1,
+                                               p.start_point * scale, p.end_point * scale))
+            corner_pts = [V[s] * scale for s, *_ in _loop(edges, len(V), what)]
+            meta = {k: panel[k] for k in ("translation", "rotation") if k in panel}
+            pieces.append(piece_from_primitives(
+                str(name), prims_mm, rel_tol=rel_tol, turn_points=corner_pts, where=f"{where}: ",
+                units=unit, source="garmentcode", notes=tuple(notes), meta=meta))
+        except InputError as exc:
+            failed.append(piece_failure(str(name), exc, where))
+    return pattern_pieces(pieces, failed, where, f"{where}: the pattern has no panels")

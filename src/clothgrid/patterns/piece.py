@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, PiecesError
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
-__all__ = ["Piece", "piece_from_primitives", "piece_from_polygon"]
+__all__ = ["Piece", "PieceFailure", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
+           "piece_from_polygon", "MIN_POINTS"]
+
+#: the fewest distinct outline points of a piece (a triangle: a godet, a gusset)
+MIN_POINTS = 3
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -88,6 +92,77 @@ class Piece:
                 f"{len(self.turn_points)} turn points, source={self.source!r})")
 
 
+@dataclass(frozen=True)
+class PieceFailure:
+    """A piece of a pattern file that could not be made (read) or gridded, and why.
+
+    Attributes
+    ----------
+    name : str
+        The piece's name (as the file names it).
+    reason : str
+        Why, without the file's and the piece's names (an error message's text).
+    stage : str
+        Where it failed: ``"read"`` (the outline), ``"corners"`` (corner choice
+        and the four-sided boundary), ``"size"`` (the grid would not fit in
+        memory) or ``"grid"`` (:func:`clothgrid.generate` failed).
+    error : Exception or None
+        The exception itself (not compared; for callers that re-raise it).
+    """
+
+    name: str
+    reason: str
+    stage: str = "read"
+    error: BaseException | None = field(default=None, compare=False, repr=False)
+
+    def message(self, source: Any = None) -> str:
+        """``FILE: piece 'NAME': reason`` (without ``FILE: `` when ``source`` is None)."""
+        return f"{f'{source}: ' if source is not None else ''}piece {self.name!r}: {self.reason}"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "reason": self.reason, "stage": self.stage}
+
+
+class Pieces(list):
+    """The pieces read from a pattern file, in file order (a plain ``list`` of :class:`Piece`),
+    with :attr:`failed`, the pieces of the file that could not be made (:class:`PieceFailure`)."""
+
+    def __init__(self, pieces: Any = (), failed: Any = ()) -> None:
+        super().__init__(pieces)
+        self.failed: list[PieceFailure] = list(failed)
+
+
+def piece_failure(name: str, exc: BaseException, where: str = "", stage: str = "read",
+                  labels: Sequence[str] = ()) -> PieceFailure:
+    """A :class:`PieceFailure` from an error about piece ``name``: the message's leading file and
+    piece names (``where``, then ``piece 'NAME'`` or one of ``labels``) are taken off."""
+    text = str(exc)
+    where = where.rstrip()
+    for head in (where, where.rstrip(":")):
+        if head and text.startswith(head):
+            text = text[len(head):].lstrip(": ")
+            break
+    for label in (f"piece {name!r}", f"panel {name!r}", *labels):
+        if text.startswith(label):
+            text = text[len(label):].lstrip(": ")
+            break
+    return PieceFailure(name, text or type(exc).__name__, stage, exc)
+
+
+def pattern_pieces(pieces: Sequence[Piece], failed: Sequence[PieceFailure], where: str,
+                   none: str | None = None) -> Pieces:
+    """The reader's answer: the good pieces and the failed ones, or a :class:`PiecesError` (an
+    InputError) when no piece could be made (the one failure's message, or every failure's reason)."""
+    if pieces:
+        return Pieces(pieces, failed)
+    if not failed:
+        raise InputError(none or f"{where}: no pattern piece found")
+    if len(failed) == 1:
+        raise PiecesError(failed[0].message(where), failed, where)
+    raise PiecesError(f"{where}: none of its {len(failed)} pieces could be read: "
+                      + "; ".join(f.message() for f in failed), failed, where)
+
+
 def _signed_area(p: np.ndarray) -> float:
     q = np.roll(p, -1, axis=0)
     return 0.5 * float((p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]).sum())
@@ -105,12 +180,13 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     Raises
     ------
     InputError
-        Non-finite coordinates, fewer than 4 distinct points, or zero area.
+        Non-finite coordinates, fewer than 3 distinct points (:data:`MIN_POINTS`;
+        a triangle is a piece: a godet, a gusset), or zero area.
     """
     label = f"{where}piece {name!r}"
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2 or not np.isfinite(pts).all():
-        raise InputError(f"{label} has a non-finite or malformed coordinate")
+        raise InputError(f"{label}: a non-finite or malformed coordinate")
     n0 = len(pts)
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) if n0 else 0.0
     eps = 1e-12 * size
@@ -126,10 +202,9 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     new_index = np.where(new_index < 0, int(keep.sum()) - 1, new_index)
     pts = pts[keep]
     n = len(pts)
-    if n < 4:
-        raise InputError(f"{label} has only {n} distinct point{'s' if n != 1 else ''}; a piece "
-                         "needs at least 4 (one per grid corner): add a point where the fourth "
-                         "corner should be")
+    if n < MIN_POINTS:
+        raise InputError(f"{label}: only {n} distinct point{'s' if n != 1 else ''}; a piece "
+                         f"needs at least {MIN_POINTS} and must enclose an area")
 
     def remap(idx: np.ndarray | None) -> np.ndarray:
         if idx is None or len(idx) == 0:
@@ -139,7 +214,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     verts, turns = remap(vertices), remap(turn_points)
     area = _signed_area(pts)
     if not abs(area) > 1e-12 * size * size:
-        raise InputError(f"{label} encloses no area (its outline runs back over itself)")
+        raise InputError(f"{label}: encloses no area (its outline runs back over itself)")
     if area < 0:                              # make it counter-clockwise, keeping point 0
         pts = np.roll(pts[::-1], 1, axis=0)
         verts, turns = np.unique((n - verts) % n), np.unique((n - turns) % n)
@@ -167,10 +242,10 @@ def piece_from_primitives(name: str, prims: list[Primitive], *, rel_tol: float =
         Prefix for messages (the file name).
     """
     if not prims:
-        raise InputError(f"{where}piece {name!r} has no curves")
+        raise InputError(f"{where}piece {name!r}: no curves")
     size = loop_extent(prims)
     if not size > 0:
-        raise InputError(f"{where}piece {name!r} has zero size")
+        raise InputError(f"{where}piece {name!r}: zero size")
     tol = rel_tol * size
     outline, starts = sample_loop(prims, tol)
     turns = None

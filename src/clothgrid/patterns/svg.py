@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .piece import Piece, piece_from_primitives
+from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
 
@@ -249,7 +249,7 @@ def _name(el: ET.Element, fallback: str) -> str:
 
 
 def read_svg(path: str | Path, *, units: str | None = None,
-             rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
+             rel_tol: float = DEFAULT_REL_TOL) -> Pieces:
     """Read every closed path of an SVG file as a :class:`Piece` (mm).
 
     Parameters
@@ -266,8 +266,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
     ------
     InputError
         Unreadable or malformed XML (e.g. truncated), not an SVG, invalid path
-        data, unknown units, no closed path, or a piece with fewer than 4
-        points.
+        data, unknown units, no closed path, or no piece that could be made.
+        A path that cannot be made into a piece (fewer than 3 distinct points,
+        no area, bad path data) is listed in the answer's ``failed`` instead.
     """
     path = Path(path)
     where = str(path)
@@ -285,6 +286,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     from svgpathtools import parse_path
 
     pieces: list[Piece] = []
+    failed: list[PieceFailure] = []
     names: dict[str, int] = {}
     open_paths = 0
     counter = 0
@@ -307,48 +309,53 @@ def read_svg(path: str | Path, *, units: str | None = None,
             base = _name(el, f"piece{counter}")
             label = f"<{tag}> {base!r}"
             loops: list[list[Primitive]] = []
-            if tag in ("circle", "ellipse"):
-                prims = _ellipse_prims(el, m, f"{where}: {label}")
-                if prims:
-                    loops.append(prims)
-            else:
-                d = _shape_d(el, f"{where}: {label}")
-                if d:
-                    if not _PATH_CHARS.fullmatch(d):
-                        bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
-                        raise InputError(f"{where}: {label}: invalid path data (unexpected "
-                                         f"{bad!r})")
-                    try:
-                        with warnings.catch_warnings():
-                            warnings.simplefilter("ignore")
-                            parsed = parse_path(d)
-                    except Exception as exc:       # svgpathtools raises several types
-                        raise InputError(f"{where}: {label}: invalid path data ({exc})") from None
-                    for sub in parsed.continuous_subpaths():
-                        if len(sub) == 0:
-                            continue
-                        prims = [_segment_prims(seg, m) for seg in sub]
-                        ends = np.array([p.start for p in prims] + [prims[-1].end])
-                        size = float(np.hypot(*np.ptp(ends, axis=0)))
-                        gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
-                        if not size > 0 or gap > 1e-9 * size:
-                            open_paths += 1
-                            continue
+            try:
+                if tag in ("circle", "ellipse"):
+                    prims = _ellipse_prims(el, m, f"{where}: {label}")
+                    if prims:
                         loops.append(prims)
+                else:
+                    d = _shape_d(el, f"{where}: {label}")
+                    if d:
+                        if not _PATH_CHARS.fullmatch(d):
+                            bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
+                            raise InputError(f"{where}: {label}: invalid path data (unexpected "
+                                             f"{bad!r})")
+                        try:
+                            with warnings.catch_warnings():
+                                warnings.simplefilter("ignore")
+                                parsed = parse_path(d)
+                        except Exception as exc:       # svgpathtools raises several types
+                            raise InputError(f"{where}: {label}: invalid path data ({exc})") from None
+                        for sub in parsed.continuous_subpaths():
+                            if len(sub) == 0:
+                                continue
+                            prims = [_segment_prims(seg, m) for seg in sub]
+                            ends = np.array([p.start for p in prims] + [prims[-1].end])
+                            size = float(np.hypot(*np.ptp(ends, axis=0)))
+                            gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
+                            if not size > 0 or gap > 1e-9 * size:
+                                open_paths += 1
+                                continue
+                            loops.append(prims)
+            except InputError as exc:
+                failed.append(piece_failure(unique(base), exc, where, labels=(label,)))
+                return
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
-                pieces.append(piece_from_primitives(
-                    name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                    notes=(f"units: {how}",), meta={"element": tag, "id": el.get("id")}))
+                try:
+                    pieces.append(piece_from_primitives(
+                        name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
+                        notes=(f"units: {how}",), meta={"element": tag, "id": el.get("id")}))
+                except InputError as exc:
+                    failed.append(piece_failure(name, exc, where))
             return
         for child in el:
             visit(child, m)
 
     visit(root, view)
-    if not pieces:
-        extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
-                 "piece must be a closed path, ending with Z or at its start point)"
-                 if open_paths else "")
-        raise InputError(f"{where}: no closed path found, so no pattern piece{extra}")
-    return pieces
+    extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
+             "piece must be a closed path, ending with Z or at its start point)"
+             if open_paths else "")
+    return pattern_pieces(pieces, failed, where, f"{where}: no closed path found, so no pattern piece{extra}")
 
