@@ -101,16 +101,18 @@ def test_bad_functional_and_curved_piece(rng):
 
 def test_cli_strict_and_auto(tmp_path, capsys):
     out = tmp_path / "tie.npz"
-    assert main(["generate", str(TIE), "-o", str(out), "-q", "--strict"]) == 3
+    length = ["--functional", "length", "--weights", "paper"]      # the paper's method folds the tie
+    assert main(["generate", str(TIE), "-o", str(out), "-q", "--strict", *length]) == 3
     assert not out.exists()
     err = capsys.readouterr().err
     assert "10 folded cells" in err and "(0, 0)" in err
-    assert main(["generate", str(TIE), "-o", str(out), "-q", "--functional", "auto", "--strict"]) == 0
+    assert main(["generate", str(TIE), "-o", str(out), "-q", "--weights", "paper", "--strict"]) == 0  # auto: default
     assert out.exists()
     captured = capsys.readouterr()
     assert "length functional:" in captured.out and captured.out.count("folded cells:") == 2
+    assert "folded cells: 0" in captured.out.split("fold-free")[1]
     out.unlink()
-    assert main(["generate", str(TIE), "-o", str(out), "-q"]) == 0           # warns, writes
+    assert main(["generate", str(TIE), "-o", str(out), "-q", *length]) == 0           # warns, writes
     err = capsys.readouterr().err
     assert "warning: 10 folded cells (first at cells (0, 0)" in err and "--functional auto" in err
     assert main(["generate", str(TIE), "-o", str(tmp_path / "x.npz"), "--functional", "bad"]) == 2

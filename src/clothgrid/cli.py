@@ -171,8 +171,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="grid size, NUxNV or N (default: the input's point counts)")
     g.add_argument("--init", choices=("zero", "average", "tfi"), default="tfi",
                    help="initial grid (default: tfi)")
-    g.add_argument("--weights", choices=("paper", "uniform"), default="paper",
-                   help="edge weights (default: paper, eq. 2)")
+    g.add_argument("--weights", choices=("paper", "uniform"), default="uniform",
+                   help="edge weights: uniform, or the paper's eq. 2 (default: uniform; on real "
+                        "patterns the paper's weights spread edge lengths more and fold more cells: "
+                        "docs/patterns.md)")
     g.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
                    help="the factor k of the v weights in eq. 2 (default: 1)")
     g.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",
@@ -192,10 +194,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="most iterations of an iterative solver (Jacobi sweeps or multigrid V-cycles)")
     g.add_argument("--allow-unconverged", action="store_true",
                    help="write the grid even if --max-iter is reached before --tol")
-    g.add_argument("--functional", choices=("length", "foldfree", "auto"), default="length",
-                   help="length: the weighted length functional (may fold cells on non-convex pieces); "
-                        "foldfree: then untangle and smooth it (planar pieces); auto: foldfree only "
-                        "if the length grid folds (default: length)")
+    g.add_argument("--functional", choices=("length", "foldfree", "auto"), default="auto",
+                   help="length: the weighted length functional alone (the paper's; may fold cells on "
+                        "non-convex pieces); auto: then relax the folded and poorly shaped cells and the "
+                        "nodes near them (planar pieces); foldfree: relax every interior node "
+                        "(default: auto)")
+    g.add_argument("--report", metavar="FILE.json",
+                   help="write a quality report: per piece folded cells, smallest and largest angle, "
+                        "edge spread, shortest edge against the edge length asked, targets missed")
     g.add_argument("--strict", action="store_true",
                    help="fail (exit 3, no output) if the final grid has folded cells")
     g.add_argument("--plot", metavar="PNG", help="also draw the grid to this PNG file")
@@ -353,9 +359,16 @@ def _report(result: Any, pattern: bool) -> None:
         print(Quality(**{**before, "folded_cells": np.asarray(before.get("folded_cells", []),
                                                                 dtype=np.int64).reshape(-1, 2)}).table())
         ff = grid.info.get("foldfree", {})
-        print(f"fold-free ({_fmt(ff.get('iterations'), 'd')} iterations, "
+        print(f"fold-free ({_fmt(ff.get('moved'), 'd')} nodes moved, {_fmt(ff.get('sweeps'), 'd')} sweeps, "
               f"{_fmt(ff.get('seconds'), '.3f')} s):")
     print(result.quality.table())
+    q = grid.info.get("quality") or {}
+    if q:
+        vs = q.get("shortest_vs_target")
+        print(f"angles {_fmt(q.get('min_angle_deg'), '.3g')} to {_fmt(q.get('max_angle_deg'), '.4g')} deg "
+              f"(corner cells aside), edge spread {_fmt(q.get('edge_spread'), '.3g')}"
+              + (f", shortest edge {_fmt(vs, '.2f')} of the edge length asked" if vs is not None else "")
+              + (f"; misses: {'; '.join(q['missed'])}" if q.get("missed") else "; targets met"))
     print(timing_line(grid.info, result.seconds), flush=True)
 
 
@@ -394,8 +407,16 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         _say(f"warning: {f'piece {r.job.name}: ' if many else ''}{folded_text(r.quality)}"
              + (f"; {hint}" if hint else ""))
     t0 = time.perf_counter()
+    report = None
+    if args.report:   # first: a report that cannot be written leaves no grid behind
+        report = pipeline.write_report(args.report, args.input, results, failed)
     out = pipeline.OutputOptions(triangles=args.triangles, uv=args.uv, density=args.density, cloth=args.cloth)
-    written = pipeline.write_results(results, out)
+    try:
+        written = pipeline.write_results(results, out)
+    except BaseException:
+        if report is not None:
+            report.unlink(missing_ok=True)
+        raise
     if progress:
         progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
     if failed:

@@ -324,6 +324,35 @@ def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:
     return s < poor_sine
 
 
+def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], rounds: int,
+                  stall: int | None) -> tuple[float, int]:
+    """Untangling rounds over ``nodes`` (delta by Escobar's rule) until no corner is folded."""
+    from .foldfree_kernels import corner_min, sweep_nodes
+
+    jmin, bad = corner_min(Xs, True)
+    stalled = 0
+    while bad and rounds > 0 and len(nodes):
+        rounds -= 1
+        stats["rounds"] += 1
+        done, _ = sweep_nodes(Xs, nodes, EPS * (EPS - min(jmin, 0.0)), RELAX_SWEEPS, 1e-3)
+        stats["sweeps"] += int(done)
+        before = bad
+        jmin, bad = corner_min(Xs, True)
+        stalled = stalled + 1 if bad >= before else 0
+        if stall is not None and stalled >= stall:
+            break
+    return float(jmin), int(bad)
+
+
+def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None]) -> np.ndarray:
+    """Untangle every interior node (after the active set could not)."""
+    nu, nv = Xs.shape[:2]
+    nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, None)
+    say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
+    return Xs
+
+
 def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
           whole: bool = False, progress: Callable[[str], None] | None = None
           ) -> tuple[np.ndarray, dict[str, Any]]:
@@ -331,9 +360,10 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
 
     The energy is :func:`untangle`'s, minimised node by node (Newton steps,
     :mod:`clothgrid.foldfree_kernels`) over the interior nodes within
-    ``margin`` grid lines of a cell that is folded or has a corner angle whose
-    sine is below ``poor_sine``; the margin doubles while folds remain
-    (up to the whole grid). Cost follows the size of the poor region.
+    ``margin`` grid lines (at least an eighth of the shorter grid side) of a
+    cell that is folded or has a corner angle whose sine is below
+    ``poor_sine``. Where folds remain, every interior node is untangled; then
+    the active nodes are smoothed. Cost follows the size of the poor region.
 
     Parameters
     ----------
@@ -353,10 +383,9 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     points : numpy.ndarray
         ``(nu, nv, 3)`` nodes.
     info : dict
-        ``moved`` (nodes in the last active set), ``sweeps``, ``rounds``,
-        ``untangled``, ``min_corner_jacobian`` (relative to the mean cell
-        area, grid-corner terms aside), ``seconds``, ``method`` ("relax", or
-        "untangle" when the global fallback ran).
+        ``moved`` (nodes smoothed), ``sweeps``, ``rounds``, ``untangled``,
+        ``min_corner_jacobian`` (smallest ``a x b / (|a|^2 + |b|^2)``, 1/2
+        for a square, grid-corner terms aside), ``seconds``, ``method``.
     """
     from .foldfree_kernels import corner_min, sweep_nodes
 
@@ -380,32 +409,22 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     stats: dict[str, Any] = {"sweeps": 0, "rounds": 0, "moved": 0, "method": "relax"}
     poor = np.ones((nu - 1, nv - 1), bool) if whole else _poor_cells(Xs, poor_sine)
     if not poor.any():
-        stats.update(untangled=bool(corner_min(Xs, True) > 0), min_corner_jacobian=float(corner_min(Xs, True)),
-                     seconds=time.perf_counter() - t0)
+        jmin, bad = corner_min(Xs, True)
+        stats.update(untangled=bad == 0, min_corner_jacobian=float(jmin), seconds=time.perf_counter() - t0)
         return R, stats
-    m = max(nu, nv) if whole else margin
-    while True:
-        nodes = _active_nodes(poor, m)
-        stats["moved"] = int(len(nodes))
-        jmin = float(corner_min(Xs, True))
-        rounds = 0
-        while jmin <= 0 and rounds < RELAX_ROUNDS and len(nodes):
-            rounds += 1
-            done, _ = sweep_nodes(Xs, nodes, EPS * (EPS - jmin), RELAX_SWEEPS, 1e-3)
-            stats["sweeps"] += int(done)
-            jmin = float(corner_min(Xs, True))
-        stats["rounds"] += rounds
-        if jmin > 0 and len(nodes):
-            done, _ = sweep_nodes(Xs, nodes, DELTA_SMOOTH ** 2, RELAX_SWEEPS, 1e-3)
-            stats["sweeps"] += int(done)
-            jmin = float(corner_min(Xs, True))
-        say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {rounds} untangling "
-            f"rounds, min corner Jacobian {jmin:.3g}")
-        if jmin > 0 or m >= max(nu, nv):
-            break
-        m *= 2
-        poor = poor | _poor_cells(Xs, poor_sine)
-    stats.update(untangled=bool(jmin > 0), min_corner_jacobian=jmin)
+    m = max(nu, nv) if whole else max(margin, min(nu, nv) // 8)
+    nodes = _active_nodes(poor, m)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
+    say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
+    if bad:
+        Xs = _relax_all(Xs, stats, say)
+        nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
+        jmin, bad = corner_min(Xs, True)
+    if bad == 0 and len(nodes):
+        done, _ = sweep_nodes(Xs, nodes, DELTA_SMOOTH ** 2, RELAX_SWEEPS, 1e-3)
+        stats["sweeps"] += int(done)
+        jmin, bad = corner_min(Xs, True)
+    stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
     out = R.copy()
     out[1:-1, 1:-1] = centre + (Xs[1:-1, 1:-1] * scale + shift) @ basis
     if dim == 2:

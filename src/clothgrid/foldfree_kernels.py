@@ -179,10 +179,14 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol):
 
 @njit(cache=True)
 def corner_min(X, skip_grid_corners):
-    """Smallest ``a x b / (|a|^2 + |b|^2)`` of all cell corners (1/2 for a square; the 4 fixed grid-corner terms skipped if asked)."""
+    """Smallest ``a x b / (|a|^2 + |b|^2)`` of all cell corners (1/2 for a square) and how many are <= 0.
+
+The 4 fixed grid-corner terms are skipped if asked.
+"""
     nu = X.shape[0]
     nv = X.shape[1]
     best = np.inf
+    bad = 0
     for ci in range(nu - 1):
         for cj in range(nv - 1):
             for k in range(4):
@@ -199,9 +203,11 @@ def corner_min(X, skip_grid_corners):
                 J = ax * by - ay * bx
                 N = ax * ax + ay * ay + bx * bx + by * by
                 v = J / N if N > 0.0 else -1.0
+                if v <= 0.0:
+                    bad += 1
                 if v < best:
                     best = v
-    return best
+    return best, bad
 
 
 @njit(cache=True)

@@ -111,11 +111,12 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         Called with a line of text at each stage and during long iterations.
     functional : {"length", "foldfree", "auto"}
         ``length``: the weighted length functional (eq. 1), which can fold
-        cells on non-convex pieces. ``foldfree``: its grid is then untangled
-        and smoothed by :func:`clothgrid.foldfree.untangle` (planar pieces
-        only). ``auto``: the length grid, returned unchanged when it has no
-        folded cell, else untangled like ``foldfree`` (a folded curved piece
-        keeps its length grid, with ``info["foldfree_skipped"]`` saying why).
+        cells on non-convex pieces. ``auto``: its folded and poorly shaped
+        cells (a corner angle under about 20 degrees) and the nodes near them
+        are then relaxed by :func:`clothgrid.foldfree.relax` (planar pieces;
+        the length grid is returned unchanged when no cell is poor, and a
+        curved piece keeps its length grid, with ``info["foldfree_skipped"]``
+        saying why). ``foldfree``: every interior node is relaxed.
 
     Returns
     -------
@@ -261,6 +262,9 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
             raise
         grid.info["foldfree_skipped"] = str(exc)
         say(f"warning: {q.folded} folded cells kept: {exc}")
+        return grid
+    if functional == "auto" and ff.get("moved", 0) == 0:    # no poor cell: the length grid as it is
+        grid.info["relax"] = ff
         return grid
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)

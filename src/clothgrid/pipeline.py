@@ -53,13 +53,13 @@ from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece
                        nodes_for_edge_length, piece_boundary, piece_info)
 from .patterns.piece import PieceFailure, Pieces, piece_failure
 from .units import parse_length
-from .quality import Quality, quality
+from .quality import Quality, quality, sim_figures, targets_met
 from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
            "write_results", "generate_piece", "piece_listing", "select_pieces", "corner_choice",
-           "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES"]
+           "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
 
@@ -78,7 +78,7 @@ class GridOptions:
     nodes: Any = None
     edge_length: float | str | None = None
     init: str = "tfi"
-    weights: str = "paper"
+    weights: str = "uniform"
     k: float = 1.0
     solver: str = "auto"
     backend: str = "auto"
@@ -86,7 +86,7 @@ class GridOptions:
     stop: str = "error"
     max_iter: int | None = None
     allow_unconverged: bool = False
-    functional: str = "length"
+    functional: str = "auto"
 
     def __post_init__(self) -> None:
         from .generate import FUNCTIONALS, _check_options
@@ -500,7 +500,65 @@ def run_job(job: Job, progress: Callable[[str], None] | None = None) -> Result:
         grid.info["piece"] = job.piece
     # The writers read the coordinates' unit from info["length_unit"] (clothgrid.cloth).
     grid.info["length_unit"] = job.length_unit
-    return Result(job, grid, quality(grid), seconds)
+    q = quality(grid)
+    figures = sim_figures(grid.points, job.edge_length)
+    grid.info["quality"] = {"folded": int(q.folded), **figures, "missed": targets_met(figures, q.folded)}
+    return Result(job, grid, q, seconds)
+
+
+def report_entry(result: Result) -> dict[str, Any]:
+    """One piece's line of the quality report (``--report``): figures, targets missed, corners, time."""
+    info = result.grid.info
+    entry: dict[str, Any] = {"name": result.job.name, "nodes": list(result.grid.shape),
+                             "edge_length": result.job.edge_length, "seconds": result.seconds,
+                             "functional": info.get("functional"), "weights": info.get("weights"),
+                             **info.get("quality", {})}
+    if result.job.piece is not None:
+        corners = result.job.piece.get("corners", {})
+        entry["corners"] = {"method": corners.get("method"), "indices": corners.get("indices"),
+                            "points": corners.get("points")}
+    return entry
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite float made ``None`` (JSON has no inf or NaN)."""
+    if isinstance(value, float):
+        return value if value == value and abs(value) != float("inf") else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
+def write_report(path: str | Path, source: str | Path, results: Sequence[Result],
+                 failed: Sequence[Any] = ()) -> Path:
+    """Write the quality report of a run as JSON, atomically (temporary file, then rename).
+
+    Holds the targets (:mod:`clothgrid.quality`), one entry per piece
+    (:func:`report_entry`) and the pieces that failed with their reasons.
+    """
+    import json
+
+    from .quality import FLOOR_MIN_ANGLE_DEG, TARGET_EDGE_SPREAD, TARGET_MIN_ANGLE_DEG
+
+    data = {
+        "input": str(source),
+        "targets": {"folded": 0, "min_angle_deg": TARGET_MIN_ANGLE_DEG,
+                    "min_angle_floor_deg": FLOOR_MIN_ANGLE_DEG, "edge_spread": TARGET_EDGE_SPREAD,
+                    "note": "angles leave out the four cells at the grid's corners"},
+        "pieces": [_finite(report_entry(r)) for r in results],
+        "failed": [{"name": getattr(f, "name", "?"), "reason": getattr(f, "reason", str(f))} for f in failed],
+    }
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        tmp.write_text(json.dumps(data, indent=1, allow_nan=False, default=float) + "\n")
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise InputError(f"cannot write the report {str(path)!r}: {exc.strerror or exc}") from exc
+    return path
 
 
 def run_jobs(jobs: Sequence[Job], progress: Callable[[str], None] | None = None,
@@ -629,6 +687,8 @@ def generate_piece(piece: Piece, nodes: Any = None, *, edge_length: float | str 
     if nodes is None:
         h = DEFAULT_EDGE_LENGTH_MM if edge_length is None else parse_length(edge_length, "mm", what="edge length")
         nodes = nodes_for_edge_length(boundary, h)
+    kwargs.setdefault("weights", "uniform")
+    kwargs.setdefault("functional", "auto")
     grid = generate(boundary, nodes, **kwargs)
     grid.info["piece"] = piece_info(piece, choice, h)
     return grid

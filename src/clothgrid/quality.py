@@ -17,7 +17,8 @@ from .errors import InputError
 from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, plane_axes, vector_area
 from .grid import Grid
 
-__all__ = ["Quality", "quality"]
+__all__ = ["Quality", "quality", "sim_figures", "targets_met", "TARGET_MIN_ANGLE_DEG",
+           "FLOOR_MIN_ANGLE_DEG", "TARGET_EDGE_SPREAD"]
 
 #: Largest distance of the boundary loop from its best-fit plane, relative to
 #: its bounding-box diagonal, for which a 3D piece counts as planar.
@@ -254,3 +255,79 @@ def _measure(X: np.ndarray, a: int, b: int, local: float | None):
         aspect = np.where(degenerate, np.inf, longest / shortest)
     return (folded, float(min_sj.min()), float(aspect.max()), float(deviation.max()),
             float(len_u.max()), float(len_u.min()), float(len_v.max()), float(len_v.min()))
+
+
+#: Targets of a simulation-grade grid of a real pattern piece (issue 12, docs/patterns.md).
+TARGET_MIN_ANGLE_DEG = 10.0
+FLOOR_MIN_ANGLE_DEG = 3.0
+TARGET_EDGE_SPREAD = 4.0
+
+
+def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[str, Any]:
+    """What a cloth simulator cares about, per grid: folds, angles, edge lengths.
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        ``(nu, nv, 3)`` nodes of a planar or curved grid.
+    edge_length : float, optional
+        The edge length asked for (same units), to compare the shortest edge with.
+
+    Returns
+    -------
+    dict
+        ``min_angle_deg`` and ``max_angle_deg`` (over all cell corners, each
+        corner angle measured in the cell's own plane; the four cells at the
+        grid's corners aside, where a grid corner may sit on a straight side or
+        a sharp tip), ``corner_cell_angles_deg`` (the angle of each grid corner),
+        ``shortest_edge``, ``longest_edge``, ``edge_spread`` (longest / shortest
+        over all edges), ``shortest_vs_target`` (shortest edge / ``edge_length``).
+    """
+    P = np.asarray(points, dtype=np.float64)
+    c = (P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:])
+    nc = (P.shape[0] - 1, P.shape[1] - 1)
+    amin = np.full(nc, 180.0)
+    amax = np.zeros(nc)
+    # the cell's normal: the sum of its corner cross products (for the sign of each angle)
+    normal = np.zeros(nc + (3,))
+    for k in range(4):
+        normal += np.cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k])
+    corner_angle = []
+    for k in range(4):
+        a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
+        cr = np.einsum("...k,...k->...", np.cross(a, b), normal)
+        sin = np.linalg.norm(np.cross(a, b), axis=-1) * np.sign(cr)
+        ang = np.degrees(np.arctan2(sin, np.einsum("...k,...k->...", a, b)))
+        ang = np.where(ang < 0, 0.0, ang)          # folded: 0
+        corner_angle.append(ang)
+        amin = np.minimum(amin, ang)
+        amax = np.maximum(amax, ang)
+    grid_corners = [float(corner_angle[0][0, 0]), float(corner_angle[1][-1, 0]),
+                    float(corner_angle[2][-1, -1]), float(corner_angle[3][0, -1])]
+    if nc[0] * nc[1] > 4:
+        keep = np.ones(nc, bool)
+        keep[0, 0] = keep[-1, 0] = keep[0, -1] = keep[-1, -1] = False
+        amin, amax = amin[keep], amax[keep]
+    eu = np.linalg.norm(np.diff(P, axis=0), axis=-1)
+    ev = np.linalg.norm(np.diff(P, axis=1), axis=-1)
+    lo = float(min(eu.min(), ev.min()))
+    hi = float(max(eu.max(), ev.max()))
+    return {
+        "min_angle_deg": float(amin.min()), "max_angle_deg": float(amax.max()),
+        "corner_cell_angles_deg": grid_corners,
+        "shortest_edge": lo, "longest_edge": hi,
+        "edge_spread": hi / lo if lo > 0 else float("inf"),
+        "shortest_vs_target": (lo / float(edge_length)) if edge_length else None,
+    }
+
+
+def targets_met(fig: dict[str, Any], folded: int) -> list[str]:
+    """The targets a grid misses (empty: all met), as short phrases."""
+    miss = []
+    if folded:
+        miss.append(f"{folded} folded cell{'s' if folded != 1 else ''}")
+    if fig["min_angle_deg"] < TARGET_MIN_ANGLE_DEG:
+        miss.append(f"smallest angle {fig['min_angle_deg']:.3g} deg < {TARGET_MIN_ANGLE_DEG:g}")
+    if fig["edge_spread"] > TARGET_EDGE_SPREAD:
+        miss.append(f"edge spread {fig['edge_spread']:.3g} > {TARGET_EDGE_SPREAD:g}")
+    return miss
