@@ -354,7 +354,7 @@ def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None]
 
 
 def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
-          whole: bool = False, progress: Callable[[str], None] | None = None
+          whole: bool = False, quick: bool = False, progress: Callable[[str], None] | None = None
           ) -> tuple[np.ndarray, dict[str, Any]]:
     """Unfold and improve the poor cells of a planar grid, moving only the nodes near them.
 
@@ -375,6 +375,9 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         Which cells are relaxed and how far around them.
     whole : bool
         Relax every interior node (then ``poor_sine`` and ``margin`` are unused).
+    quick : bool
+        At most 8 untangling rounds and 8 smoothing sweeps (a cheap look, as
+        when ranking corner choices); folds may remain.
     progress : callable, optional
         Called with a line of text per stage.
 
@@ -416,12 +419,12 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     nodes = _active_nodes(poor, m)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
-    if bad:
+    if bad and not quick:
         Xs = _relax_all(Xs, stats, say)
         nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
         jmin, bad = corner_min(Xs, True)
     if bad == 0 and len(nodes):
-        done, _ = sweep_nodes(Xs, nodes, DELTA_SMOOTH ** 2, RELAX_SWEEPS, 1e-3)
+        done, _ = sweep_nodes(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
         stats["sweeps"] += int(done)
         jmin, bad = corner_min(Xs, True)
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))

@@ -172,9 +172,9 @@ def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
 
 
 #: Corner sets scored by a coarse grid (the best by the quick score go on to it).
-GRID_RANKED = 24
+GRID_RANKED = 10
 #: Cells of the coarse grid that scores a corner set.
-COARSE_CELLS = 240
+COARSE_CELLS = 150
 
 
 def _side_points(outline: np.ndarray, a: int, b: int) -> np.ndarray:
@@ -211,7 +211,7 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
     r[:, -1] = resample_polyline(sides[2], nu)[::-1]
     r[0, :] = resample_polyline(sides[3], nv)[::-1]
     transfinite(r)
-    out, _ = relax(r, dim=2, whole=True)
+    out, _ = relax(r, dim=2, whole=True, quick=True)
     return out
 
 
