@@ -10,6 +10,13 @@ ignored. Path data is parsed by svgpathtools; lines, quadratic and cubic
 Béziers and elliptical arcs are then sampled exactly (see
 :mod:`clothgrid.patterns.sampling`).
 
+Not every closed outline is a piece: text converted to paths, arrows, notches,
+drill holes, marks drawn on a piece and the seam-allowance outline around a
+piece are told apart by :func:`clothgrid.patterns.annotations.classify` (the
+element's and its groups' ``class``, ``id``, ``inkscape:label`` and text cues
+first, geometry second); :func:`read_svg` returns the pieces with the skipped
+outlines in ``.skipped``.
+
 Units: the outermost ``<svg>``'s ``width`` and ``height`` (``mm``, ``cm``,
 ``in``, ``pt``, ``pc``, ``px`` at 96 per inch, ``Q``, or no unit = ``px``) and
 its ``viewBox`` (with ``preserveAspectRatio``) give the size of a user unit.
@@ -30,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .annotations import Pieces, classify, structure_hint
 from .piece import Piece, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
@@ -38,6 +46,7 @@ __all__ = ["read_svg"]
 
 _SVG_NS = "http://www.w3.org/2000/svg"
 _INKSCAPE_LABEL = "{http://www.inkscape.org/namespaces/inkscape}label"
+_FONT = re.compile(r"font-(family|size)\s*:", re.IGNORECASE)
 _SKIP = {"defs", "symbol", "clipPath", "mask", "marker", "pattern", "metadata", "title", "desc",
          "style", "script", "linearGradient", "radialGradient", "filter", "text", "foreignObject",
          "namedview"}
@@ -248,9 +257,28 @@ def _name(el: ET.Element, fallback: str) -> str:
     return (el.get(_INKSCAPE_LABEL) or el.get("id") or fallback).strip() or fallback
 
 
+def _text_cue(el: ET.Element) -> bool:
+    """Does the element look like text (converted to paths)?"""
+    if el.get("aria-label") is not None or el.get("font-family") or el.get("font-size"):
+        return True
+    if _FONT.search(el.get("style", "") or ""):
+        return True
+    from .annotations import _TEXT_ID
+
+    return bool(_TEXT_ID.match(el.get("id") or ""))
+
+
+def _look(el: ET.Element) -> str:
+    """How the element is drawn (class, fill, stroke, dashes): marks are drawn unlike pieces."""
+    style = dict(kv.split(":", 1) for kv in (el.get("style") or "").split(";") if ":" in kv)
+    style = {k.strip(): v.strip() for k, v in style.items()}
+    keys = ("fill", "stroke", "stroke-dasharray")
+    return ";".join([el.get("class") or ""] + [style.get(k) or el.get(k) or "" for k in keys])
+
+
 def read_svg(path: str | Path, *, units: str | None = None,
-             rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
-    """Read every closed path of an SVG file as a :class:`Piece` (mm).
+             rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
+    """Read the closed paths of an SVG file: the pieces (mm), and the annotations skipped.
 
     Parameters
     ----------
@@ -261,6 +289,15 @@ def read_svg(path: str | Path, *, units: str | None = None,
         (default ``"px"``, the CSS pixel).
     rel_tol : float
         Chord tolerance relative to each piece's size (default ``1e-7``).
+    line : "sew" or "cut"
+        Of a piece drawn twice, sew line inside its seam-allowance (cut)
+        outline, which to grid (default ``"sew"``).
+
+    Returns
+    -------
+    Pieces
+        The pieces (a list of :class:`Piece`); ``.skipped`` lists the closed
+        outlines taken for annotations, with reasons.
 
     Raises
     ------
@@ -285,6 +322,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     from svgpathtools import parse_path
 
     pieces: list[Piece] = []
+    degenerate: list[tuple[str, str, dict]] = []
     names: dict[str, int] = {}
     open_paths = 0
     counter = 0
@@ -296,12 +334,14 @@ def read_svg(path: str | Path, *, units: str | None = None,
         names[name] += 1
         return unique(f"{name}-{names[name]}")
 
-    def visit(el: ET.Element, m: np.ndarray) -> None:
+    def visit(el: ET.Element, m: np.ndarray, around: tuple[str, ...] = (), text: bool = False,
+              group: str = "") -> None:
         nonlocal open_paths, counter
         tag = _local(el.tag)
         if tag in _SKIP or _hidden(el):
             return
         m = m @ _transform(el, where)
+        text = text or _text_cue(el)
         if tag in _SHAPES:
             counter += 1
             base = _name(el, f"piece{counter}")
@@ -335,20 +375,35 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             open_paths += 1
                             continue
                         loops.append(prims)
+            hint = structure_hint([el.get("class")], around, text)
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
-                pieces.append(piece_from_primitives(
-                    name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                    notes=(f"units: {how}",), meta={"element": tag, "id": el.get("id")}))
+                meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
+                        "group": group or None, "structure": hint, "look": _look(el)}
+                try:
+                    pieces.append(piece_from_primitives(
+                        name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
+                        notes=(f"units: {how}",), meta=meta))
+                except InputError as exc:       # fewer than 4 points, no area: not a piece
+                    degenerate.append((name, f"degenerate outline: {str(exc).split(': ', 1)[-1]}",
+                                       meta))
             return
+        if el is not root:
+            own = [el.get(_INKSCAPE_LABEL), el.get("id"), el.get("class")]
+            around = around + tuple(t for t in own if t)
+            if tag == "g":
+                key = el.get(_INKSCAPE_LABEL) or el.get("id")
+                group = f"{group}/{key}" if key else f"{group}/g"
         for child in el:
-            visit(child, m)
+            visit(child, m, around, text, group)
 
     visit(root, view)
+    if not pieces and degenerate:
+        raise InputError(f"{where}: {degenerate[0][1].replace('degenerate outline: ', '')}")
     if not pieces:
         extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
                  "piece must be a closed path, ending with Z or at its start point)"
                  if open_paths else "")
         raise InputError(f"{where}: no closed path found, so no pattern piece{extra}")
-    return pieces
+    return classify(pieces, degenerate, line=line)
 
