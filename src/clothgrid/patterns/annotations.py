@@ -166,6 +166,8 @@ class Pieces(list):
                 if s.piece is None:
                     raise InputError(f"{where}outline {s.name!r} cannot be gridded: {s.reason}")
                 s.piece.meta["included"] = f"skipped as {s.kind}, included by name"
+                s.piece.meta.setdefault("line", {"seam allowance": "cut", "sew line": "sew"}
+                                        .get(s.kind, "outline"))
                 added.append(s.piece)
         return Pieces(list(self) + added, [s for s in self.skipped if s.name not in wanted])
 
