@@ -262,8 +262,11 @@ def classify(pieces: Sequence[Piece], degenerate: Sequence[tuple[str, str, dict]
     ----------
     pieces : sequence of Piece
         Every closed outline a reader found, in file order. Each one's
-        ``meta["structure"]`` (from :func:`structure_hint`) and ``meta["group"]``
-        (the part or group it is drawn in) are used when present.
+        ``meta["structure"]`` (from :func:`structure_hint`), ``meta["group"]``
+        (the group it is drawn in), ``meta["part"]`` (the part of the pattern:
+        two outlines the file calls pieces in different parts are never one
+        the other's mark or seam allowance) and ``meta["look"]`` (how it is
+        drawn) are used when present.
     degenerate : sequence of (name, message, meta)
         Closed outlines that are no piece (fewer than 4 points, no area).
     line : "sew" or "cut"
@@ -298,7 +301,7 @@ def classify(pieces: Sequence[Piece], degenerate: Sequence[tuple[str, str, dict]
     def same_part(i: int, j: int) -> bool:
         # two outlines the file calls pieces, in different parts, are different pieces
         if is_piece_class[i] and is_piece_class[j]:
-            return items[i].piece.meta.get("group") == items[j].piece.meta.get("group")
+            return items[i].piece.meta.get("part") == items[j].piece.meta.get("part")
         return True
 
     # containment among the remaining outlines
@@ -351,8 +354,27 @@ def classify(pieces: Sequence[Piece], degenerate: Sequence[tuple[str, str, dict]
     else:
         largest = max((it.piece.area for it in items), default=0.0)
 
-    # 3. outlines inside a piece: marks drawn on it
+    # 3. small outlines across a piece's outline: notches
     partner = {**paired, **{v: k for k, v in paired.items()}}
+    alive = [i for i in cand if items[i].kind is None or i in paired]
+    for j in cand:
+        it = items[j]
+        if it.kind is not None or j in partner or is_piece_class[j]:
+            continue
+        for i in alive:
+            if i == j or items[i].piece.area <= it.piece.area or items[i].kind is not None:
+                continue
+            h = items[i]
+            frac = it.piece.area / h.piece.area
+            if frac > 0.02 or np.any(it.hi < h.lo) or np.any(it.lo > h.hi):
+                continue
+            ins = _inside(it.sub, h.poly)
+            if ins.any() and not ins.all():
+                it.kind, it.of = "notch", h.piece.name
+                it.reason = f"notch on the outline of piece {h.piece.name!r} ({_fmt_pct(frac)} of its area)"
+                break
+
+    # 4. outlines inside a piece: marks drawn on it
     for j in cand:
         it = items[j]
         if it.kind is not None or j in partner:
@@ -387,25 +409,6 @@ def classify(pieces: Sequence[Piece], degenerate: Sequence[tuple[str, str, dict]
         else:
             it.kind, it.reason = "inside", f"{where} (a mark drawn on it, {_fmt_pct(frac)} of its area)"
         it.of = name
-
-    # 4. small outlines crossing a piece's outline: notches
-    alive = [i for i in cand if items[i].kind is None]
-    for j in alive:
-        it = items[j]
-        if is_piece_class[j]:
-            continue
-        for i in alive:
-            if i == j or items[i].piece.area <= it.piece.area:
-                continue
-            h = items[i]
-            frac = it.piece.area / h.piece.area
-            if frac > 0.02 or np.any(it.hi < h.lo) or np.any(it.lo > h.hi):
-                continue
-            ins = _inside(it.sub, h.poly)
-            if ins.any() and not ins.all():
-                it.kind, it.of = "notch", h.piece.name
-                it.reason = f"notch on the outline of piece {h.piece.name!r} ({_fmt_pct(frac)} of its area)"
-                break
 
     # 5. free-standing outlines: circles, arrows, glyph groups, too small
     alive = [i for i in cand if items[i].kind is None]
@@ -444,7 +447,7 @@ def classify(pieces: Sequence[Piece], degenerate: Sequence[tuple[str, str, dict]
     skipped: list[tuple[int, Skipped]] = []
     for i, it in enumerate(items):
         p = it.piece
-        meta = {k: v for k, v in p.meta.items() if k not in ("structure", "look")}
+        meta = {k: v for k, v in p.meta.items() if k not in ("structure", "look", "part")}
         if it.kind is not None:
             skipped.append((i, Skipped(p.name, it.kind, it.reason or it.kind, p, it.of, meta)))
             continue
@@ -471,6 +474,6 @@ def classify(pieces: Sequence[Piece], degenerate: Sequence[tuple[str, str, dict]
     for name, message, meta in degenerate:
         skipped.append((k, Skipped(name, "degenerate", message, None, None,
                                    {kk: v for kk, v in meta.items()
-                                    if kk not in ("structure", "look")})))
+                                    if kk not in ("structure", "look", "part")})))
         k += 1
     return Pieces(out, [s for _, s in sorted(skipped, key=lambda t: t[0])])

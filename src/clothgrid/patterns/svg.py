@@ -379,7 +379,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
                 meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
-                        "group": group or None, "structure": hint, "look": _look(el)}
+                        "group": group or None, "structure": hint, "look": _look(el),
+                        "part": group or None}
                 try:
                     pieces.append(piece_from_primitives(
                         name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
