@@ -274,7 +274,8 @@ def _add_pieces_parser(sub: Any) -> None:
                                    "outlines skipped as annotations, each with its reason "
                                    "(grid one with --include NAME).")
     p.add_argument("input", metavar="FILE", help="pattern file")
-    p.add_argument("--piece", action="append", metavar="NAME", help="only this piece (repeatable)")
+    p.add_argument("--piece", action="append", metavar="NAME",
+                   help="only this piece (repeatable); may name an outline skipped as an annotation")
     _add_annotation_arguments(p, "list")
     p.add_argument("--candidates", action="store_true",
                    help="also list every corner candidate: outline index, point (mm), turn")
