@@ -743,10 +743,14 @@ def test_godet_skirt_reads_its_triangles_and_grids_every_piece_it_can(capsys, tm
 
 @needs_shared
 def test_real_file_with_two_point_paths_writes_the_others(capsys, tmp_path):
-    """fs_florent_layout.svg: paths '55' and '56' are lines (2 points); the 6 real pieces are written."""
+    """fs_florent_layout.svg: paths '55' and '56' are lines (2 points) of class "fabric" (the closing
+    lines of the brim, whose curves are open paths): would-be pieces that cannot be made, so failed
+    (not skipped as annotations); the 3 real pieces are written (their seam-allowance outlines are
+    skipped)."""
     src = SHARED / "fs_florent_layout.svg"
     pieces = read_pieces(src)
-    assert [f.name for f in pieces.failed] == ["55", "56"] and len(pieces) == 6
+    assert [f.name for f in pieces.failed] == ["55", "56"] and len(pieces) == 3
+    assert {s.name for s in pieces.skipped} == {"3", "32", "43"}
     code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--edge-length", "20mm", "-q")
     assert code == EXIT_PARTIAL
     assert sorted(p.stem for p in tmp_path.glob("*.npz")) == sorted(p.name for p in pieces)

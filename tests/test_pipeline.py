@@ -85,8 +85,8 @@ SHARED = Path(__file__).parents[2] / "shared" / "patterns"
 _UNITS = {"B": 1, "KiB": 2**10, "MiB": 2**20, "GiB": 2**30, "TiB": 2**40, "PiB": 2**50, "EiB": 2**60}
 
 TWO_SIZES = ('<svg xmlns="http://www.w3.org/2000/svg" width="1100mm" height="600mm" viewBox="0 0 1100 600">'
-             '<rect id="small" x="0" y="0" width="10" height="10"/>'
-             '<rect id="big" x="50" y="0" width="1000" height="500"/>'
+             '<rect id="small" x="0" y="0" width="80" height="80"/>'       # not too small to be a piece
+             '<rect id="big" x="100" y="0" width="1000" height="500"/>'
              '<path id="line" d="M 0 550 L 90 550 Z"/></svg>')
 
 

@@ -247,7 +247,9 @@ def _add_pattern_arguments(g: argparse.ArgumentParser) -> None:
                         "0.25in (a plain number: mm for pattern files, the file's units for a "
                         "boundary JSON); instead of --nodes (pattern default: 10mm)")
     p.add_argument("--piece", action="append", metavar="NAME",
-                   help="grid only this piece (repeatable; default: every piece)")
+                   help="grid only this piece (repeatable; default: every piece); may name an "
+                        "outline skipped as an annotation")
+    _add_annotation_arguments(p, "grid")
     p.add_argument("--corners", type=_corner_indices, metavar="I,J,K,L",
                    help="the grid corners as outline indices (bottom-left, bottom-right, "
                         "top-right, top-left, counter-clockwise), see 'clothgrid pieces "
@@ -261,14 +263,31 @@ def _add_pattern_arguments(g: argparse.ArgumentParser) -> None:
     # --units (the generate parser's own option) overrides the units a pattern file states
 
 
+def _add_annotation_arguments(p: Any, verb: str) -> None:
+    """``--include NAME`` and ``--line sew|cut`` (generate and pieces)."""
+    p.add_argument("--include", action="append", metavar="NAME",
+                   help=f"also {verb} this closed outline, which was skipped as an annotation (text, "
+                        "arrow, notch, drill hole, mark on a piece, seam-allowance outline; "
+                        "'clothgrid pieces FILE' lists them with their names and reasons); repeatable")
+    p.add_argument("--line", choices=("sew", "cut"), default=None,
+                   help="of a piece drawn with both a sew line and a cut (seam-allowance) line "
+                        "(AAMA/ASTM DXF layer 14 and 1; an SVG outline inside another of nearly "
+                        "the same shape), which to grid: sew (default), or cut; a piece with only "
+                        "one is gridded along it (noted)")
+
+
 def _add_pieces_parser(sub: Any) -> None:
     """Add ``clothgrid pieces FILE``: list the pieces, their size and corner candidates."""
     p = sub.add_parser("pieces", help="list the pieces of a pattern file and their corners",
                        description="List the pieces of a pattern file (.svg, .dxf, GarmentCode "
-                                   ".json) with their size, units and the automatic corner "
-                                   "choice.")
+                                   ".json) with their size, units, the line used (sew or "
+                                   "cut) and the automatic corner choice; then the closed "
+                                   "outlines skipped as annotations, each with its reason "
+                                   "(grid one with --include NAME).")
     p.add_argument("input", metavar="FILE", help="pattern file")
-    p.add_argument("--piece", action="append", metavar="NAME", help="only this piece (repeatable)")
+    p.add_argument("--piece", action="append", metavar="NAME",
+                   help="only this piece (repeatable); may name an outline skipped as an annotation")
+    _add_annotation_arguments(p, "list")
     p.add_argument("--candidates", action="store_true",
                    help="also list every corner candidate: outline index, point (mm), turn")
     p.add_argument("--units", metavar="UNIT",
@@ -382,7 +401,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     progress = _progress(args.quiet)
     jobs = pipeline.read_jobs(args.input, args.output, args.plot, options=options, pieces=args.piece,
                               corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
-                              units=args.units, progress=progress)
+                              units=args.units, progress=progress, line=args.line,
+                              include=args.include)
     pattern = jobs[0].piece is not None
     many = len(jobs) > 1 or pattern
 
@@ -441,26 +461,31 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
     from . import pipeline
 
     source = Path(args.input)
-    pieces = pipeline.select_pieces(source, args.piece, units=args.units)
+    pieces = pipeline.select_pieces(source, args.piece, units=args.units, line=args.line or "sew",
+                                    include=args.include)
     failed = list(pieces.failed)
     listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json,
                                      failed=failed)
     if not listing:
         raise pipeline.no_piece_left(source, failed, "listed")
+    skipped = pipeline.skipped_listing(pieces)
     code = EXIT_PARTIAL if failed else 0
     if args.json:
         print(json.dumps({"file": str(source), "pieces": listing,
-                          "failed": [f.as_dict() for f in failed]}, indent=2))
+                          "failed": [f.as_dict() for f in failed], "skipped": skipped}, indent=2))
         sys.stdout.flush()
         _say_failed(source, failed)
         return code
     bad = f", {len(failed)} failed" if failed else ""
-    print(f"{source}: {len(listing)} piece{'s' if len(listing) != 1 else ''}{bad} (coordinates in mm)")
+    print(f"{source}: {len(listing)} piece{'s' if len(listing) != 1 else ''}{bad} (coordinates in mm)"
+          + (f", {len(skipped)} closed outline{'s' if len(skipped) != 1 else ''} skipped as "
+             "annotations" if skipped else ""))
     for e in listing:
         w, h = e["size_mm"]
+        line = f", {e['line']} line" if e.get("line") in ("sew", "cut") else ""
         print(f"{e['name']}: {w:.6g} x {h:.6g} mm, perimeter {e['perimeter_mm']:.6g} mm, "
               f"{e['outline_points']} outline points, {e['turn_points']} turn points "
-              f"[{e['source']}, file units {e['file_units']}]")
+              f"[{e['source']}, file units {e['file_units']}{line}]")
         c = e["corners"]
         pts = "; ".join(f"{x:.6g},{y:.6g}" for x, y in c["points"])
         print(f"  corners {','.join(map(str, c['indices']))} ({pts} mm): {c['message']}")
@@ -479,6 +504,11 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
                 print(f"    {cand['index']}: {x:.6g}, {y:.6g}, turn {cand['turn']:+.1f}{tp}")
     for f in failed:
         print(f"{f.name}: FAILED ({'cannot be read' if f.stage == 'read' else 'no corners'}): {f.reason}")
+    if skipped:
+        print("skipped (not gridded; grid one with --include NAME):")
+        for e in skipped:
+            size = (f" ({e['size_mm'][0]:.3g} x {e['size_mm'][1]:.3g} mm)" if "size_mm" in e else "")
+            print(f"  {e['name']}: {e['reason']}{size}")
     sys.stdout.flush()
     _say_failed(source, failed)
     return code

@@ -58,7 +58,7 @@ from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
-           "write_results", "generate_piece", "piece_listing", "select_pieces", "corner_choice",
+           "write_results", "generate_piece", "piece_listing", "skipped_listing", "select_pieces", "corner_choice",
            "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
@@ -289,7 +289,11 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> 
     """
     failed = list(getattr(pieces, "failed", ()))
     if not wanted:
-        return Pieces(pieces, failed)
+        return Pieces(pieces, failed, getattr(pieces, "skipped", ()))
+    skipped = {s.name for s in getattr(pieces, "skipped", ())}
+    named = [w for w in wanted if w in skipped]
+    if named:                         # --piece NAME of a skipped outline grids it
+        pieces = Pieces(pieces, failed, getattr(pieces, "skipped", ())).including(named, where=f"{source}: ")
     by_name = {p.name: p for p in pieces}
     bad = {f.name: f for f in failed}
     for w in wanted:
@@ -304,7 +308,7 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> 
     for w in wanted:
         if by_name[w] not in out:
             out.append(by_name[w])
-    return Pieces(out)
+    return Pieces(out, (), getattr(pieces, "skipped", ()))
 
 
 def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str = "gridded") -> Exception:
@@ -326,14 +330,17 @@ def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str 
 
 
 def select_pieces(source: str | Path, wanted: Sequence[str] | None = None, *,
-                  units: str | None = None) -> list[Piece]:
+                  units: str | None = None, line: str = "sew",
+                  include: Sequence[str] | None = None) -> list[Piece]:
     """The pieces of a pattern file, only those named in ``wanted`` if given (in that order).
 
     A :class:`~clothgrid.patterns.piece.Pieces` list: ``failed`` holds the pieces that could not
-    be read (none when ``wanted`` names pieces: naming one that cannot be read is an InputError).
+    be read (none when ``wanted`` names pieces: naming one that cannot be read is an InputError),
+    ``skipped`` the outlines skipped as annotations. ``line`` and ``include`` as for
+    :func:`clothgrid.readers.read_pieces`; a name in ``wanted`` may be a skipped outline's.
     """
     source = Path(source)
-    return _select(read_pieces(source, units=units), wanted, source)
+    return _select(read_pieces(source, units=units, line=line, include=include), wanted, source)
 
 
 def corner_choice(piece: Piece, corners: Sequence[int] | None = None, near: Any = None,
@@ -367,7 +374,8 @@ def _size(boundary: Boundary, options: GridOptions, pattern: bool) -> tuple[tupl
 def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Path | None = None, *,
               options: GridOptions = GridOptions(), pieces: Sequence[str] | None = None,
               corners: Sequence[int] | None = None, corners_near: Any = None, min_turn: float | None = None,
-              units: str | None = None, progress: Callable[[str], None] | None = None) -> list[Job]:
+              units: str | None = None, progress: Callable[[str], None] | None = None,
+              line: str | None = None, include: Sequence[str] | None = None) -> list[Job]:
     """The jobs of one input file, outputs checked (nothing is gridded or written yet).
 
     Parameters
@@ -384,6 +392,10 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     units : str, optional
         Boundary file: the unit of its coordinates (default metres). Pattern
         file: read its coordinates in this unit instead of the one it states.
+    line, include :
+        Pattern files only: grid the ``"sew"`` (default) or ``"cut"`` line,
+        and these outlines skipped as annotations (see
+        :func:`clothgrid.readers.read_pieces`).
     progress : callable, optional
         Called with a line saying what was read.
 
@@ -407,10 +419,10 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     """
     source = Path(source)
     t0 = time.perf_counter()
-    got = read_input(source, units=units)
+    got = read_input(source, units=units, line=line, include=include)
     if isinstance(got, Boundary):
         used = [name for name, v in (("--piece", pieces), ("--corners", corners), ("--corners-near", corners_near),
-                                     ("--min-turn", min_turn)) if v]
+                                     ("--min-turn", min_turn), ("--line", line), ("--include", include)) if v]
         if used:
             raise InputError(f"{', '.join(used)} {'is' if len(used) == 1 else 'are'} for pattern files "
                              f"(.svg, .dxf, GarmentCode .json), not for the boundary file {source}")
@@ -428,8 +440,11 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     chosen = _select(got, pieces, source)
     if progress:
         bad = f" ({len(chosen.failed)} more could not be read)" if chosen.failed else ""
+        skipped = chosen.skipped
         progress(f"read {len(chosen)} piece{'s' if len(chosen) != 1 else ''} from {source} in "
-                 f"{time.perf_counter() - t0:.3f} s{bad}")
+                 f"{time.perf_counter() - t0:.3f} s{bad}" + (
+                     f"; {len(skipped)} closed outline{'s' if len(skipped) != 1 else ''} skipped as "
+                     "annotations (see 'clothgrid pieces'; --include NAME grids one)" if skipped else ""))
     if (corners is not None or corners_near is not None) and len(chosen) != 1:
         raise InputError("--corners and --corners-near need a single piece: pick one with --piece NAME")
     names = [p.name for p in chosen]
@@ -720,10 +735,15 @@ def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, can
             "outline_points": len(piece.outline), "turn_points": len(piece.turn_points),
             "sampling_tolerance_mm": piece.tolerance,
             "grain_line": None if piece.grain_line is None else piece.grain_line.tolist(),
-            "corners": choice.as_dict(), "notes": list(piece.notes),
+            "corners": choice.as_dict(), "line": piece.meta.get("line"), "notes": list(piece.notes),
         }
         if candidates:
             entry["candidates"] = [c.as_dict() for c in
                                    corner_candidates(piece, MIN_TURN_DEG if min_turn is None else min_turn)]
         out.append(entry)
     return out
+
+
+def skipped_listing(pieces: Sequence[Piece]) -> list[dict[str, Any]]:
+    """What ``clothgrid pieces`` shows of the outlines skipped as annotations: name, kind, reason, size."""
+    return [s.as_dict() for s in getattr(pieces, "skipped", ())]

@@ -29,10 +29,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .boundary import SIDES, Boundary
-from .errors import BoundaryError, InputError
+from .errors import BoundaryError, InputError, PiecesError
 from .grid import Grid
 from .patterns import Piece, piece_boundary
-from .patterns.piece import Pieces
+from .patterns.piece import Pieces, pattern_pieces
 from .patterns.sampling import DEFAULT_REL_TOL
 from .units import unit_to_mm
 
@@ -97,10 +97,21 @@ def read_json(path: str | Path) -> Boundary:
 
 def _read_json_input(path: Path, **kw: Any) -> "Boundary | list[Piece]":
     """A ``.json`` file: a GarmentCode pattern when it has a ``"pattern"`` object, else a boundary."""
+    line = kw.pop("line", None)
     if _is_garmentcode(path):
         from .patterns.garmentcode import read_garmentcode
 
-        return read_garmentcode(path, **kw)
+        pieces = read_garmentcode(path, **kw)
+        for p in pieces:            # GarmentCode panels are the sewn shape: no seam allowance
+            p.meta.setdefault("line", "sew")
+        if line == "cut":
+            from dataclasses import replace
+
+            pieces = Pieces([replace(p, notes=p.notes + ("line: sew (a GarmentCode panel has no cut "
+                                                         "line; --line cut does not apply)",))
+                             for p in pieces], getattr(pieces, "failed", ()),
+                            getattr(pieces, "skipped", ()))
+        return pieces
     return read_json(path)
 
 
@@ -158,25 +169,52 @@ def reader_for(path: Path, registry: dict | None = None, kind: str = "input"):
     return reader
 
 
-def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | None = None) -> "Boundary | list[Piece]":
+def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | None = None,
+               line: str | None = None, include: Any = None) -> "Boundary | list[Piece]":
     """What the file holds: a :class:`Boundary` (boundary JSON) or the pieces of a pattern file.
 
-    ``units`` and ``rel_tol`` go to pattern readers (see :func:`read_pieces`).
+    ``units``, ``rel_tol`` and ``line`` go to pattern readers, ``include``
+    names skipped outlines to grid all the same (see :func:`read_pieces`). A
+    pattern file gives a :class:`~clothgrid.patterns.piece.Pieces` list
+    (the skipped outlines in ``.skipped``, the pieces that cannot be made in ``.failed``).
     """
+    from .patterns.annotations import LINES
+
     path = Path(path)
+    if line is not None and line not in LINES:
+        raise InputError(f"--line {line!r}: use 'sew' or 'cut'")
     reader = reader_for(path, READERS, "input")
-    options = {k: v for k, v in (("units", units), ("rel_tol", rel_tol)) if v is not None}
+    options = {k: v for k, v in (("units", units), ("rel_tol", rel_tol), ("line", line))
+               if v is not None}
     if options and reader not in (_read_svg, _read_dxf, _read_json_input):   # (a boundary JSON ignores them)
         params = inspect.signature(reader).parameters      # a registered reader takes what it names
         if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
             options = {k: v for k, v in options.items() if k in params}
     got = reader(path, **options)
-    if isinstance(got, list) and not isinstance(got, Pieces):   # a registered reader's plain list
+    if not isinstance(got, list):               # a Boundary (a boundary JSON)
+        return got
+    if not isinstance(got, Pieces):             # a registered reader's plain list
         got = Pieces(got)
+    got = got.including(include, where=f"{path}: ")
+    if not got:
+        listed = "; ".join(f"{s.name}: {s.reason}" for s in got.skipped[:6])
+        if got.failed:                          # the failures, and the outlines taken for annotations
+            try:
+                pattern_pieces([], got.failed, str(path))
+            except PiecesError as exc:
+                if not got.skipped:
+                    raise
+                raise PiecesError(f"{exc}; the other closed outlines were taken for annotations "
+                                  f"({listed})", exc.failed, exc.source) from None
+        if not got.skipped:
+            raise InputError(f"{path}: no pattern piece found")
+        raise InputError(f"{path}: no pattern piece: every closed outline was taken for an "
+                         f"annotation ({listed}); grid one with --include NAME")
     return got
 
 
-def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL) -> list[Piece]:
+def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL,
+                line: str = "sew", include: Any = None) -> list[Piece]:
     """Read all pieces of a pattern file, the format chosen by extension.
 
     Parameters
@@ -190,6 +228,13 @@ def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = 
     rel_tol : float
         Largest distance of an outline chord from the true curve, relative to
         the piece's size (default ``1e-7``).
+    line : "sew" or "cut"
+        Of a piece drawn with its sew line and its cut (seam-allowance) line
+        (AAMA layer 14 and 1, an SVG outline inside another of nearly the same
+        shape), which to grid (default ``"sew"``; a piece with only one is
+        gridded along it, noted). ``Piece.meta["line"]`` says which.
+    include : sequence of str, optional
+        Names of outlines skipped as annotations to grid all the same.
 
     Returns
     -------
@@ -198,7 +243,11 @@ def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = 
         millimetres, counter-clockwise. Its ``failed`` attribute lists the
         pieces that could not (a :class:`~clothgrid.patterns.piece.PieceFailure`
         each: name and reason, e.g. fewer than 3 distinct points or no area):
-        one bad piece does not stop the others.
+        one bad piece does not stop the others. Its ``skipped`` attribute lists
+        the closed outlines taken for annotations (text, arrows, notches, drill
+        holes, marks, seam-allowance outlines), each with its reason; an outline
+        that cannot be made is skipped, not failed, when the file marks it as an
+        annotation.
 
     Raises
     ------
@@ -212,7 +261,7 @@ def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = 
         unit_to_mm(units, what="--units")
     if isinstance(rel_tol, bool) or not isinstance(rel_tol, (int, float)) or not 0 < rel_tol <= 1e-2:
         raise InputError(f"rel_tol must be a number in (0, 0.01], not {rel_tol!r}")
-    got = read_input(path, units=units, rel_tol=rel_tol)
+    got = read_input(path, units=units, rel_tol=rel_tol, line=line, include=include)
     if isinstance(got, Boundary):
         raise InputError(f"{path}: is a boundary file, not a pattern file: read it with load_boundary")
     return got

@@ -10,15 +10,23 @@ points (``POINT`` entities: the corner candidates), layer ``7`` the grain line
 (a ``LINE``); the text ``Piece Name: ...`` names the piece (else the block's
 name) and ``Size: ...`` tells graded copies apart. The text ``Units: METRIC``
 (millimetres) or ``Units: ENGLISH`` (inches) gives the units; without it
-``$INSUNITS``. Curve points (layer 3), notches, drill holes and internal lines
-are not needed for meshing and are ignored.
+``$INSUNITS``. Layer ``14`` is the sew line: with ``line="sew"`` (the
+default) a piece that has one is gridded along it, else along its cut line
+(layer 1, noted); ``line="cut"`` grids the cut line. ``Piece.meta["line"]``
+says which. Internal lines (layer ``8``) are kept in
+``Piece.meta["internal_lines"]`` (mm), not gridded. Curve points (layer 3),
+notches and drill holes are not needed for meshing and are ignored.
 
 **Plain DXF**: every closed ``LWPOLYLINE``/``POLYLINE`` (flagged closed or
 ending at its start), ``SPLINE``, ``CIRCLE`` and full ``ELLIPSE`` in the model
 space (also inside inserted blocks) is a piece; open ``LINE``, ``ARC``,
 polylines, splines and elliptical arcs are joined end to end (gaps up to
 ``1e-6`` of the drawing's size) and every chain that closes is a piece.
-``$INSUNITS`` gives the units.
+``$INSUNITS`` gives the units. The closed outlines are then sorted into
+pieces and annotations (:func:`clothgrid.patterns.annotations.classify`):
+layer names such as ``TEXT``, ``NOTCH``, ``DRILL``, ``DIM``, ``GRAIN`` mark
+annotations, and geometry finds marks inside pieces and seam-allowance
+outlines around them.
 
 Curves are exact primitives: polyline bulges and arcs are circular arcs,
 ellipses elliptical arcs, splines (rational or not) are split into Bézier
@@ -39,6 +47,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import InputError
+from .annotations import LINES, classified, structure_hint
 from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
 from ..units import UNITS, unit_to_mm
@@ -319,7 +328,41 @@ def _unique(name: str, used: dict[str, int]) -> str:
     return _unique(f"{name}-{used[name]}", used)
 
 
-def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> Pieces:
+def _layer_loops(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Primitive]], list[list[Primitive]]]:
+    """(closed loops, open chains left) of the curves on ``layer``."""
+    chains, closed = [], []
+    for e in ents:
+        if e.dxf.get("layer", "") != layer or e.dxftype() not in _CURVES:
+            continue
+        prims, is_closed = _entity_prims(e, ctx)
+        if prims:
+            (closed if is_closed else chains).append(prims)
+    tol = 1e-6 * _extent(chains + closed)
+    loops, _ = _chain(chains, tol)
+    return loops + closed, chains
+
+
+def _polylines(ents: list[Any], layer: str, ctx: _Ctx, scale: float) -> list[list[list[float]]]:
+    """The curves on ``layer`` as point lists (mm): their end points and vertices."""
+    out = []
+    for e in ents:
+        if e.dxf.get("layer", "") != layer or e.dxftype() not in _CURVES:
+            continue
+        prims, closed = _entity_prims(e, ctx)
+        if prims:
+            pts = [prims[0].start] + [p.end for p in prims]
+            out.append([[float(x) * scale, float(y) * scale] for x, y in pts])
+    return out
+
+
+def _max_gap(a: Piece, b: Piece) -> float:
+    """Largest distance of ``a``'s outline from ``b``'s (mm)."""
+    from .annotations import _dist_to_polyline, _sub
+
+    return float(_dist_to_polyline(_sub(a.outline), _sub(b.outline, 4000)).max())
+
+
+def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str = "sew") -> Pieces:
     msp = doc.modelspace()
     blocks = {b.name: b for b in doc.blocks if _is_piece_block(b)}
     texts = _texts(msp)
@@ -386,13 +429,47 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> Pieces
             meta = {"block": bname, "insert": handle, "size": size,
                     **{k: v for k, v in t.items() if k in ("quantity", "material", "category",
                                                            "annotation")}}
-            pieces.append(piece_from_primitives(
-                pname, _scale(boundary, scale), rel_tol=rel_tol, turn_points=turn,
-                where=f"{ctx.where}: ", grain_line=grain, units=unit, source="aama-dxf",
-                notes=tuple(notes + ctx.notes), meta=meta))
+            internal = _polylines(ents, "8", ctx, scale)
+            if internal:
+                meta["internal_lines"] = internal       # layer 8: kept for later, not gridded
+            common = dict(rel_tol=rel_tol, turn_points=turn, where=f"{ctx.where}: ", grain_line=grain,
+                          units=unit, source="aama-dxf")
+            cut = piece_from_primitives(pname, _scale(boundary, scale),
+                                        notes=tuple(notes + ctx.notes), meta=dict(meta), **common)
+            sew_loops, sew_open = _layer_loops(ents, "14", ctx)
+            sew = None
+            if sew_loops:
+                try:
+                    sew = piece_from_primitives(pname, _scale(max(sew_loops, key=_loop_area), scale),
+                                                notes=tuple(notes + ctx.notes), meta=dict(meta),
+                                                **common)
+                except InputError:
+                    sew = None                     # a sew line that is no outline: use the cut line
+            if sew is not None:
+                gap = _max_gap(cut, sew)
+                sew.meta["cut_line_gap_mm"] = cut.meta["cut_line_gap_mm"] = gap
+            if line == "sew" and sew is not None:
+                piece = sew
+                extra = [f"line: sew (layer 14); the cut line (layer 1) lies up to {gap:.3g} mm outside"]
+                line_used = "sew"
+            elif line == "sew":
+                piece = cut
+                why = ("its sew line (layer 14) does not close" if sew_open and not sew_loops else
+                       "no sew line (layer 14) in this piece")
+                extra = [f"line: cut (layer 1): {why}"]
+                line_used = "cut"
+            else:
+                piece = cut
+                extra = ["line: cut (layer 1), as asked" + (
+                    f"; the sew line (layer 14) lies up to {gap:.3g} mm inside" if sew is not None else "")]
+                line_used = "cut"
+            piece.meta["line"] = line_used
+            from dataclasses import replace
+
+            pieces.append(replace(piece, notes=piece.notes + tuple(extra)))
         except InputError as exc:
             failed.append(piece_failure(pname, exc, ctx.where, labels=(f"block {bname!r}",)))
-    return pieces
+    return pattern_pieces(pieces, failed, ctx.where)
 
 
 def _flatten(entities: Iterable[Any], ctx: _Ctx, depth: int = 0) -> Iterable[Any]:
@@ -410,7 +487,7 @@ def _flatten(entities: Iterable[Any], ctx: _Ctx, depth: int = 0) -> Iterable[Any
             yield e
 
 
-def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> Pieces:
+def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str = "sew") -> Pieces:
     msp = doc.modelspace()
     scale, unit, how = _units(doc, {}, units, ctx.where)
     closed: list[tuple[list[Primitive], Any]] = []
@@ -437,21 +514,24 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float) -> Piece
     used: dict[str, int] = {}
     items = [(p, {"layer": e.dxf.get("layer", ""), "handle": e.dxf.handle, "entity": e.dxftype()})
              for p, e in closed] + [(p, {"entity": "chain"}) for p in loops]
-    failed: list[PieceFailure] = []
+    unmade: list[tuple[PieceFailure, dict]] = []
     for k, (prims, meta) in enumerate(items, start=1):
+        layer = meta.get("layer")
+        if layer is not None:
+            meta.update(group=layer, look=layer, structure=structure_hint([layer]))
         name = _unique(f"piece{k}", used)
         try:
             pieces.append(piece_from_primitives(
                 name, _scale(prims, scale), rel_tol=rel_tol,
                 where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + ctx.notes),
                 meta=meta))
-        except InputError as exc:
-            failed.append(piece_failure(name, exc, ctx.where))
-    return pattern_pieces(pieces, failed, ctx.where)
+        except InputError as exc:          # fewer than 3 points, no area: failed or skipped
+            unmade.append((piece_failure(name, exc, ctx.where), meta))
+    return classified(pieces, unmade, ctx.where, line=line)
 
 
 def read_dxf(path: str | Path, *, units: str | None = None,
-             rel_tol: float = DEFAULT_REL_TOL) -> Pieces:
+             rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
     """Read the pattern pieces of a DXF file (AAMA/ASTM or plain), in millimetres.
 
     Parameters
@@ -462,6 +542,15 @@ def read_dxf(path: str | Path, *, units: str | None = None,
         Read the coordinates in these units, whatever the file says.
     rel_tol : float
         Chord tolerance relative to each piece's size (default ``1e-7``).
+    line : "sew" or "cut"
+        Grid the sew line (AAMA layer 14; the inner of an outline and its
+        seam-allowance outline) where there is one, or the cut line.
+
+    Returns
+    -------
+    Pieces
+        The pieces; ``.skipped`` lists closed outlines taken for annotations
+        (plain DXF only), ``.failed`` the pieces that cannot be made.
 
     Raises
     ------
@@ -486,6 +575,8 @@ def read_dxf(path: str | Path, *, units: str | None = None,
         if exc.strerror is None and "not a DXF" in str(exc):   # ezdxf's own check
             raise InputError(f"{path}: not a DXF file (no DXF header or section found)") from None
         raise InputError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    if line not in LINES:
+        raise InputError(f"--line {line!r}: use 'sew' or 'cut'")
     if any(_is_piece_block(b) for b in doc.blocks):
-        return _read_aama(doc, ctx, units, rel_tol)
-    return _read_plain(doc, ctx, units, rel_tol)
+        return _read_aama(doc, ctx, units, rel_tol, line)
+    return _read_plain(doc, ctx, units, rel_tol, line)

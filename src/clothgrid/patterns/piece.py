@@ -1,4 +1,6 @@
-"""A pattern piece read from a pattern file: :class:`Piece`."""
+"""A pattern piece read from a pattern file: :class:`Piece`; a reader's answer: :class:`Pieces`
+(the good pieces, with the :class:`PieceFailure` of those that cannot be made and the
+:class:`Skipped` outlines taken for annotations)."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import numpy as np
 from ..errors import InputError, PiecesError
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
-__all__ = ["Piece", "PieceFailure", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
+__all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
            "piece_from_polygon", "MIN_POINTS"]
 
 #: the fewest distinct outline points of a piece (a triangle: a godet, a gusset)
@@ -123,13 +125,93 @@ class PieceFailure:
         return {"name": self.name, "reason": self.reason, "stage": self.stage}
 
 
-class Pieces(list):
-    """The pieces read from a pattern file, in file order (a plain ``list`` of :class:`Piece`),
-    with :attr:`failed`, the pieces of the file that could not be made (:class:`PieceFailure`)."""
+@dataclass(frozen=True, eq=False)
+class Skipped:
+    """A closed outline that is not gridded, and why.
 
-    def __init__(self, pieces: Any = (), failed: Any = ()) -> None:
+    Attributes
+    ----------
+    name : str
+        Its name (unique with the pieces' names, stable from run to run).
+    kind : str
+        ``text``, ``arrow``, ``notch``, ``drill hole``, ``button``, ``mark``,
+        ``inside``, ``small``, ``seam allowance`` or ``sew line``.
+    reason : str
+        One line for people.
+    piece : Piece or None
+        The outline as a piece (None for a degenerate one: fewer than 3 distinct
+        points or no area, which cannot be gridded).
+    of : str or None
+        The piece it belongs to (is drawn on, or is the other line of).
+    """
+
+    name: str
+    kind: str
+    reason: str
+    piece: Piece | None = None
+    of: str | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"name": self.name, "kind": self.kind, "reason": self.reason,
+                             "of": self.of}
+        if self.piece is not None:
+            w, h = self.piece.extent
+            d.update(size_mm=[w, h], area_mm2=self.piece.area)
+        d["meta"] = {k: v for k, v in self.meta.items() if v is not None}
+        return d
+
+
+class Pieces(list):
+    """The pieces read from a pattern file, in file order (a plain ``list`` of :class:`Piece`).
+
+    Attributes
+    ----------
+    failed : list of PieceFailure
+        The pieces of the file that could not be made (an outline that would be
+        a piece: fewer than 3 distinct points, no area, invalid path data, no
+        closed boundary), with why.
+    skipped : list of Skipped
+        The closed outlines taken for annotations by
+        :func:`clothgrid.patterns.annotations.classify` (text, arrows, notches,
+        drill holes, marks, seam-allowance outlines), in file order, with why;
+        none is gridded unless named (:meth:`including`).
+    """
+
+    def __init__(self, pieces: Any = (), failed: Any = (), skipped: Any = ()) -> None:
         super().__init__(pieces)
         self.failed: list[PieceFailure] = list(failed)
+        self.skipped: list[Skipped] = list(skipped)
+
+    def including(self, names: Sequence[str] | None, where: str = "") -> "Pieces":
+        """These pieces plus the skipped outlines named in ``names`` (in file order of the skip
+        list); :attr:`failed` is kept. A name that is neither a piece nor a skipped outline (nor a
+        failed piece) is an InputError, and so is a skipped outline that cannot be gridded."""
+        if not names:
+            return self
+        wanted = set(names)
+        by_name = {s.name: s for s in self.skipped}
+        bad = {f.name: f for f in self.failed}
+        for n in names:
+            if n in bad and n not in by_name:
+                raise InputError(bad[n].message(where.rstrip().rstrip(":") or None))
+        known = {p.name for p in self} | set(by_name)
+        missing = [n for n in names if n not in known]
+        if missing:
+            listed = ", ".join(repr(s.name) for s in self.skipped[:20]) or "none"
+            raise InputError(f"{where}no outline named {', '.join(map(repr, missing))} to include; "
+                             f"the skipped outlines are {listed}")
+        added: list[Piece] = []
+        for s in self.skipped:
+            if s.name in wanted:
+                if s.piece is None:
+                    raise InputError(f"{where}outline {s.name!r} cannot be gridded: {s.reason}")
+                s.piece.meta["included"] = f"skipped as {s.kind}, included by name"
+                s.piece.meta.setdefault("line", {"seam allowance": "cut", "sew line": "sew"}
+                                        .get(s.kind, "outline"))
+                added.append(s.piece)
+        return Pieces(list(self) + added, self.failed,
+                      [s for s in self.skipped if s.name not in wanted])
 
 
 def piece_failure(name: str, exc: BaseException, where: str = "", stage: str = "read",
@@ -150,11 +232,11 @@ def piece_failure(name: str, exc: BaseException, where: str = "", stage: str = "
 
 
 def pattern_pieces(pieces: Sequence[Piece], failed: Sequence[PieceFailure], where: str,
-                   none: str | None = None) -> Pieces:
+                   none: str | None = None, skipped: Sequence[Any] = ()) -> Pieces:
     """The reader's answer: the good pieces and the failed ones, or a :class:`PiecesError` (an
     InputError) when no piece could be made (the one failure's message, or every failure's reason)."""
     if pieces:
-        return Pieces(pieces, failed)
+        return Pieces(pieces, failed, skipped)
     if not failed:
         raise InputError(none or f"{where}: no pattern piece found")
     if len(failed) == 1:

@@ -10,6 +10,13 @@ ignored. Path data is parsed by svgpathtools; lines, quadratic and cubic
 Béziers and elliptical arcs are then sampled exactly (see
 :mod:`clothgrid.patterns.sampling`).
 
+Not every closed outline is a piece: text converted to paths, arrows, notches,
+drill holes, marks drawn on a piece and the seam-allowance outline around a
+piece are told apart by :func:`clothgrid.patterns.annotations.classify` (the
+element's and its groups' ``class``, ``id``, ``inkscape:label`` and text cues
+first, geometry second); :func:`read_svg` returns the pieces with the skipped
+outlines in ``.skipped``.
+
 Units: the outermost ``<svg>``'s ``width`` and ``height`` (``mm``, ``cm``,
 ``in``, ``pt``, ``pc``, ``px`` at 96 per inch, ``Q``, or no unit = ``px``) and
 its ``viewBox`` (with ``preserveAspectRatio``) give the size of a user unit.
@@ -30,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
+from .annotations import classified, structure_hint
+from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
 
@@ -38,6 +46,7 @@ __all__ = ["read_svg"]
 
 _SVG_NS = "http://www.w3.org/2000/svg"
 _INKSCAPE_LABEL = "{http://www.inkscape.org/namespaces/inkscape}label"
+_FONT = re.compile(r"font-(family|size)\s*:", re.IGNORECASE)
 _SKIP = {"defs", "symbol", "clipPath", "mask", "marker", "pattern", "metadata", "title", "desc",
          "style", "script", "linearGradient", "radialGradient", "filter", "text", "foreignObject",
          "namedview"}
@@ -248,9 +257,28 @@ def _name(el: ET.Element, fallback: str) -> str:
     return (el.get(_INKSCAPE_LABEL) or el.get("id") or fallback).strip() or fallback
 
 
+def _text_cue(el: ET.Element) -> bool:
+    """Does the element look like text (converted to paths)?"""
+    if el.get("aria-label") is not None or el.get("font-family") or el.get("font-size"):
+        return True
+    if _FONT.search(el.get("style", "") or ""):
+        return True
+    from .annotations import _TEXT_ID
+
+    return bool(_TEXT_ID.match(el.get("id") or ""))
+
+
+def _look(el: ET.Element) -> str:
+    """How the element is drawn (class, fill, stroke, dashes): marks are drawn unlike pieces."""
+    style = dict(kv.split(":", 1) for kv in (el.get("style") or "").split(";") if ":" in kv)
+    style = {k.strip(): v.strip() for k, v in style.items()}
+    keys = ("fill", "stroke", "stroke-dasharray")
+    return ";".join([el.get("class") or ""] + [style.get(k) or el.get(k) or "" for k in keys])
+
+
 def read_svg(path: str | Path, *, units: str | None = None,
-             rel_tol: float = DEFAULT_REL_TOL) -> Pieces:
-    """Read every closed path of an SVG file as a :class:`Piece` (mm).
+             rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
+    """Read the closed paths of an SVG file: the pieces (mm), and the annotations skipped.
 
     Parameters
     ----------
@@ -261,6 +289,16 @@ def read_svg(path: str | Path, *, units: str | None = None,
         (default ``"px"``, the CSS pixel).
     rel_tol : float
         Chord tolerance relative to each piece's size (default ``1e-7``).
+    line : "sew" or "cut"
+        Of a piece drawn twice, sew line inside its seam-allowance (cut)
+        outline, which to grid (default ``"sew"``).
+
+    Returns
+    -------
+    Pieces
+        The pieces (a list of :class:`Piece`); ``.skipped`` lists the closed
+        outlines taken for annotations, with reasons; ``.failed`` the paths
+        that would be pieces but cannot be made (:class:`PieceFailure`).
 
     Raises
     ------
@@ -268,7 +306,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
         Unreadable or malformed XML (e.g. truncated), not an SVG, invalid path
         data, unknown units, no closed path, or no piece that could be made.
         A path that cannot be made into a piece (fewer than 3 distinct points,
-        no area, bad path data) is listed in the answer's ``failed`` instead.
+        no area, bad path data) is listed in the answer's ``failed`` instead,
+        or in its ``skipped`` when the file marks it as an annotation (a
+        degenerate outline of class ``note``, a text glyph, ...).
     """
     path = Path(path)
     where = str(path)
@@ -286,7 +326,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     from svgpathtools import parse_path
 
     pieces: list[Piece] = []
-    failed: list[PieceFailure] = []
+    unmade: list[tuple[PieceFailure, dict]] = []     # (why, meta): failed, or skipped if marked
     names: dict[str, int] = {}
     open_paths = 0
     counter = 0
@@ -298,12 +338,14 @@ def read_svg(path: str | Path, *, units: str | None = None,
         names[name] += 1
         return unique(f"{name}-{names[name]}")
 
-    def visit(el: ET.Element, m: np.ndarray) -> None:
+    def visit(el: ET.Element, m: np.ndarray, around: tuple[str, ...] = (), text: bool = False,
+              group: str = "") -> None:
         nonlocal open_paths, counter
         tag = _local(el.tag)
         if tag in _SKIP or _hidden(el):
             return
         m = m @ _transform(el, where)
+        text = text or _text_cue(el)
         if tag in _SHAPES:
             counter += 1
             base = _name(el, f"piece{counter}")
@@ -338,24 +380,36 @@ def read_svg(path: str | Path, *, units: str | None = None,
                                 open_paths += 1
                                 continue
                             loops.append(prims)
-            except InputError as exc:
-                failed.append(piece_failure(unique(base), exc, where, labels=(label,)))
+            except InputError as exc:                  # bad path data: a failure, whatever it is
+                unmade.append((piece_failure(unique(base), exc, where, labels=(label,)),
+                               {"element": tag, "id": el.get("id")}))
                 return
+            hint = structure_hint([el.get("class")], around, text)
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
+                meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
+                        "group": group or None, "structure": hint, "look": _look(el),
+                        "part": group or None}
                 try:
                     pieces.append(piece_from_primitives(
                         name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                        notes=(f"units: {how}",), meta={"element": tag, "id": el.get("id")}))
-                except InputError as exc:
-                    failed.append(piece_failure(name, exc, where))
+                        notes=(f"units: {how}",), meta=meta))
+                except InputError as exc:       # fewer than 3 points, no area: failed or skipped
+                    unmade.append((piece_failure(name, exc, where), meta))
             return
+        if el is not root:
+            own = [el.get(_INKSCAPE_LABEL), el.get("id"), el.get("class")]
+            around = around + tuple(t for t in own if t)
+            if tag == "g":
+                key = el.get(_INKSCAPE_LABEL) or el.get("id")
+                group = f"{group}/{key}" if key else f"{group}/g"
         for child in el:
-            visit(child, m)
+            visit(child, m, around, text, group)
 
     visit(root, view)
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
-    return pattern_pieces(pieces, failed, where, f"{where}: no closed path found, so no pattern piece{extra}")
+    return classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
+                      line=line)
 

@@ -1,0 +1,433 @@
+"""Pieces, not drawings: tell the pattern pieces of a file from its annotations.
+
+Pattern files draw more closed outlines than pieces: text converted to paths,
+arrows, notches, drill holes, marks drawn on a piece, and the seam-allowance
+(cut) outline drawn around a piece's sew line. :func:`classify` sorts the
+closed outlines a reader found into pieces and :class:`Skipped` annotations,
+each with a reason, using the structure the file gives first (SVG classes,
+ids and labels such as FreeSewing's ``fabric``, ``sa``, ``note``, ``mark``,
+``help``; text groups; DXF layer names) and geometry second (outlines inside
+other outlines, outlines of nearly the same shape around another, relative
+size, circles, arrows). The readers return a :class:`~.piece.Pieces` list: the
+pieces, with the skipped outlines in :attr:`Pieces.skipped` and the pieces that
+could not be made in :attr:`Pieces.failed`; a skipped outline is gridded when
+asked for by name (:meth:`Pieces.including`, ``--include NAME`` or ``--piece NAME``).
+
+An outline that cannot be made into a piece (fewer than 3 distinct points, no
+area) is skipped when the file's structure marks it as an annotation (a class,
+id, label or group such as ``note``, ``mark``, ``notch``, or a text cue), and
+is a failure otherwise: it would be a piece, so the file has a piece that
+cannot be gridded (``clothgrid generate`` exits with code 4).
+
+See ``docs/patterns.md``, sections "Annotations" and "Sew line or cut line".
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from .piece import Piece, PieceFailure, Pieces, Skipped, pattern_pieces
+
+__all__ = ["Pieces", "Skipped", "classify", "classified", "structure_hint", "LINES", "MIN_AREA_FRACTION"]
+
+#: the outline a seam-allowance pair grids: ``"sew"`` (inner, default) or ``"cut"`` (outer)
+LINES = ("sew", "cut")
+#: a free-standing outline under this fraction of the largest piece's area is an annotation
+MIN_AREA_FRACTION = 0.005
+#: an outline around another is its seam allowance when their Hausdorff distance is at most
+#: this fraction of the inner outline's size (bounding-box diagonal) and at most SA_MAX_MM
+SA_REL = 0.25
+SA_MAX_MM = 100.0
+
+# Words (class names, ids, labels, DXF layer names, split at non-letters) -> what they mean.
+_ANNOTATION_WORDS = {
+    "text": "text", "texts": "text", "title": "text", "label": "text", "labels": "text",
+    "font": "text", "glyph": "text", "glyphs": "text", "lettering": "text",
+    "arrow": "arrow", "arrows": "arrow",
+    "notch": "notch", "notches": "notch",
+    "drill": "drill hole", "drillhole": "drill hole", "hole": "drill hole", "holes": "drill hole",
+    "punch": "drill hole",
+    "button": "button", "buttons": "button", "buttonhole": "button", "snap": "button",
+    "note": "mark", "notes": "mark", "mark": "mark", "marks": "mark", "marker": "mark",
+    "help": "mark", "hidden": "mark", "dimension": "mark", "dimensions": "mark", "dim": "mark",
+    "leader": "mark", "grainline": "mark", "grain": "mark", "logo": "mark", "scalebox": "mark",
+    "annotation": "mark", "annotations": "mark", "comment": "mark", "comments": "mark",
+    "defpoints": "mark",
+}
+_PIECE_WORDS = {"fabric", "lining", "interfacing", "canvas", "contrast", "various", "piece",
+                "pieces", "panel", "panels", "pattern"}
+_CUT_WORDS = {"sa", "cut", "cutline", "cutting", "allowance", "seamallowance"}
+_SEW_WORDS = {"sew", "sewline", "seam", "seamline", "stitch", "stitchline"}
+_TEXT_ID = re.compile(r"^(text|flowroot|tspan)[-_]?\d*$", re.IGNORECASE)
+
+
+def _words(text: str | None) -> list[str]:
+    return [w for w in re.split(r"[^a-z0-9]+", (text or "").lower()) if w]
+
+
+def structure_hint(own: Iterable[str | None], around: Iterable[str | None] = (),
+                   text: bool = False) -> dict[str, Any]:
+    """What the file's structure says about an outline.
+
+    ``own``: the outline's own class names / layer name; ``around``: those of
+    its groups (ids, labels, classes); ``text``: a text cue (an ``aria-label``
+    or font attributes on the outline or a group, an Inkscape ``text123`` id).
+    Returns ``{"hint": "piece" | "cut" | "sew" | None, "annotation": kind or
+    None, "why": the word that decided}``.
+    """
+    own_w = [w for t in own for w in _words(t)]
+    around_w = [w for t in around for w in _words(t)]
+    out: dict[str, Any] = {"hint": None, "annotation": None, "why": None}
+    if text:
+        out.update(annotation="text", why="text")
+        return out
+    for words, where in ((own_w, "own"), (around_w, "group")):
+        for w in words:
+            if w in _ANNOTATION_WORDS:
+                out.update(annotation=_ANNOTATION_WORDS[w], why=w)
+                return out
+    for w in own_w + around_w:
+        if w in _CUT_WORDS:
+            out.update(hint="cut", why=w)
+            return out
+    for w in own_w + around_w:
+        if w in _SEW_WORDS:
+            out.update(hint="sew", why=w)
+            return out
+    for w in own_w + around_w:
+        if w in _PIECE_WORDS:
+            out.update(hint="piece", why=w)
+            return out
+    return out
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Even-odd point-in-polygon test of each point (vectorised ray casting)."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    x0, y0 = poly[:, 0], poly[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    crosses = (y0 > y) != (y1 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xs = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return (crosses & (x < xs)).sum(axis=1) % 2 == 1
+
+
+def _dist_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance of each point to the closed polyline ``poly``."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a
+    L2 = (ab * ab).sum(axis=1)
+    L2 = np.where(L2 > 0, L2, 1.0)
+    best = np.full(len(points), np.inf)
+    for chunk in range(0, len(points), 256):
+        p = points[chunk:chunk + 256, None, :]
+        t = np.clip(((p - a) * ab).sum(axis=2) / L2, 0.0, 1.0)
+        d = np.linalg.norm(p - (a + t[..., None] * ab), axis=2).min(axis=1)
+        best[chunk:chunk + 256] = d
+    return best
+
+
+def _sub(points: np.ndarray, n: int = 400) -> np.ndarray:
+    if len(points) <= n:
+        return points
+    return points[np.linspace(0, len(points) - 1, n).astype(int)]
+
+
+def _coarse(points: np.ndarray, n: int = 2000) -> np.ndarray:
+    return _sub(points, n)
+
+
+def _circle_like(p: Piece) -> bool:
+    per = p.perimeter
+    return per > 0 and 4 * math.pi * p.area / per ** 2 > 0.85
+
+
+def _arrow_like(p: Piece) -> bool:
+    """A straight-edged 7-gon with two reflex corners: a block arrow."""
+    if len(p.outline) != 7 or len(p.vertices) != 7:
+        return False
+    q = p.outline
+    d0 = q - np.roll(q, 1, axis=0)
+    d1 = np.roll(q, -1, axis=0) - q
+    cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
+    return int((cross < 0).sum()) == 2
+
+
+@dataclass
+class _Item:
+    piece: Piece
+    lo: np.ndarray
+    hi: np.ndarray
+    sub: np.ndarray
+    poly: np.ndarray
+    kind: str | None = None
+    reason: str | None = None
+    of: str | None = None
+
+
+def _contains(outer: _Item, inner: _Item) -> bool:
+    if not (np.all(inner.lo >= outer.lo) and np.all(inner.hi <= outer.hi)):
+        return False
+    return bool(_inside(inner.sub, outer.poly).mean() > 0.98)
+
+
+def _hausdorff(a: _Item, b: _Item) -> float:
+    return float(max(_dist_to_polyline(a.sub, b.poly).max(), _dist_to_polyline(b.sub, a.poly).max()))
+
+
+def _fmt_pct(x: float) -> str:
+    return f"{100 * x:.2g} %" if x < 0.01 else f"{100 * x:.1f} %"
+
+
+def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]] = (), *,
+             line: str = "sew") -> Pieces:
+    """Sort closed outlines into pieces and skipped annotations.
+
+    Parameters
+    ----------
+    pieces : sequence of Piece
+        Every closed outline a reader found, in file order. Each one's
+        ``meta["structure"]`` (from :func:`structure_hint`), ``meta["group"]``
+        (the group it is drawn in), ``meta["part"]`` (the part of the pattern:
+        two outlines the file calls pieces in different parts are never one
+        the other's mark or seam allowance) and ``meta["look"]`` (how it is
+        drawn) are used when present.
+    unmade : sequence of (PieceFailure, meta)
+        Closed outlines that could not be made into a :class:`Piece` (fewer
+        than 3 distinct points, no area), with their ``meta`` as above. One the
+        file's structure marks as an annotation is skipped (``piece`` None);
+        the others would be pieces: they are the answer's ``failed``.
+    line : "sew" or "cut"
+        Of an outline and the seam-allowance outline around it, which to grid.
+
+    Returns
+    -------
+    Pieces
+        The pieces in file order; ``.skipped`` the rest with reasons, ``.failed``
+        the outlines of ``unmade`` that are no annotation. Every
+        piece's ``meta["line"]`` says which line it is (``sew``, ``cut`` or
+        ``outline`` when the file draws only one) and its notes say so when
+        a choice was made.
+    """
+    if line not in LINES:
+        raise InputError(f"--line {line!r}: use 'sew' or 'cut'")
+    items = []
+    for p in pieces:
+        lo, hi = p.outline.min(axis=0), p.outline.max(axis=0)
+        items.append(_Item(p, lo, hi, _sub(p.outline), _coarse(p.outline)))
+    notes: dict[int, list[str]] = {i: [] for i in range(len(items))}
+    lines: dict[int, str] = {}
+    hints = [(it.piece.meta.get("structure") or {}) for it in items]
+
+    # 1. structure: what the file says an outline is
+    for it, h in zip(items, hints):
+        if h.get("annotation"):
+            it.kind = h["annotation"]
+            it.reason = f"{h['annotation']} (the file marks it {h.get('why')!r})"
+    cand = [i for i, it in enumerate(items) if it.kind is None]
+    is_piece_class = {i: hints[i].get("hint") in ("piece", "cut", "sew") for i in cand}
+
+    def same_part(i: int, j: int) -> bool:
+        # two outlines the file calls pieces, in different parts, are different pieces
+        if is_piece_class[i] and is_piece_class[j]:
+            return items[i].piece.meta.get("part") == items[j].piece.meta.get("part")
+        return True
+
+    # containment among the remaining outlines
+    order = sorted(cand, key=lambda i: -items[i].piece.area)
+    containers: dict[int, list[int]] = {i: [] for i in cand}
+    for a, i in enumerate(order):
+        for j in order[a + 1:]:
+            if same_part(i, j) and _contains(items[i], items[j]):
+                containers[j].append(i)           # larger first
+
+    # 2. seam allowance: a top-level outline around another of nearly the same shape
+    paired: dict[int, int] = {}
+    for i in order:
+        if containers[i] or i in paired.values():
+            continue
+        inner = [j for j in order if containers[j] and containers[j][-1] == i]
+        best = None
+        for j in inner:                         # largest first
+            if hints[j].get("hint") == "cut":
+                continue
+            size = items[j].piece.size
+            hd = _hausdorff(items[i], items[j])
+            if hints[i].get("hint") == "cut" or hints[j].get("hint") == "sew" or (
+                    hd <= SA_REL * size and hd <= SA_MAX_MM):
+                best = (j, hd)
+                break
+        if best is None:
+            continue
+        j, hd = best
+        paired[i] = j
+        outer, inner_p = items[i], items[j]
+        if line == "sew":
+            outer.kind, outer.of = "seam allowance", inner_p.piece.name
+            outer.reason = (f"seam-allowance outline around piece {inner_p.piece.name!r} (its cut "
+                            f"line, up to {hd:.3g} mm outside; --line cut grids it instead)")
+            lines[j] = "sew"
+            notes[j].append(f"line: sew (the inner of two outlines; the cut line "
+                            f"{outer.piece.name!r} lies up to {hd:.3g} mm outside)")
+        else:
+            inner_p.kind, inner_p.of = "sew line", outer.piece.name
+            inner_p.reason = (f"sew line inside piece {outer.piece.name!r} (up to {hd:.3g} mm "
+                              "inside; --line sew grids it instead)")
+            lines[i] = "cut"
+            notes[i].append(f"line: cut (the outer of two outlines; the sew line "
+                            f"{inner_p.piece.name!r} lies up to {hd:.3g} mm inside)")
+
+    alive = [i for i in cand if items[i].kind is None]
+    if alive:
+        largest = max(items[i].piece.area for i in alive)
+    else:
+        largest = max((it.piece.area for it in items), default=0.0)
+
+    # 3. small outlines across a piece's outline: notches
+    partner = {**paired, **{v: k for k, v in paired.items()}}
+    alive = [i for i in cand if items[i].kind is None or i in paired]
+    for j in cand:
+        it = items[j]
+        if it.kind is not None or j in partner or is_piece_class[j]:
+            continue
+        for i in alive:
+            if i == j or items[i].piece.area <= it.piece.area or items[i].kind is not None:
+                continue
+            h = items[i]
+            frac = it.piece.area / h.piece.area
+            if frac > 0.02 or np.any(it.hi < h.lo) or np.any(it.lo > h.hi):
+                continue
+            ins = _inside(it.sub, h.poly)
+            if ins.any() and not ins.all():
+                it.kind, it.of = "notch", h.piece.name
+                it.reason = f"notch on the outline of piece {h.piece.name!r} ({_fmt_pct(frac)} of its area)"
+                break
+
+    # 4. outlines inside a piece: marks drawn on it
+    for j in cand:
+        it = items[j]
+        if it.kind is not None or j in partner:
+            continue
+        hosts = [i for i in containers[j] if partner.get(j) != i]
+        if not hosts:
+            continue
+        host = hosts[-1]                          # the smallest outline around it
+        h = items[host]
+        name = h.piece.name
+        if h.kind in ("seam allowance",) and h.of:
+            where = f"on the seam allowance of piece {h.of!r}"
+            name = h.of
+        elif h.kind == "sew line" and h.of:
+            name = h.of
+            where = f"inside piece {name!r}"
+        else:
+            where = f"inside piece {name!r}"
+        frac = it.piece.area / max(h.piece.area, 1e-300)
+        look = it.piece.meta.get("look")
+        if frac >= 0.05 and look is not None and look == h.piece.meta.get("look"):
+            # drawn like the piece around it and not small: pieces laid over each other
+            notes[j].append(f"drawn over piece {h.piece.name!r} (drawn alike, so taken for a piece)")
+            continue
+        if frac >= 0.5:
+            notes[j].append(f"drawn inside piece {h.piece.name!r}")
+            continue
+        if _circle_like(it.piece) and frac < 0.01:
+            it.kind, it.reason = "drill hole", f"drill hole {where} ({_fmt_pct(frac)} of its area)"
+        elif _arrow_like(it.piece):
+            it.kind, it.reason = "arrow", f"arrow {where}"
+        else:
+            it.kind, it.reason = "inside", f"{where} (a mark drawn on it, {_fmt_pct(frac)} of its area)"
+        it.of = name
+
+    # 5. free-standing outlines: circles, arrows, glyph groups, too small
+    alive = [i for i in cand if items[i].kind is None]
+    largest = max((items[i].piece.area for i in alive), default=largest)
+    small = [i for i in alive if not is_piece_class[i] and items[i].piece.area < 0.02 * largest]
+    groups: dict[Any, list[int]] = {}
+    for i in small:
+        groups.setdefault(items[i].piece.meta.get("group"), []).append(i)
+    for g, members in groups.items():
+        if len(members) < 3:
+            continue
+        heights = np.array([items[i].piece.extent[1] for i in members])
+        med = float(np.median(heights))
+        glyphs = [i for i, hgt in zip(members, heights) if med / 2.5 <= hgt <= med * 2.5]
+        if len(glyphs) >= 3:
+            for i in glyphs:
+                items[i].kind = "text"
+                items[i].reason = (f"text (one of {len(glyphs)} glyph-sized outlines in group "
+                                   f"{g!r})")
+    for i in alive:
+        it = items[i]
+        if it.kind is not None or is_piece_class[i]:
+            continue
+        frac = it.piece.area / max(largest, 1e-300)
+        if frac >= 1.0:
+            continue
+        if _circle_like(it.piece) and frac < 0.01:
+            it.kind, it.reason = "drill hole", f"drill hole or dot ({_fmt_pct(frac)} of the largest piece's area)"
+        elif _arrow_like(it.piece) and frac < 0.05:
+            it.kind, it.reason = "arrow", "arrow (a 7-sided block arrow)"
+        elif frac < MIN_AREA_FRACTION:
+            it.kind, it.reason = "small", f"too small against the largest piece ({_fmt_pct(frac)} of its area)"
+
+    # the pieces, with the line they are
+    out: list[Piece] = []
+    skipped: list[tuple[int, Skipped]] = []
+    for i, it in enumerate(items):
+        p = it.piece
+        meta = {k: v for k, v in p.meta.items() if k not in ("structure", "look", "part")}
+        if it.kind is not None:
+            skipped.append((i, Skipped(p.name, it.kind, it.reason or it.kind, p, it.of, meta)))
+            continue
+        hint = hints[i].get("hint")
+        if i in lines:
+            used = lines[i]
+        elif hint == "cut":
+            used = "cut"
+            if line == "sew":
+                notes[i].append("line: cut (no sew line found inside this outline, which the file "
+                                "marks as a cut line)")
+        else:
+            used = meta.get("line") or "outline"
+        p.meta.clear()
+        p.meta.update(meta, line=used)
+        extra = tuple(n for n in notes[i] if n not in p.notes)
+        if extra:
+            from dataclasses import replace
+
+            p = replace(p, notes=p.notes + extra)
+        out.append(p)
+    # outlines that could not be made: skipped if the file marks them as annotations, else failed
+    k = len(items)
+    failed: list[PieceFailure] = []
+    for f, meta in unmade:
+        h = meta.get("structure") or {}
+        if h.get("annotation"):
+            skipped.append((k, Skipped(
+                f.name, h["annotation"],
+                f"{h['annotation']} (the file marks it {h.get('why')!r}); a degenerate outline: {f.reason}",
+                None, None, {kk: v for kk, v in meta.items() if kk not in ("structure", "look", "part")})))
+            k += 1
+        else:
+            failed.append(f)
+    return Pieces(out, failed, [s for _, s in sorted(skipped, key=lambda t: t[0])])
+
+
+def classified(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]], where: str,
+               none: str | None = None, *, line: str = "sew") -> Pieces:
+    """A reader's answer: :func:`classify` the outlines made and not made; when none could be
+    made, the error of :func:`~.piece.pattern_pieces` (``none`` when there was nothing at all)."""
+    if not pieces:
+        return pattern_pieces([], [f for f, _ in unmade], where, none)   # raises
+    return classify(pieces, unmade, line=line)

@@ -1,0 +1,280 @@
+"""Pieces, not drawings (annotations skipped with reasons) and the sew-line / cut-line choice."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clothgrid.cli import main
+from clothgrid.errors import InputError
+from clothgrid.readers import read_pieces
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "patterns"
+
+
+def _shared(name: str) -> Path:
+    path = SHARED / name
+    if not path.exists():
+        pytest.skip(f"{path} not here (the third-party pattern files)")
+    return path
+
+
+# --------------------------------------------------------------------------- real files
+
+SA = "seam allowance"
+# checked by eye on a rendering of pieces (filled) against skipped outlines (dashed)
+REAL_SVG = {
+    "fs_bruce_draft-sample.svg": (["2", "14", "29", "49"], {"3": SA}),
+    "fs_cathrin_layout.svg": (["2", "9", "16", "23", "30", "38", "45"],
+                              {n: SA for n in ["3", "10", "17", "24", "31", "39", "46"]}),
+    # '55' and '56' (2-point closed paths of class "fabric", the closing lines of brimPlastic) would
+    # be pieces and cannot be made: failed, not skipped (see test_patterns)
+    "fs_florent_layout.svg": (["2", "31", "42"], {"3": SA, "32": SA, "43": SA}),
+    "fs_shin_layout.svg": (["2", "13", "26"], {}),
+    "fs_wahid_layout.svg": (["4", "24", "33", "41", "50", "61", "72", "81"],
+                            {"5": SA, "25": SA, "34": SA, "42": SA}),
+    "fs_simon_collarstandbend.svg": (["205", "1668"], {}),
+    "gc_pattern_test.svg": ([f"piece{k}" for k in range(1, 7)], {}),
+}
+
+REAL_SVG_FAILED = {"fs_florent_layout.svg": ["55", "56"]}
+
+
+@pytest.mark.parametrize("name", sorted(REAL_SVG))
+def test_real_svg_pieces_and_annotations(name):
+    pieces_want, skipped_want = REAL_SVG[name]
+    got = read_pieces(_shared(name))
+    assert [p.name for p in got] == pieces_want
+    assert {s.name: s.kind for s in got.skipped} == skipped_want
+    assert [f.name for f in got.failed] == REAL_SVG_FAILED.get(name, [])
+    for s in got.skipped:
+        if s.kind == SA:
+            assert s.of in pieces_want and f"around piece {s.of!r}" in s.reason
+            assert next(p for p in got if p.name == s.of).meta["line"] == "sew"
+
+
+def test_real_svg_cut_line_swaps_the_pairs():
+    path = _shared("fs_cathrin_layout.svg")
+    got = read_pieces(path, line="cut")
+    assert [p.name for p in got] == ["3", "10", "17", "24", "31", "39", "46"]
+    assert {s.name: s.kind for s in got.skipped} == {
+        n: "sew line" for n in ["2", "9", "16", "23", "30", "38", "45"]}
+    assert all(p.meta["line"] == "cut" for p in got)
+    sew = {p.name: p for p in read_pieces(path)}
+    cut = {p.name: p for p in got}
+    assert cut["3"].area > sew["2"].area
+    # the waistband of Shin has only its seam-allowance outline closed: the cut line, noted
+    shin = {p.name: p for p in read_pieces(_shared("fs_shin_layout.svg"))}
+    assert shin["26"].meta["line"] == "cut"
+    assert any("no sew line" in n for n in shin["26"].notes)
+
+
+def test_real_aama_sew_line_layer_14():
+    path = _shared("astm_GLX0926S16.DXF")
+    sew = read_pieces(path)
+    cut = read_pieces(path, line="cut")
+    assert [p.name for p in sew] == [p.name for p in cut]
+    lines = {p.name: p.meta["line"] for p in sew}
+    bindings = [n for n in lines if "BIN" in n or "BIA" in n]
+    assert len(bindings) == 28 and all(lines[n] == "sew" for n in bindings)
+    assert all(v == "cut" for n, v in lines.items() if n not in bindings)
+    assert all(p.meta["line"] == "cut" for p in cut)
+    a = next(p for p in sew if p.name in bindings)
+    b = next(p for p in cut if p.name == a.name)
+    # the sew line lies just inside the cut line (about 0.004 in)
+    assert 0 < a.meta["cut_line_gap_mm"] < 0.2
+    assert a.area < b.area
+    assert any(n.startswith("line: sew (layer 14)") for n in a.notes)
+    # internal lines (layer 8) are kept, not gridded
+    assert all(isinstance(p.meta.get("internal_lines", []), list) for p in sew)
+    assert sum(len(p.meta.get("internal_lines", [])) for p in sew) > 0
+    # an AAMA file without layer 14 falls back to the cut line, with a note
+    other = read_pieces(_shared("astm_GMH1006F18_AAMA.DXF"))
+    assert all(p.meta["line"] == "cut" for p in other)
+    assert all(any("no sew line (layer 14)" in n for n in p.notes) for p in other)
+
+
+# --------------------------------------------------------------------------- synthetic SVG
+
+ANNOTATED = """<svg xmlns="http://www.w3.org/2000/svg" width="600mm" height="400mm" viewBox="0 0 600 400">
+  <path id="body" d="M 50 50 L 250 50 L 250 350 L 50 350 Z"/>
+  <path id="body-sa" d="M 40 40 L 260 40 L 260 360 L 40 360 Z"/>
+  <circle id="hole" cx="150" cy="200" r="3"/>
+  <path id="notch" d="M 147 347 L 153 347 L 153 353 L 147 353 Z"/>
+  <g aria-label="L"><path id="glyph" d="M 300 50 L 304 50 L 304 60 L 310 60 L 310 64 L 300 64 Z"/></g>
+  <path id="arrow" d="M 400 100 L 440 100 L 440 96 L 460 104 L 440 112 L 440 108 L 400 108 Z"/>
+</svg>
+"""
+
+
+@pytest.fixture
+def annotated(tmp_path: Path) -> Path:
+    path = tmp_path / "annotated.svg"
+    path.write_text(ANNOTATED)
+    return path
+
+
+def test_synthetic_svg_only_the_piece_is_gridded(annotated):
+    got = read_pieces(annotated)
+    assert [p.name for p in got] == ["body"]
+    assert got[0].extent == pytest.approx((200.0, 300.0))
+    assert got[0].meta["line"] == "sew"
+    kinds = {s.name: s.kind for s in got.skipped}
+    assert kinds == {"body-sa": "seam allowance", "hole": "drill hole", "notch": "notch",
+                     "glyph": "text", "arrow": "arrow"}
+    reasons = {s.name: s.reason for s in got.skipped}
+    assert "around piece 'body'" in reasons["body-sa"]
+    assert "inside piece 'body'" in reasons["hole"]
+    assert "piece 'body'" in reasons["notch"]
+    # --line cut grids the seam-allowance outline instead
+    cut = read_pieces(annotated, line="cut")
+    assert [p.name for p in cut] == ["body-sa"]
+    assert cut[0].extent == pytest.approx((220.0, 320.0))
+    assert {s.name: s.kind for s in cut.skipped}["body"] == "sew line"
+    # a skipped outline is gridded when named
+    inc = read_pieces(annotated, include=["hole"])
+    assert [p.name for p in inc] == ["body", "hole"]
+    assert "hole" not in {s.name for s in inc.skipped}
+    with pytest.raises(InputError, match="no outline named 'nope'"):
+        read_pieces(annotated, include=["nope"])
+
+
+def test_cli_pieces_lists_skipped_and_include(annotated, tmp_path, capsys):
+    assert main(["pieces", str(annotated)]) == 0
+    out = capsys.readouterr().out
+    assert "1 piece (coordinates in mm), 5 closed outlines skipped as annotations" in out
+    assert "body: 200 x 300 mm" in out and "sew line]" in out
+    assert "  hole: drill hole inside piece 'body'" in out
+    assert "  arrow: arrow" in out and "  glyph: text" in out
+    assert main(["pieces", str(annotated), "--json", "--include", "arrow"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [p["name"] for p in data["pieces"]] == ["body", "arrow"]
+    assert data["pieces"][0]["line"] == "sew"
+    assert {s["name"] for s in data["skipped"]} == {"body-sa", "hole", "notch", "glyph"}
+    assert all(s["reason"] for s in data["skipped"])
+    # generate grids the piece only, or the included outline too
+    out_tpl = str(tmp_path / "out_{piece}.npz")
+    assert main(["generate", str(annotated), "-o", out_tpl, "-q", "--edge-length", "20mm"]) == 0
+    assert sorted(p.name for p in tmp_path.glob("out_*.npz")) == ["out_body.npz"]
+    assert main(["generate", str(annotated), "-o", out_tpl, "-q", "--edge-length", "20mm",
+                 "--include", "hole", "--line", "cut"]) == 0
+    assert sorted(p.name for p in tmp_path.glob("out_*.npz")) == [
+        "out_body-sa.npz", "out_body.npz", "out_hole.npz"]
+    # --piece may name a skipped outline
+    assert main(["generate", str(annotated), "-o", str(tmp_path / "one.npz"), "-q",
+                 "--edge-length", "20mm", "--piece", "body-sa"]) == 0
+    with np.load(tmp_path / "one.npz") as z:
+        info = json.loads(str(z["info"]))
+    assert info["piece"]["name"] == "body-sa" and info["piece"]["meta"]["line"] == "cut"
+
+
+def test_svg_only_annotations_is_an_error(tmp_path, capsys):
+    path = tmp_path / "marks.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="100mm" '
+                    'viewBox="0 0 100 100"><g aria-label="AB"><path id="a" d="M 0 0 L 5 0 L 5 8 '
+                    'L 0 8 Z"/><path id="b" d="M 10 0 L 15 0 L 15 8 L 10 8 Z"/></g></svg>')
+    with pytest.raises(InputError, match="every closed outline was taken for an annotation"):
+        read_pieces(path)
+    assert [p.name for p in read_pieces(path, include=["a"])] == ["a"]
+
+
+# --------------------------------------------------------------------------- synthetic AAMA DXF
+
+
+def _aama_sew(path: Path, sew: bool = True) -> None:
+    import ezdxf
+
+    doc = ezdxf.new("R12")
+    msp = doc.modelspace()
+    msp.add_text("Units: METRIC", dxfattribs={"layer": "1"})
+    blk = doc.blocks.new("FRONT_M")
+    blk.add_polyline2d([(0, 0), (100, 0), (100, 200), (0, 200), (0, 0)], dxfattribs={"layer": "1"})
+    if sew:
+        blk.add_polyline2d([(10, 10), (90, 10), (90, 190), (10, 190), (10, 10)],
+                           dxfattribs={"layer": "14"})
+    blk.add_line((50, 20), (50, 180), dxfattribs={"layer": "8"})
+    for x, y in ((0, 0), (100, 0), (100, 200), (0, 200)):
+        blk.add_point((x, y), dxfattribs={"layer": "2"})
+    blk.add_text("Piece Name: FRONT", dxfattribs={"layer": "1"})
+    msp.add_blockref("FRONT_M", (0, 0))
+    doc.saveas(path)
+
+
+def test_aama_sew_and_cut_line(tmp_path, capsys):
+    path = tmp_path / "sew.dxf"
+    _aama_sew(path)
+    (sew,) = read_pieces(path)
+    assert sew.name == "FRONT" and sew.meta["line"] == "sew"
+    assert sew.extent == pytest.approx((80.0, 180.0))
+    assert sew.meta["cut_line_gap_mm"] == pytest.approx(10 * np.sqrt(2), rel=1e-6)
+    assert sew.meta["internal_lines"] == [[[50.0, 20.0], [50.0, 180.0]]]
+    (cut,) = read_pieces(path, line="cut")
+    assert cut.meta["line"] == "cut" and cut.extent == pytest.approx((100.0, 200.0))
+    assert any("line: cut (layer 1), as asked" in n for n in cut.notes)
+    # the listing says which line, and generate grids it
+    assert main(["pieces", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "FRONT: 80 x 180 mm" in out and "sew line]" in out
+    assert "note: line: sew (layer 14)" in out
+    assert main(["pieces", str(path), "--line", "cut"]) == 0
+    out = capsys.readouterr().out
+    assert "FRONT: 100 x 200 mm" in out and "cut line]" in out
+    for line, size in (("sew", [80.0, 180.0]), ("cut", [100.0, 200.0])):
+        target = tmp_path / f"{line}.npz"
+        assert main(["generate", str(path), "-o", str(target), "-q", "--line", line,
+                     "--edge-length", "20mm"]) == 0
+        with np.load(target) as z:
+            info = json.loads(str(z["info"]))
+            pts = z["points"]
+        assert info["piece"]["meta"]["line"] == line
+        assert np.ptp(pts[..., 0]) == pytest.approx(size[0]) and np.ptp(pts[..., 1]) == pytest.approx(size[1])
+    # without a sew line the cut line is used, with a note
+    bare = tmp_path / "bare.dxf"
+    _aama_sew(bare, sew=False)
+    (p,) = read_pieces(bare)
+    assert p.meta["line"] == "cut" and p.extent == pytest.approx((100.0, 200.0))
+    assert any("no sew line (layer 14)" in n for n in p.notes)
+
+
+def test_plain_dxf_layers_and_nesting(tmp_path):
+    import ezdxf
+
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 4
+    msp = doc.modelspace()
+    msp.add_lwpolyline([(0, 0), (300, 0), (300, 400), (0, 400)], close=True, dxfattribs={"layer": "PIECES"})
+    msp.add_lwpolyline([(-10, -10), (310, -10), (310, 410), (-10, 410)], close=True,
+                       dxfattribs={"layer": "CUT"})
+    msp.add_circle((150, 200), 2, dxfattribs={"layer": "PIECES"})
+    msp.add_lwpolyline([(400, 0), (410, 0), (410, 10), (400, 10)], close=True, dxfattribs={"layer": "TEXT"})
+    path = tmp_path / "plain.dxf"
+    doc.saveas(path)
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["piece1"]
+    assert {s.name: s.kind for s in got.skipped} == {"piece2": SA, "piece3": "drill hole", "piece4": "text"}
+    assert [p.name for p in read_pieces(path, line="cut")] == ["piece2"]
+
+
+def test_a_degenerate_outline_is_skipped_when_marked_else_failed(tmp_path, capsys):
+    """The joined rule: an outline that cannot be made (2 points, no area) is skipped when the file
+    marks it as an annotation, and is a failed piece (exit 4) otherwise."""
+    path = tmp_path / "degenerate.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" viewBox="0 0 300 200">'
+                    '<path id="body" d="M 10 10 L 110 10 L 110 110 L 10 110 Z"/>'
+                    '<path id="tick" class="note" d="M 150 10 L 160 10 Z"/>'          # marked: skipped
+                    '<path id="edge" class="fabric" d="M 150 50 L 200 50 Z"/>'        # a piece: failed
+                    '</svg>')
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["body"]
+    assert [(s.name, s.kind, s.piece) for s in got.skipped] == [("tick", "mark", None)]
+    assert "degenerate outline: only 2 distinct points" in got.skipped[0].reason
+    assert [(f.name, f.stage) for f in got.failed] == [("edge", "read")]
+    with pytest.raises(InputError, match="outline 'tick' cannot be gridded"):
+        read_pieces(path, include=["tick"])
+    assert main(["pieces", str(path)]) == 4
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].endswith("1 piece, 1 failed (coordinates in mm), 1 closed outline skipped as annotations")
+    assert "edge: FAILED (cannot be read): only 2 distinct points" in out and "  tick: mark" in out
