@@ -20,34 +20,9 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from clothgrid.errors import ClothgridError  # noqa: E402
 from clothgrid.pipeline import GridOptions, read_jobs, run_job  # noqa: E402
+from clothgrid.quality import sim_figures  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "patterns"
-
-
-def angles(P: np.ndarray) -> tuple[float, float]:
-    X = P[..., :2]
-    c = [X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]]
-    amin = np.full(X.shape[0] - 1 and (X.shape[0] - 1, X.shape[1] - 1), 180.0)
-    amax = np.zeros_like(amin)
-    for k in range(4):
-        a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
-        cr = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-        dt = (a * b).sum(-1)
-        ang = np.degrees(np.arctan2(cr, dt))
-        ang = np.where(ang < 0, 0.0, ang)
-        amin = np.minimum(amin, ang)
-        amax = np.maximum(amax, ang)
-    for ii, jj in ((0, 0), (-1, 0), (0, -1), (-1, -1)):
-        amin[ii, jj] = 180.0
-        amax[ii, jj] = 0.0
-    return float(amin.min()), float(amax.max())
-
-
-def spread(P: np.ndarray) -> tuple[float, float]:
-    eu = np.linalg.norm(np.diff(P, axis=0), axis=-1)
-    ev = np.linalg.norm(np.diff(P, axis=1), axis=-1)
-    e = np.concatenate([eu.ravel(), ev.ravel()])
-    return float(e.max() / max(e.min(), 1e-300)), float(e.min())
 
 
 def main(argv=None) -> int:
@@ -86,11 +61,11 @@ def main(argv=None) -> int:
                 print(f"  {f.name}:{job.name}: ERROR {exc}", flush=True)
                 continue
             P = r.grid.points
-            amin, amax = angles(P)
-            sp, emin = spread(P)
+            fig = sim_figures(P)
             row = {"file": f.name, "piece": job.name, "nodes": list(P.shape[:2]),
                    "method": job.piece["corners"]["method"], "folded": int(r.quality.folded),
-                   "min_angle": amin, "max_angle": amax, "spread": sp, "shortest": emin,
+                   "min_angle": fig["min_angle_deg"], "max_angle": fig["max_angle_deg"],
+                   "spread": fig["edge_spread"], "shortest": fig["shortest_edge"],
                    "edge_length": job.edge_length, "seconds": time.perf_counter() - t1}
             rows.append(row)
         print(f"{f.name}: {len(jobs)} pieces, {time.perf_counter() - t0:.1f} s, folded pieces "

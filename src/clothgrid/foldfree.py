@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .errors import InputError
-from .geometry import PLANAR_TOL, boundary_loop, plane_axes, vector_area
+from .geometry import PLANAR_TOL, boundary_loop, plane_axes, signed_area, vector_area
 from .geometry import plane_frame as geometry_plane_frame
 from .initial import transfinite
 
@@ -80,6 +80,25 @@ def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarra
             f"the fold-free functional is for planar pieces: this piece's boundary is "
             f"{dist / diag:.3g} of its size away from a plane; use functional 'length'")
     return centre, basis
+
+
+def _grid_copy(points: np.ndarray, who: str) -> np.ndarray:
+    """A float64 copy of an ``(nu, nv, 3)`` grid with ``nu, nv >= 3`` and finite nodes (else InputError)."""
+    R = np.array(points, dtype=np.float64)
+    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
+        raise InputError(f"{who} needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
+    if not np.isfinite(R).all():
+        raise InputError(f"{who} needs finite node coordinates")
+    return R
+
+
+def _with_interior(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.ndarray, dim: int) -> np.ndarray:
+    """``R`` with its interior nodes set from the planar ``X`` (``(nu, nv, 2)`` in the frame ``centre, basis``)."""
+    out = R.copy()
+    out[1:-1, 1:-1] = centre + X[1:-1, 1:-1] @ basis
+    if dim == 2:
+        out[1:-1, 1:-1, 2] = 0.0
+    return out
 
 
 def corner_jacobians(X: np.ndarray) -> np.ndarray:
@@ -174,7 +193,7 @@ def _solve(X: np.ndarray, max_iter: int, smooth_iter: int, say: Callable[[str], 
     """Untangle and smooth the ``(nu, nv, 2)`` counter-clockwise planar grid ``X``."""
     nu, nv = X.shape[:2]
     loop = boundary_loop(X)
-    area = 0.5 * float(np.sum(loop[:, 0] * np.roll(loop[:, 1], -1) - loop[:, 1] * np.roll(loop[:, 0], -1)))
+    area = signed_area(loop)
     if not area > 0:
         raise InputError("the piece's boundary encloses no area (or does not turn counter-clockwise)")
     scale = np.sqrt(area / ((nu - 1) * (nv - 1)))                 # mean cell area 1
@@ -257,11 +276,7 @@ def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_it
     """
     t0 = time.perf_counter()
     say = progress or (lambda _msg: None)
-    R = np.array(points, dtype=np.float64)
-    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
-        raise InputError(f"untangle needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
-    if not np.isfinite(R).all():
-        raise InputError("untangle needs finite node coordinates")
+    R = _grid_copy(points, "untangle")
     for name, value, least in (("max_iter", max_iter, 1), ("smooth_iter", smooth_iter, 0)):
         if value is None and name == "smooth_iter":
             continue
@@ -272,10 +287,7 @@ def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_it
     X = (R - centre) @ basis.T                                      # (nu, nv, 2), counter-clockwise
     stats: dict[str, Any] = {"iterations": 0}
     X = _solve(X, int(max_iter), smooth_iter, say, stats)
-    out = R.copy()
-    out[1:-1, 1:-1] = centre + X[1:-1, 1:-1] @ basis
-    if dim == 2:
-        out[1:-1, 1:-1, 2] = 0.0
+    out = _with_interior(R, X, centre, basis, dim)
     info = {"rounds": stats["rounds"], "levels": stats["levels"], "iterations": stats["iterations"],
             "untangled": bool(stats["min_corner_jacobian"] > 0),
             "min_corner_jacobian": float(stats["min_corner_jacobian"]), "seconds": time.perf_counter() - t0}
@@ -394,16 +406,12 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
 
     t0 = time.perf_counter()
     say = progress or (lambda _msg: None)
-    R = np.array(points, dtype=np.float64)
-    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
-        raise InputError(f"relax needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
-    if not np.isfinite(R).all():
-        raise InputError("relax needs finite node coordinates")
+    R = _grid_copy(points, "relax")
     centre, basis = plane_frame(R, dim)
     X = (R - centre) @ basis.T
     nu, nv = X.shape[:2]
     loop = boundary_loop(X)
-    area = 0.5 * float(np.sum(loop[:, 0] * np.roll(loop[:, 1], -1) - loop[:, 1] * np.roll(loop[:, 0], -1)))
+    area = signed_area(loop)
     if not area > 0:
         raise InputError("the piece's boundary encloses no area")
     scale = np.sqrt(area / ((nu - 1) * (nv - 1)))
@@ -428,9 +436,6 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         stats["sweeps"] += int(done)
         jmin, bad = corner_min(Xs, True)
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
-    out = R.copy()
-    out[1:-1, 1:-1] = centre + (Xs[1:-1, 1:-1] * scale + shift) @ basis
-    if dim == 2:
-        out[1:-1, 1:-1, 2] = 0.0
+    out = _with_interior(R, Xs * scale + shift, centre, basis, dim)
     stats["seconds"] = time.perf_counter() - t0
     return out, stats

@@ -177,12 +177,26 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol):
     return done, last
 
 
+@njit(cache=True, inline="always")
+def _corner_vectors(X, ci, cj, k):
+    """Edges ``a = R[k+1] - R[k]``, ``b = R[k-1] - R[k]`` at corner ``k`` of cell ``(ci, cj)``."""
+    i0 = ci + _DI[k]
+    j0 = cj + _DJ[k]
+    k1 = (k + 1) % 4
+    k3 = (k + 3) % 4
+    ax = X[ci + _DI[k1], cj + _DJ[k1], 0] - X[i0, j0, 0]
+    ay = X[ci + _DI[k1], cj + _DJ[k1], 1] - X[i0, j0, 1]
+    bx = X[ci + _DI[k3], cj + _DJ[k3], 0] - X[i0, j0, 0]
+    by = X[ci + _DI[k3], cj + _DJ[k3], 1] - X[i0, j0, 1]
+    return ax, ay, bx, by
+
+
 @njit(cache=True)
 def corner_min(X, skip_grid_corners):
     """Smallest ``a x b / (|a|^2 + |b|^2)`` of all cell corners (1/2 for a square) and how many are <= 0.
 
-The 4 fixed grid-corner terms are skipped if asked.
-"""
+    The 4 fixed grid-corner terms are skipped if asked.
+    """
     nu = X.shape[0]
     nv = X.shape[1]
     best = np.inf
@@ -194,12 +208,7 @@ The 4 fixed grid-corner terms are skipped if asked.
                 j0 = cj + _DJ[k]
                 if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
                     continue
-                k1 = (k + 1) % 4
-                k3 = (k + 3) % 4
-                ax = X[ci + _DI[k1], cj + _DJ[k1], 0] - X[i0, j0, 0]
-                ay = X[ci + _DI[k1], cj + _DJ[k1], 1] - X[i0, j0, 1]
-                bx = X[ci + _DI[k3], cj + _DJ[k3], 0] - X[i0, j0, 0]
-                by = X[ci + _DI[k3], cj + _DJ[k3], 1] - X[i0, j0, 1]
+                ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
                 J = ax * by - ay * bx
                 N = ax * ax + ay * ay + bx * bx + by * by
                 v = J / N if N > 0.0 else -1.0
@@ -220,14 +229,7 @@ def cell_min_sine(X):
         for cj in range(nv - 1):
             best = np.inf
             for k in range(4):
-                i0 = ci + _DI[k]
-                j0 = cj + _DJ[k]
-                k1 = (k + 1) % 4
-                k3 = (k + 3) % 4
-                ax = X[ci + _DI[k1], cj + _DJ[k1], 0] - X[i0, j0, 0]
-                ay = X[ci + _DI[k1], cj + _DJ[k1], 1] - X[i0, j0, 1]
-                bx = X[ci + _DI[k3], cj + _DJ[k3], 0] - X[i0, j0, 0]
-                by = X[ci + _DI[k3], cj + _DJ[k3], 1] - X[i0, j0, 1]
+                ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
                 la = np.sqrt(ax * ax + ay * ay)
                 lb = np.sqrt(bx * bx + by * by)
                 if la == 0.0 or lb == 0.0:

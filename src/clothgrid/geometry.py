@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PLANAR_TOL", "boundary_loop", "vector_area", "best_fit_plane", "plane_axes", "plane_frame"]
+__all__ = ["PLANAR_TOL", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
 PLANAR_TOL = 1e-9
@@ -17,6 +17,13 @@ def boundary_loop(points: np.ndarray) -> np.ndarray:
     top reversed, left reversed: counter-clockwise for a counter-clockwise piece.
     """
     return np.concatenate([points[:-1, 0], points[-1, :-1], points[:0:-1, -1], points[0, :0:-1]])
+
+
+def signed_area(loop: np.ndarray) -> float:
+    """Signed area of a closed polygon from its first two coordinates (positive: counter-clockwise)."""
+    p = np.asarray(loop)
+    q = np.roll(p, -1, axis=0)
+    return 0.5 * float((p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]).sum())
 
 
 def vector_area(loop: np.ndarray) -> np.ndarray:

@@ -195,13 +195,13 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
     """
     from ..boundary import resample_polyline
     from ..foldfree import relax
+    from ..geometry import signed_area
     from ..initial import transfinite
 
     c = list(corners)
     sides = [_side_points(outline, c[k], c[(k + 1) % 4]) for k in range(4)]
     lens = [float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides]
-    area = abs(0.5 * float(np.sum(outline[:, 0] * np.roll(outline[:, 1], -1)
-                                  - outline[:, 1] * np.roll(outline[:, 0], -1))))
+    area = abs(signed_area(outline))
     h = math.sqrt(area / cells) if area > 0 else max(lens) / 8
     nu = int(min(64, max(3, round(max(lens[0], lens[2]) / h) + 1)))
     nv = int(min(64, max(3, round(max(lens[1], lens[3]) / h) + 1)))
@@ -221,6 +221,7 @@ def grid_score(points: np.ndarray) -> float:
     The four grid-corner cells are left out (their angle is the outline's).
     """
     from ..foldfree_kernels import cell_min_sine
+    from ..quality import sim_figures
 
     X = np.ascontiguousarray(points[..., :2])
     s = cell_min_sine(X)
@@ -232,10 +233,7 @@ def grid_score(points: np.ndarray) -> float:
     folded = float(np.mean(sv <= 0))
     if folded > 0:
         return -10.0 - folded
-    eu = np.hypot(*np.diff(X, axis=0).reshape(-1, 2).T)
-    ev = np.hypot(*np.diff(X, axis=1).reshape(-1, 2).T)
-    e = np.concatenate([eu, ev])
-    spread = float(e.max() / max(e.min(), 1e-300))
+    spread = sim_figures(points)["edge_spread"]
     return float(2.0 * sv.min() + sv.mean() - 0.25 * math.log10(spread))
 
 

@@ -47,6 +47,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import signed_area
 from .annotations import LINES, classified, structure_hint
 from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
@@ -308,8 +309,7 @@ def _is_piece_block(block: Any) -> bool:
 def _loop_area(prims: list[Primitive]) -> float:
     pts = np.concatenate([p.points(np.linspace(0, 1, 9)) if isinstance(p, Bezier)
                           else p.points(np.linspace(p.t0, p.t1, 9)) for p in prims])
-    q = np.roll(pts, -1, axis=0)
-    return abs(0.5 * float((pts[:, 0] * q[:, 1] - pts[:, 1] * q[:, 0]).sum()))
+    return abs(signed_area(pts))
 
 
 def _extent(prims_list: list[list[Primitive]]) -> float:
@@ -328,8 +328,8 @@ def _unique(name: str, used: dict[str, int]) -> str:
     return _unique(f"{name}-{used[name]}", used)
 
 
-def _layer_loops(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Primitive]], list[list[Primitive]]]:
-    """(closed loops, open chains left) of the curves on ``layer``."""
+def _layer_curves(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Primitive]], list[list[Primitive]]]:
+    """(open chains, closed entities) of the curves on ``layer``, each as its primitives."""
     chains, closed = [], []
     for e in ents:
         if e.dxf.get("layer", "") != layer or e.dxftype() not in _CURVES:
@@ -337,6 +337,12 @@ def _layer_loops(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Prim
         prims, is_closed = _entity_prims(e, ctx)
         if prims:
             (closed if is_closed else chains).append(prims)
+    return chains, closed
+
+
+def _layer_loops(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Primitive]], list[list[Primitive]]]:
+    """(closed loops, open chains left) of the curves on ``layer``."""
+    chains, closed = _layer_curves(ents, layer, ctx)
     tol = 1e-6 * _extent(chains + closed)
     loops, _ = _chain(chains, tol)
     return loops + closed, chains
@@ -396,22 +402,16 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
             pname = f"{pname}_{size}"
         pname = _unique(pname, used)
         try:
-            chains, closed = [], []
-            for e in ents:
-                if e.dxf.get("layer", "") != "1" or e.dxftype() not in _CURVES:
-                    continue
-                prims, is_closed = _entity_prims(e, ctx)
-                if prims:
-                    (closed if is_closed else chains).append(prims)
+            chains, closed = _layer_curves(ents, "1", ctx)
             tol = 1e-6 * _extent(chains + closed)
-            loops, left_open = _chain(chains, tol)
+            loops, _ = _chain(chains, tol)
             if not loops and not closed and chains:
                 # the standard's boundary is closed by definition: close the gap with a line
                 joined, _ = _chain(chains, float("inf"))
                 if joined:
                     chain = joined[0]
                     chain.append(Bezier(np.array([chain[-1].end, chain[0].start])))
-                    loops, left_open = [chain], 0
+                    loops = [chain]
                     notes.append("the open boundary was closed with a straight segment")
             loops += closed
             if not loops:

@@ -10,6 +10,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError, PiecesError
+from ..geometry import signed_area
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
 __all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
@@ -86,7 +87,7 @@ class Piece:
     @property
     def area(self) -> float:
         """Enclosed area (mm², positive: the outline is counter-clockwise)."""
-        return _signed_area(self.outline)
+        return signed_area(self.outline)
 
     def __repr__(self) -> str:
         w, h = self.extent
@@ -245,11 +246,6 @@ def pattern_pieces(pieces: Sequence[Piece], failed: Sequence[PieceFailure], wher
                       + "; ".join(f.message() for f in failed), failed, where)
 
 
-def _signed_area(p: np.ndarray) -> float:
-    q = np.roll(p, -1, axis=0)
-    return 0.5 * float((p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]).sum())
-
-
 def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | None = None,
                        turn_points: np.ndarray | None = None, where: str = "",
                        **kwargs: Any) -> Piece:
@@ -294,7 +290,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
         return np.unique(new_index[np.asarray(idx, dtype=np.int64) % n0])
 
     verts, turns = remap(vertices), remap(turn_points)
-    area = _signed_area(pts)
+    area = signed_area(pts)
     if not abs(area) > 1e-12 * size * size:
         raise InputError(f"{label}: encloses no area (its outline runs back over itself)")
     if area < 0:                              # make it counter-clockwise, keeping point 0
