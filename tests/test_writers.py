@@ -12,7 +12,7 @@ from conftest import parse_obj
 from clothgrid import writers
 from clothgrid.errors import InputError
 from clothgrid.grid import Grid
-from clothgrid.plot import plot_grid
+from clothgrid.plot import CORNER_LABELS, draw_grid, plane_coordinates, plot_grid
 from clothgrid.quality import quality
 from clothgrid.readers import load_npz
 from clothgrid.writers import register_writer, save
@@ -155,6 +155,17 @@ def test_plot_writes_png(grid, tmp_path):
     data = path.read_bytes()
     assert data.startswith(b"\x89PNG\r\n\x1a\n") and len(data) > 1000
     assert listing(tmp_path) == ["g.png"]
+
+
+def test_plot_marks_the_four_grid_corners(grid):
+    fig = draw_grid(grid, title="corners")
+    ax = fig.axes[0]
+    marked = [c for c in ax.collections if c.get_label() == "grid corners"]
+    assert len(marked) == 1
+    xy = plane_coordinates(grid)
+    expected = np.array([xy[0, 0], xy[-1, 0], xy[-1, -1], xy[0, -1]])
+    np.testing.assert_allclose(marked[0].get_offsets(), expected)
+    assert [t.get_text() for t in ax.texts] == list(CORNER_LABELS)
 
 
 def test_plot_large_2d_grid_and_errors(tmp_path):

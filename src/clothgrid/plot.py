@@ -15,7 +15,11 @@ from .geometry import boundary_loop, plane_frame
 from .quality import Quality
 from .writers import atomic_write
 
-__all__ = ["plot_grid", "plane_coordinates"]
+__all__ = ["plot_grid", "draw_grid", "plane_coordinates", "CORNER_LABELS"]
+
+#: Labels of the grid corners marked on a plot: nodes ``[0, 0]``, ``[-1, 0]``,
+#: ``[-1, -1]``, ``[0, -1]`` (bottom-left, bottom-right, top-right, top-left).
+CORNER_LABELS = ("BL", "BR", "TR", "TL")
 
 
 def plane_coordinates(grid: Grid) -> np.ndarray:
@@ -40,7 +44,7 @@ def _subsample(n: int, max_lines: int) -> np.ndarray:
 
 def plot_grid(grid: Grid, path: str | Path, *, title: str | None = None,
               quality: Quality | None = None, max_lines: int = 128) -> Path:
-    """Draw the grid lines (boundary thicker) and write the image to ``path``.
+    """Draw the grid lines (boundary thicker, grid corners marked) and write the image to ``path``.
 
     Parameters
     ----------
@@ -53,6 +57,12 @@ def plot_grid(grid: Grid, path: str | Path, *, title: str | None = None,
         Title above the drawing.
     quality : Quality, optional
         When given, its folded cells are filled red.
+
+    Notes
+    -----
+    The four grid corners (nodes ``[0, 0]``, ``[-1, 0]``, ``[-1, -1]``,
+    ``[0, -1]``) are marked with blue dots labelled BL, BR, TR, TL: for a
+    pattern piece they show which outline points were chosen as corners.
     max_lines : int
         Most grid lines drawn in each direction (evenly subsampled, boundary
         lines always included); each line keeps all its nodes.
@@ -67,6 +77,19 @@ def plot_grid(grid: Grid, path: str | Path, *, title: str | None = None,
     if fmt not in FigureCanvasAgg.get_supported_filetypes():
         known = ", ".join(sorted(FigureCanvasAgg.get_supported_filetypes()))
         raise InputError(f"cannot draw to {str(path)!r}: unknown image format {fmt!r} (known: {known})")
+    fig = draw_grid(grid, title=title, quality=quality, max_lines=max_lines)
+    with atomic_write(path) as fh:
+        fig.savefig(fh, format=fmt, bbox_inches="tight")
+    return path
+
+
+def draw_grid(grid: Grid, *, title: str | None = None, quality: Quality | None = None,
+              max_lines: int = 128) -> Figure:
+    """The figure :func:`plot_grid` writes, for further drawing or saving by the caller.
+
+    Parameters are those of :func:`plot_grid`. The grid corners are the
+    ``PathCollection`` labelled ``"grid corners"``.
+    """
     xy = plane_coordinates(grid)
     nu, nv = xy.shape[:2]
 
@@ -83,12 +106,17 @@ def plot_grid(grid: Grid, path: str | Path, *, title: str | None = None,
                                          linewidths=0.3, alpha=0.8, zorder=3))
     loop = boundary_loop(xy)
     ax.plot(*np.vstack([loop, loop[:1]]).T, color="black", linewidth=1.5, zorder=4)
+    # The four grid corners: where the piece's outline was split into the four sides.
+    corners = np.array([xy[0, 0], xy[-1, 0], xy[-1, -1], xy[0, -1]])
+    ax.scatter(*corners.T, s=40, color="tab:blue", edgecolors="white", linewidths=0.8,
+               zorder=5, label="grid corners")
+    for (x, y), name in zip(corners, CORNER_LABELS):
+        ax.annotate(name, (x, y), xytext=(4, 4), textcoords="offset points", fontsize=8,
+                    color="tab:blue", zorder=6)
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x" if grid.dim == 2 else "plane x")
     ax.set_ylabel("y" if grid.dim == 2 else "plane y")
     if title:
         ax.set_title(title)
-    with atomic_write(path) as fh:
-        fig.savefig(fh, format=fmt, bbox_inches="tight")
-    return path
+    return fig
