@@ -86,6 +86,11 @@ def _check_count(n: Any, what: str) -> int:
 SHARP_TURN_DEG = 30.0
 
 
+#: Kept vertices (:func:`resample_polyline`) closer than this fraction of the
+#: mean node spacing to a side's end or to each other are not kept.
+MIN_KEPT_PIECE = 0.5
+
+
 def sharp_vertices(points: Any, min_turn: float = SHARP_TURN_DEG) -> np.ndarray:
     """Indices of the inner vertices of a polyline that turn by at least ``min_turn`` degrees."""
     pts = _to3d(_as_points(points, "the polyline"))
@@ -118,7 +123,9 @@ def resample_polyline(points: Any, n: int, keep: Any = None) -> np.ndarray:
         Inner vertices of ``points`` that must be nodes: the polyline is cut
         there and each piece gets a share of the ``n - 1`` segments in
         proportion to its length (at least one each; where there are more
-        such vertices than inner nodes, those of the shortest pieces are dropped).
+        such vertices than inner nodes, those of the shortest pieces are dropped,
+        as are those closer than half the mean node spacing to an end or to
+        each other).
 
     Returns
     -------
@@ -152,16 +159,22 @@ def resample_polyline(points: Any, n: int, keep: Any = None) -> np.ndarray:
 
 
 def _piecewise_targets(s: np.ndarray, cuts: list[int], n: int) -> np.ndarray:
-    """Arc positions of ``n`` nodes: every cut vertex a node, the rest spread by length."""
+    """Arc positions of ``n`` nodes: every cut vertex a node, the rest spread by length.
+
+    A cut closer than :data:`MIN_KEPT_PIECE` of the mean node spacing to an end
+    or to another cut is dropped (a kept vertex 0.03 mm from a corner would
+    otherwise make a 0.03 mm edge, and a cell that is all but flat).
+    """
     total = float(s[-1])
     pos = [float(s[i]) for i in cuts]
     pos = [p for p in pos if 0.0 < p < total]
+    shortest = MIN_KEPT_PIECE * total / (n - 1)
     while True:
         bounds = [0.0] + pos + [total]
         lens = np.diff(bounds)
-        if len(pos) <= n - 2 and (lens > 0).all():
+        if len(pos) <= n - 2 and (lens >= shortest).all():
             break
-        # too many cuts: drop the one that ends the shortest piece
+        # too many cuts, or too close: drop the one that ends the shortest piece
         k = int(np.argmin(lens))
         pos.pop(min(k, len(pos) - 1))
         if not pos:

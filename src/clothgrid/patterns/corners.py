@@ -42,7 +42,7 @@ from ..errors import InputError
 from .piece import Piece
 
 __all__ = ["CornerCandidate", "CornerChoice", "turn_angles", "corner_candidates",
-           "choose_corners", "MIN_TURN_DEG"]
+           "choose_corners", "MIN_TURN_DEG", "windowed_turn", "rounded_corners", "dart_mouths"]
 
 #: smallest turn (degrees) that makes a vertex a corner candidate
 MIN_TURN_DEG = 20.0
@@ -123,22 +123,152 @@ def _quality(turn: np.ndarray) -> np.ndarray:
 def corner_candidates(piece: Piece, min_turn: float = MIN_TURN_DEG) -> list[CornerCandidate]:
     """The piece's corner candidates, in outline order.
 
-    The file's turn points, plus the source vertices that turn by at least
-    ``min_turn`` degrees either way.
+    The file's turn points, the source vertices that turn by at least
+    ``min_turn`` degrees either way, and the middles of rounded corners
+    (:func:`rounded_corners`; their ``turn`` is the windowed turn).
     """
-    turn = turn_angles(piece.outline)
+    turn = _candidate_turns(piece)
     tp = set(int(i) for i in piece.turn_points)
     v = np.asarray(piece.vertices, dtype=np.int64)
     sharp = set(int(i) for i in v[np.abs(turn[v]) >= math.radians(min_turn)]) if v.size else set()
+    window = round_window(piece.outline)
+    rounded = set(rounded_corners(piece.outline, sorted(tp | sharp), window))
+    turn = turn.copy()
+    if rounded:
+        wt = windowed_turn(piece.outline, window)
+        idx = np.array(sorted(rounded))
+        turn[idx] = wt[idx]
     q = _quality(turn)
     return [CornerCandidate(i, (float(piece.outline[i, 0]), float(piece.outline[i, 1])),
                             float(math.degrees(turn[i])), i in tp, float(q[i]))
-            for i in sorted(tp | sharp)]
+            for i in sorted(tp | sharp | rounded)]
+
+
+def _candidate_turns(piece: Piece) -> np.ndarray:
+    return turn_angles(piece.outline)
 
 
 def _arc(outline: np.ndarray) -> tuple[np.ndarray, float]:
     d = np.diff(np.vstack([outline, outline[:1]]), axis=0)
     seg = np.hypot(d[:, 0], d[:, 1])
+    return np.concatenate([[0.0], np.cumsum(seg)[:-1]]), float(seg.sum())
+
+
+#: Arc-length window (fraction of the perimeter, at most :data:`ROUND_WINDOW_MM`) over
+#: which :func:`windowed_turn` measures how much the outline turns.
+ROUND_WINDOW = 0.06
+ROUND_WINDOW_MM = 60.0
+#: Smallest windowed turn (degrees) that makes a rounded corner a candidate.
+ROUND_MIN_TURN_DEG = 60.0
+#: A dart tip turns (concave) by at least this much (degrees): a V opening of 70° or less.
+DART_TIP_TURN_DEG = 110.0
+
+
+def round_window(outline: np.ndarray) -> float:
+    """The arc-length window (mm) of :func:`windowed_turn` for a piece.
+
+    :data:`ROUND_WINDOW` of the perimeter, at most :data:`ROUND_WINDOW_MM`
+    and at most half the piece's mean width (twice its area over its
+    perimeter), so that a narrow band's rounded ends are not one U-turn.
+    """
+    from ..geometry import signed_area
+
+    _, perimeter = _arc(outline)
+    width = 2.0 * abs(signed_area(outline)) / perimeter if perimeter > 0 else 0.0
+    return max(min(ROUND_WINDOW * perimeter, ROUND_WINDOW_MM, 0.5 * width), 1e-9)
+
+
+def windowed_turn(outline: np.ndarray, window: float) -> np.ndarray:
+    """Signed turn (radians, + convex) at every outline point over an arc-length window.
+
+    The turn from the chord arriving from the point half a window back to the
+    chord leaving to the point half a window ahead: a corner rounded with a
+    radius well under the window turns about as much as a sharp one, while a
+    point on a gently curved side turns little.
+    """
+    p = np.asarray(outline, dtype=np.float64)
+    s, perimeter = _arc(p)
+    if perimeter <= 0 or len(p) < 3:
+        return np.zeros(len(p))
+    half = min(0.5 * window, perimeter / 6)
+    ext_s = np.concatenate([s - perimeter, s, s + perimeter])
+    ext = np.vstack([p, p, p])
+    back = np.column_stack([np.interp(s - half, ext_s, ext[:, k]) for k in range(2)])
+    ahead = np.column_stack([np.interp(s + half, ext_s, ext[:, k]) for k in range(2)])
+    d_in, d_out = p - back, ahead - p
+    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+    return np.arctan2(cross, (d_in * d_out).sum(axis=1))
+
+
+def rounded_corners(outline: np.ndarray, taken: Sequence[int], window: float,
+                    min_turn: float = ROUND_MIN_TURN_DEG) -> list[int]:
+    """Outline points at the middle of rounded corners: a convex windowed turn of ``min_turn`` or more.
+
+    Local maxima of :func:`windowed_turn`, at least a window apart from each
+    other and from the points in ``taken`` (the sharp candidates).
+    """
+    wt = windowed_turn(outline, window)
+    s, perimeter = _arc(outline)
+    order = np.argsort(-wt, kind="stable")
+    found: list[int] = []
+    near = [float(s[i]) for i in taken]
+    limit = math.radians(min_turn)
+    for i in order:
+        if wt[i] < limit:
+            break
+        x = float(s[i])
+        if any(min(abs(x - y), perimeter - abs(x - y)) < window for y in near):
+            continue
+        found.append(int(i))
+        near.append(x)
+    return sorted(found)
+
+
+def dart_mouths(outline: np.ndarray, cands: Sequence[int], turn: np.ndarray
+                ) -> list[tuple[int, int, int]]:
+    """The darts of an outline: ``(mouth, tip, mouth)`` outline indices in outline order.
+
+    A dart tip is a candidate that turns concave by :data:`DART_TIP_TURN_DEG`
+    or more; its mouths are the nearest convex candidates before and after it,
+    when the two legs are of similar length (within a factor 2) and the mouth
+    is narrower than the shorter leg. A dart's mouths are where the dart meets
+    the seam line, not corners a pattern maker would choose.
+    """
+    cs = sorted(int(i) for i in cands)
+    if len(cs) < 3:
+        return []
+    s, perimeter = _arc(outline)
+    darts = []
+    for k, tip in enumerate(cs):
+        if turn[tip] > -math.radians(DART_TIP_TURN_DEG):
+            continue
+        a = next((cs[(k - j) % len(cs)] for j in range(1, len(cs)) if turn[cs[(k - j) % len(cs)]] > 0),
+                 None)
+        b = next((cs[(k + j) % len(cs)] for j in range(1, len(cs)) if turn[cs[(k + j) % len(cs)]] > 0),
+                 None)
+        if a is None or b is None or a == b:
+            continue
+        leg_a = (s[tip] - s[a]) % perimeter
+        leg_b = (s[b] - s[tip]) % perimeter
+        chord = float(np.hypot(*(outline[b] - outline[a])))
+        if min(leg_a, leg_b) <= 0 or max(leg_a, leg_b) > 2 * min(leg_a, leg_b):
+            continue
+        if chord >= min(leg_a, leg_b):
+            continue
+        darts.append((a, tip, b))
+    return darts
+
+
+def _closed_arc(outline: np.ndarray, darts: Sequence[tuple[int, int, int]]
+                ) -> tuple[np.ndarray, float]:
+    """Arc length along the outline with every dart closed (its legs count as its mouth's width)."""
+    n = len(outline)
+    d = np.diff(np.vstack([outline, outline[:1]]), axis=0)
+    seg = np.hypot(d[:, 0], d[:, 1])
+    for a, _, b in darts:
+        span = np.arange(a, a + ((b - a) % n)) % n
+        if span.size:
+            seg[span] = float(np.hypot(*(outline[b] - outline[a]))) / span.size
     return np.concatenate([[0.0], np.cumsum(seg)[:-1]]), float(seg.sum())
 
 
@@ -250,24 +380,70 @@ def _rank_by_grid(outline: np.ndarray, combos: list[list[int]], q: np.ndarray) -
     return [int(i) for i in best_c]
 
 
+#: A side is split (:func:`_split`) within this central fraction of its length ...
+SPLIT_BAND = 0.5
+#: ... unless it turns (windowed) by this much (degrees) somewhere at least a
+#: window (:func:`round_window`) from both ends: a corner rounded off more
+#: gently than :data:`ROUND_MIN_TURN_DEG`.
+SPLIT_PEAK_DEG = 30.0
+
+
+def _convex_middle(s: np.ndarray, perimeter: float, wt: np.ndarray,
+                   sides: Sequence[tuple[float, float]], window: float) -> float:
+    """Arc position of a new corner on one of ``sides`` (``(start, length)`` pairs, longest first).
+
+    The longest side with a rounded corner (a windowed turn ``wt`` of
+    :data:`SPLIT_PEAK_DEG` or more away from its ends) gets the new corner
+    where it turns most. Otherwise the longest side that is convex somewhere
+    in its central :data:`SPLIT_BAND` gets it at the point there that turns
+    most (within 2°), nearest the middle: the corner cell's angle is the
+    outline's, so a corner on a concave stretch would make a folded cell.
+    The middle of the longest side is the last resort (as on a straight side,
+    every point of which turns alike).
+    """
+    def rel_of(a: float, length: float) -> np.ndarray:
+        return ((s - a) % perimeter) / length
+
+    for a, length in sides:
+        rel = rel_of(a, length)
+        margin = min(window / length, 0.25)
+        inner = np.flatnonzero((rel >= margin) & (rel <= 1 - margin))
+        if inner.size and wt[inner].max() >= math.radians(SPLIT_PEAK_DEG):
+            return float(s[inner[np.argmax(wt[inner])]])
+    for a, length in sides:
+        rel = rel_of(a, length)
+        band = np.flatnonzero(np.abs(rel - 0.5) <= 0.5 * SPLIT_BAND)
+        if band.size == 0:
+            continue
+        best = float(wt[band].max())
+        if best < -math.radians(1.0):
+            continue
+        good = band[wt[band] >= best - math.radians(2.0)]
+        i = int(good[np.argmin(np.abs(rel[good] - 0.5))])
+        return float(s[i])
+    a, length = sides[0]
+    return (a + 0.5 * length) % perimeter
+
+
 def _split(outline: np.ndarray, corners: list[int]) -> tuple[np.ndarray, list[int], list[int]]:
-    """Add corners at the middle of the longest sides until there are four.
+    """Add corners near the middle of the longest sides, at convex points, until there are four.
 
     Returns the (possibly extended) outline, the 4 corner indices in outline
     order, and the indices of inserted points.
     """
     s, perimeter = _arc(outline)
     n = len(outline)
+    window = round_window(outline)
+    wt = windowed_turn(outline, window)
     pos = sorted(float(s[i]) for i in corners)       # arc-length positions
     while len(pos) < 4:
         if len(pos) == 1:
-            a, length = pos[0], perimeter
+            sides = [(pos[0], perimeter)]
         else:
             lens = [(pos[(k + 1) % len(pos)] - pos[k]) % perimeter or perimeter
                     for k in range(len(pos))]
-            k = int(np.argmax(lens))
-            a, length = pos[k], lens[k]
-        pos.append((a + 0.5 * length) % perimeter)
+            sides = sorted(((pos[k], lens[k]) for k in range(len(pos))), key=lambda t: -t[1])
+        pos.append(_convex_middle(s, perimeter, wt, sides, window))
         pos.sort()
     # materialise: existing point near the target (within 2% of that side), else insert
     original = {float(s[i]): i for i in corners}
@@ -396,8 +572,12 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
 
     cands = corner_candidates(piece, min_turn)
     turn = turn_angles(outline)
+    for c in cands:                       # rounded corners count with their windowed turn
+        turn[c.index] = math.radians(c.turn)
     q = _quality(turn)
-    s, perimeter = _arc(outline)
+    darts = dart_mouths(outline, [c.index for c in cands], turn)
+    mouths = sorted({a for a, _, _ in darts} | {b for _, _, b in darts})
+    s, perimeter = _closed_arc(outline, darts)
     tps = [c.index for c in cands if c.turn_point]
     geo = [c.index for c in cands]
     k_desc = (f"{len(tps)} turn point{'s' if len(tps) != 1 else ''}" if tps
@@ -405,6 +585,16 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
                    f"(turns of {min_turn:g}° or more)")
     inserted: list[int] = []
     pool = tps if len(tps) >= 4 else geo if len(geo) >= 4 else None
+    dart_note = ""
+    if pool is not None and mouths:
+        rest = [i for i in pool if i not in mouths]
+        if len(rest) >= 4:
+            pool = rest
+            dart_note = (f"; dart mouths {_fmt_idx(mouths)} are not corners "
+                         f"({len(darts)} dart{'s' if len(darts) != 1 else ''})")
+        else:
+            q = q.copy()
+            q[mouths] *= 0.25
     if pool is not None and len(pool) == 4:
         chosen = sorted(pool)
         method = "turn-points" if pool is tps else "candidates"
@@ -417,6 +607,8 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
                      + (f", {len(tps)} of them turn points)" if tps else ")"))
         message = (f"chose 4 of {what} by score (right-angled convex corners, opposite "
                    f"sides of similar length); left out outline indices {_fmt_idx(left)}")
+    if pool is not None:
+        message += dart_note
     else:
         base = sorted(set(geo))
         if not base:
@@ -430,8 +622,9 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
             extra = 4 - len(base)
             message = (f"only {len(base)} corner candidate{'s' if len(base) != 1 else ''} "
                        f"(turn points and turns of {min_turn:g}° or more): added {extra} "
-                       f"corner{'s' if extra != 1 else ''} at the middle of the longest "
-                       f"side{'s' if extra != 1 else ''}")
+                       f"corner{'s' if extra != 1 else ''} on the longest "
+                       f"side{'s' if extra != 1 else ''}, where {'they turn' if extra != 1 else 'it turns'} "
+                       f"most (a rounded corner) or at a convex point near the middle")
         outline, chosen, inserted = _split(outline, base)
         if inserted:
             message += (f" (inserted outline point{'s' if len(inserted) > 1 else ''} "
