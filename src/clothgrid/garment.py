@@ -36,7 +36,7 @@ import numpy as np
 
 from .boundary import Boundary
 from .errors import InputError
-from .garment_counts import CountProblem, solve_counts
+from .garment_counts import CountConflict, CountProblem, solve_counts
 from .garment_seams import edge_polyline, mesh_report, ordered_pairs, points_at, propagate_splits, weld
 from .geometry import signed_area
 from .patterns.garmentcode import GarmentSpec, SpecPanel, read_garment_spec
@@ -382,7 +382,14 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         if len(lay.fracs[e]) != 2:
             raise InputError(f"panel {pn!r} edge {e} is split by a corner; its count cannot be fixed")
         prob.fixed[lay.seg[(e, 0)]] = int(n)
-    counts, count_info = solve_counts(prob)
+    try:
+        counts, count_info = solve_counts(prob)
+    except CountConflict as exc:
+        raise CountConflict(f"{gs.path}: {exc}. Loosen it by choosing other grid corners for one of "
+                            "these panels (corners={'PANEL': [i, j, k, l]}, on the command line "
+                            "--corners PANEL=I,J,K,L: panel vertex indices bottom-left, bottom-right, "
+                            "top-right, top-left), so that other edges form its opposite sides",
+                            exc.groups) from None
     say(f"node counts: {len(prob.targets)} segments, {count_info['constraints']} equalities, "
         f"MILP {count_info['seconds']:.3f} s")
 
@@ -534,7 +541,7 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
             np.savez(fh, **arrays)
         return path
     if suffix == ".obj":
-        lines = [f"# clothgrid garment: {len(g.panel_names)} panels, {len(g.stitch_id and g.stitches)} stitched pairs; "
+        lines = [f"# clothgrid garment: {len(g.panel_names)} panels, {len(g.stitches)} stitched node pairs; "
                  "mm, Y up; vt = flat pattern coordinates (mm)\n"]
         if seams == "weld":
             w = g.welded()
