@@ -39,6 +39,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -47,7 +48,8 @@ from ..errors import InputError
 from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 
-__all__ = ["read_garmentcode", "is_garmentcode"]
+__all__ = ["read_garmentcode", "is_garmentcode", "read_garment_spec", "GarmentSpec", "SpecPanel",
+           "SpecEdge", "SpecStitch"]
 
 
 def is_garmentcode(data: Any) -> bool:
@@ -285,9 +287,214 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
                                                p.start_point * scale, p.end_point * scale))
             corner_pts = [V[s] * scale for s, *_ in _loop(edges, len(V), what)]
             meta = {k: panel[k] for k in ("translation", "rotation") if k in panel}
+            # each spec edge's identity and direction in the chained loop (the outline may be
+            # reversed afterwards to run counter-clockwise: see read_garment_spec for seams)
+            pos = {id(e): k for k, e in enumerate(edges)}
+            meta["edge_loop"] = [[pos[id(e)], bool(rev)] for _, _, e, rev in _loop(edges, len(V), what)]
             pieces.append(piece_from_primitives(
                 str(name), prims_mm, rel_tol=rel_tol, turn_points=corner_pts, where=f"{where}: ",
                 units=unit, source="garmentcode", notes=tuple(notes), meta=meta))
         except InputError as exc:
             failed.append(piece_failure(str(name), exc, where))
     return pattern_pieces(pieces, failed, where, f"{where}: the pattern has no panels")
+
+
+# --------------------------------------------------------------------------- whole garments
+
+
+@dataclass(frozen=True, eq=False)
+class SpecEdge:
+    """One edge of a GarmentCode panel, as the file gives it.
+
+    ``index`` is its position in the panel's ``edges`` list (what stitches refer
+    to); it runs from vertex ``start`` to vertex ``end`` (the ``endpoints``
+    order), and ``curve`` is that curve in millimetres, in that direction.
+    """
+
+    index: int
+    start: int
+    end: int
+    curve: Primitive
+    label: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class SpecPanel:
+    """A GarmentCode panel with its edges kept as the file numbers and orients them.
+
+    ``loop`` is the closed chain of the edges: ``(edge index, reversed)`` in
+    chain order, starting with edge 0 in its own direction (the chain's
+    direction is the panel's: its right side faces where GarmentCode's
+    ``right side to right side`` stitching expects). ``vertices`` are in
+    millimetres; ``translation`` in millimetres, ``rotation`` the XYZ Euler
+    angles in degrees (``R = Rz Ry Rx``, pygarment ``rotation.euler_xyz_to_R``).
+    """
+
+    name: str
+    vertices: np.ndarray
+    edges: tuple[SpecEdge, ...]
+    loop: tuple[tuple[int, bool], ...]
+    translation: np.ndarray
+    rotation: np.ndarray
+    label: str | None = None
+
+
+@dataclass(frozen=True)
+class SpecStitch:
+    """A stitch: edge ``a`` = ``(panel, edge index)`` sewn to edge ``b``.
+
+    ``same_direction`` is False for GarmentCode's default (the edges are joined
+    in opposite directions: ``a``'s end meets ``b``'s start) and True for a
+    stitch that carries ``"right_wrong"`` (``a``'s start meets ``b``'s start).
+    """
+
+    index: int
+    a: tuple[str, int]
+    b: tuple[str, int]
+    same_direction: bool = False
+
+    @property
+    def dart(self) -> bool:
+        """Both edges on one panel."""
+        return self.a[0] == self.b[0]
+
+
+@dataclass(frozen=True, eq=False)
+class GarmentSpec:
+    """A GarmentCode (or Garment-Pattern-Generator) specification: panels and stitches (mm)."""
+
+    path: Path
+    panels: dict[str, SpecPanel]
+    stitches: tuple[SpecStitch, ...]
+    units: str
+    mm_per_unit: float
+    notes: tuple[str, ...] = field(default=())
+
+
+def _stitch_side(side: Any, panels: dict[str, SpecPanel], what: str) -> tuple[str, int]:
+    if not isinstance(side, dict) or "panel" not in side or "edge" not in side:
+        raise InputError(f"{what} must be {{\"panel\": NAME, \"edge\": INDEX}}, not {side!r}")
+    name, edge = side["panel"], side["edge"]
+    if name not in panels:
+        raise InputError(f"{what}: no panel named {name!r}")
+    if isinstance(edge, bool) or not isinstance(edge, int) or not 0 <= edge < len(panels[name].edges):
+        raise InputError(f"{what}: panel {name!r} has no edge {edge!r} (it has "
+                         f"{len(panels[name].edges)} edges, 0..{len(panels[name].edges) - 1})")
+    return str(name), int(edge)
+
+
+def _read_stitches(raw: Any, panels: dict[str, SpecPanel], where: str) -> tuple[SpecStitch, ...]:
+    """GarmentCode's ``[A, B]`` / ``[A, B, "right_wrong"]`` and the older ``{"from": A, "to": B}``."""
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise InputError(f"{where}: 'stitches' must be a list")
+    out = []
+    for k, st in enumerate(raw):
+        what = f"{where}: stitch {k}"
+        same = False
+        if isinstance(st, dict) and "from" in st and "to" in st:
+            a, b = st["from"], st["to"]
+            same = bool(st.get("right_wrong", False))
+        elif isinstance(st, (list, tuple)) and len(st) in (2, 3):
+            a, b = st[0], st[1]
+            if len(st) == 3:
+                if st[2] != "right_wrong":
+                    raise InputError(f"{what}: the third element must be \"right_wrong\", not {st[2]!r}")
+                same = True
+        else:
+            raise InputError(f"{what} must be [A, B], [A, B, \"right_wrong\"] or "
+                             f"{{\"from\": A, \"to\": B}}, not {st!r}")
+        sa = _stitch_side(a, panels, f"{what}, first side")
+        sb = _stitch_side(b, panels, f"{what}, second side")
+        if sa == sb:
+            raise InputError(f"{what} sews edge {sa[1]} of panel {sa[0]!r} to itself")
+        out.append(SpecStitch(k, sa, sb, same))
+    return tuple(out)
+
+
+def read_garment_spec(path: str | Path, *, units: str | None = None) -> GarmentSpec:
+    """Read a GarmentCode specification as a whole garment: panels, edges, stitches, placement.
+
+    Unlike :func:`read_garmentcode` (one outline per panel) this keeps every
+    edge's index and direction, the stitches and the panels' 3D placement.
+    Any malformed panel or stitch is an :class:`InputError` (a garment needs
+    them all).
+    """
+    from ..units import unit_to_mm
+
+    path = Path(path)
+    where = str(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{where}: not a UTF-8 text file ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{where}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    if not is_garmentcode(data):
+        raise InputError(f"{where}: not a GarmentCode specification (expected {{\"pattern\": "
+                         "{\"panels\": {...}, \"stitches\": [...]}}})")
+    props = data.get("properties") or {}
+    if not isinstance(props, dict):
+        raise InputError(f"{where}: 'properties' must be an object")
+    notes: list[str] = []
+    if units is not None:
+        scale, unit = unit_to_mm(units, what="--units"), units
+    else:
+        uim = props.get("units_in_meter", 100)
+        if isinstance(uim, bool) or not isinstance(uim, (int, float)) or not (math.isfinite(uim) and uim > 0):
+            raise InputError(f"{where}: properties.units_in_meter must be a positive number, not {uim!r}")
+        if "units_in_meter" not in props:
+            notes.append("units: centimetres (no units_in_meter: GarmentCode's default)")
+        scale = 1000.0 / float(uim)
+        unit = {1000: "mm", 100: "cm", 10: "dm", 1: "m"}.get(float(uim), f"1/{uim:g} m")
+    absolute = props.get("curvature_coords", "relative") == "absolute"
+    raw_panels = data["pattern"]["panels"]
+    if not isinstance(raw_panels, dict) or not raw_panels:
+        raise InputError(f"{where}: the pattern has no panels")
+    order = data["pattern"].get("panel_order")
+    names = [n for n in order if n in raw_panels] if isinstance(order, list) else []
+    names += [n for n in raw_panels if n not in names]
+    panels: dict[str, SpecPanel] = {}
+    for name in names:
+        panel = raw_panels[name]
+        what = f"{where}: panel {name!r}"
+        if not isinstance(panel, dict):
+            raise InputError(f"{what} must be an object with 'vertices' and 'edges'")
+        verts, edges = panel.get("vertices"), panel.get("edges")
+        if not isinstance(verts, list) or not isinstance(edges, list) or not edges:
+            raise InputError(f"{what} needs a list of 'vertices' and a non-empty list of 'edges'")
+        V = np.array([_point(v, f"{what}: vertex {k}") for k, v in enumerate(verts)]).reshape(-1, 2)
+        chain = _loop(edges, len(V), what)
+        ids = {id(e): k for k, e in enumerate(edges)}
+        spec_edges = []
+        for k, e in enumerate(edges):
+            s, t = e["endpoints"]
+            c = _edge(V[s], V[t], e.get("curvature"), absolute, f"{what}: edge {k}")
+            c = Bezier(c.ctrl * scale, c.weights) if isinstance(c, Bezier) else EllipseArc(
+                c.center * scale, c.a * scale, c.b * scale, c.t0, c.t1, c.start_point * scale,
+                c.end_point * scale)
+            label = e.get("label")
+            spec_edges.append(SpecEdge(k, int(s), int(t), c, label if isinstance(label, str) else None))
+        loop = tuple((ids[id(e)], bool(rev)) for _, _, e, rev in chain)
+        if len(loop) != len(edges):
+            raise InputError(f"{what}: the edges do not form one closed loop")
+
+        def vec(key: str, default: list[float]) -> np.ndarray:
+            v = panel.get(key, default)
+            try:
+                a = np.asarray(v, dtype=np.float64)
+            except (TypeError, ValueError):
+                a = np.zeros(0)
+            if a.shape != (3,) or not np.isfinite(a).all():
+                raise InputError(f"{what}: '{key}' must be three numbers, not {v!r}")
+            return a
+
+        panels[str(name)] = SpecPanel(str(name), V * scale, tuple(spec_edges), loop,
+                                      vec("translation", [0.0, 0.0, 0.0]) * scale,
+                                      vec("rotation", [0.0, 0.0, 0.0]),
+                                      panel.get("label") if isinstance(panel.get("label"), str) else None)
+    stitches = _read_stitches(data["pattern"].get("stitches"), panels, where)
+    return GarmentSpec(path, panels, stitches, unit, scale, tuple(notes))

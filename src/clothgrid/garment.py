@@ -1,0 +1,561 @@
+"""Whole garments: every panel of a GarmentCode specification gridded, sewn node for node, placed.
+
+:func:`garment` reads a GarmentCode (or Garment-Pattern-Generator) specification
+with its stitches (:func:`clothgrid.patterns.garmentcode.read_garment_spec`), and
+
+1. samples every spec edge densely, in its own direction, and picks each panel's
+   four grid corners at panel vertices (:func:`clothgrid.patterns.choose_corners`
+   on the vertices; a panel with fewer than four vertices gets corners at the
+   middle of its longest edges, carried across the seam to the edge sewn to it);
+2. chooses the number of grid intervals of every boundary segment by an integer
+   program (:mod:`clothgrid.garment_counts`): both edges of a stitch equal,
+   opposite grid sides equal, close to the target edge length;
+3. puts the nodes of every segment at equal arc-length fractions of it (so both
+   edges of a seam have their nodes at the same fractions, and every panel
+   vertex is a node) and grids each panel with the real-pattern defaults
+   (uniform weights, ``functional="auto"``), the boundary nodes fixed;
+4. places each panel with the spec's rotation and translation (GarmentCode's
+   ``R = Rz Ry Rx`` of the XYZ Euler angles in degrees, ``p = R [x, y, 0] +
+   t``; Y up; millimetres), keeping the flat pattern coordinates as the rest shape;
+5. pairs the nodes of every stitch along the seam (edge ``a``'s end meets edge
+   ``b``'s start, GarmentCode's default; start meets start with ``right_wrong``)
+   and, on request, welds them.
+
+See ``docs/garment.md``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .boundary import Boundary
+from .errors import InputError
+from .garment_counts import CountConflict, CountProblem, solve_counts
+from .garment_seams import edge_polyline, mesh_report, ordered_pairs, points_at, propagate_splits, weld
+from .geometry import signed_area
+from .patterns.garmentcode import GarmentSpec, SpecPanel, read_garment_spec
+from .units import parse_length
+
+__all__ = ["Garment", "garment", "euler_xyz_to_R", "SEAM", "GARMENT_SPRING_KINDS", "write_garment"]
+
+#: the spring kind code of the zero-length seam springs (after structural 0, shear 1, bend 2)
+SEAM = 3
+GARMENT_SPRING_KINDS = ("structural", "shear", "bend", "seam")
+SAMPLING_REL_TOL = 1e-7
+
+
+def euler_xyz_to_R(angles_deg: Sequence[float]) -> np.ndarray:
+    """GarmentCode's panel rotation: ``Rz(c) Ry(b) Rx(a)`` of ``[a, b, c]`` in degrees.
+
+    As pygarment's ``pattern/rotation.py::euler_xyz_to_R`` (Maya's XYZ order);
+    equal to ``scipy.spatial.transform.Rotation.from_euler("xyz", angles, degrees=True)``.
+    """
+    a, b, c = np.radians(np.asarray(angles_deg, dtype=np.float64))
+    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
+    rz = np.array([[math.cos(c), -math.sin(c), 0], [math.sin(c), math.cos(c), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+@dataclass
+class _Layout:
+    """One panel on its way: sampled edges, its counter-clockwise loop, corners, segments."""
+
+    spec: SpecPanel
+    polys: list[tuple[np.ndarray, np.ndarray]]
+    ccw: list[tuple[int, bool]]            # (edge, reversed) in counter-clockwise order
+    flipped: bool                          # the spec's loop runs clockwise in the panel plane
+    corners: list[tuple[int, float]] = field(default_factory=list)   # (ccw position, ccw fraction)
+    corner_method: str = ""
+    fracs: dict[int, list[float]] = field(default_factory=dict)      # edge -> [0, splits..., 1]
+    seg: dict[tuple[int, int], int] = field(default_factory=dict)    # (edge, j) -> segment id
+    sequence: list[tuple[int, int, bool]] = field(default_factory=list)  # ccw from corner 0: (edge, j, forward)
+    sides: list[list[int]] = field(default_factory=list)             # 4 lists of positions in sequence
+
+
+@dataclass(eq=False)
+class Garment:
+    """A sewn garment: every panel's grid, placed, with the seams' node pairs.
+
+    Node arrays are indexed by the global node id (panels one after another, a
+    panel's nodes in its grid's flat order ``i * nv + j``).
+
+    Attributes
+    ----------
+    points : (N, 3) placed positions (mm, Y up).
+    rest : (N, 2) flat pattern coordinates (mm) in each panel's own frame.
+    panel : (N,) panel index of each node; ``panel_names`` the names.
+    shapes : list of (nu, nv) per panel; ``offsets`` (P + 1,) first node of each panel.
+    quads : (F, 4) oriented as the spec's edge loop (right side out, as GarmentCode sews).
+    face_panel : (F,) panel of each quad.
+    stitches : (S, 2) node pairs, ordered along each seam (edge ``a``'s direction).
+    stitch_id : (S,) index of the spec stitch each pair comes from.
+    edge_nodes : dict (panel name, edge index) -> node ids along that spec edge, in its direction.
+    edge_fractions : dict (panel name, edge index) -> arc-length fractions of those nodes.
+    grids : the panels' :class:`clothgrid.Grid` (2D, flat).
+    info : counts, timings, corners, quality per panel.
+    """
+
+    spec: GarmentSpec
+    points: np.ndarray
+    rest: np.ndarray
+    panel: np.ndarray
+    panel_names: list[str]
+    shapes: list[tuple[int, int]]
+    offsets: np.ndarray
+    quads: np.ndarray
+    face_panel: np.ndarray
+    stitches: np.ndarray
+    stitch_id: np.ndarray
+    edge_nodes: dict[tuple[str, int], np.ndarray]
+    edge_fractions: dict[tuple[str, int], np.ndarray]
+    grids: list[Any]
+    info: dict[str, Any]
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """``(2F, 3)``: every quad cut along its first diagonal (same orientation)."""
+        q = self.quads
+        return np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+
+    def weld_map(self) -> np.ndarray:
+        """``(N,)`` welded vertex of every grid node (stitched nodes merged)."""
+        return weld(len(self.points), self.stitches)
+
+    def welded(self) -> dict[str, np.ndarray]:
+        """The welded mesh: ``map``, ``points`` (mean of the merged nodes), ``quads``, ``triangles``."""
+        m = self.weld_map()
+        w = int(m.max()) + 1
+        cnt = np.bincount(m, minlength=w).astype(np.float64)
+        pts = np.column_stack([np.bincount(m, weights=self.points[:, k], minlength=w) for k in range(3)])
+        return {"map": m, "points": pts / cnt[:, None], "quads": m[self.quads],
+                "triangles": m[self.triangles]}
+
+    def springs(self) -> dict[str, np.ndarray]:
+        """Every panel's structural, shear and bend springs (rest lengths on the flat pattern) and
+        one zero-length ``seam`` spring per stitched pair of distinct nodes: ``pairs``, ``kind``
+        (codes of :data:`GARMENT_SPRING_KINDS`), ``axis``, ``rest_length``."""
+        pairs, kind, axis, rest = [], [], [], []
+        for g, off in zip(self.grids, self.offsets[:-1]):
+            s = g.springs()
+            pairs.append(s.pairs + off)
+            kind.append(s.kind)
+            axis.append(s.axis)
+            rest.append(s.rest_length)
+        st = self.stitches[self.stitches[:, 0] != self.stitches[:, 1]]
+        pairs.append(st)
+        kind.append(np.full(len(st), SEAM, dtype=np.int8))
+        axis.append(np.full(len(st), -1, dtype=np.int8))
+        rest.append(np.zeros(len(st)))
+        return {"pairs": np.concatenate(pairs).astype(np.int64), "kind": np.concatenate(kind),
+                "axis": np.concatenate(axis), "rest_length": np.concatenate(rest)}
+
+    def masses(self, density: float | str) -> np.ndarray:
+        """``(N,)`` lumped node masses in kg for an areal density (kg/m^2 or text like ``150gsm``)."""
+        return np.concatenate([g.node_masses(density, "mm") for g in self.grids])
+
+    def mesh_report(self, welded: bool = True) -> dict:
+        """:func:`clothgrid.garment_seams.mesh_report` of the welded (or unwelded) quads."""
+        if welded:
+            w = self.welded()
+            return mesh_report(w["quads"], len(w["points"]))
+        return mesh_report(self.quads, len(self.points))
+
+    def save(self, path: str | Path, *, seams: str = "keep", density: float | str | None = None) -> Path:
+        """Write ``.npz`` or ``.obj`` (atomic): see :func:`write_garment`."""
+        return write_garment(self, path, seams=seams, density=density)
+
+
+# --------------------------------------------------------------------------- corners
+
+
+def _bottom_first(pts: np.ndarray) -> int:
+    """Which of 4 corner points (counter-clockwise) starts the side most nearly along +x."""
+    best, k_best = -np.inf, 0
+    for k in range(4):
+        d = pts[(k + 1) % 4] - pts[k]
+        n = float(np.hypot(*d))
+        v = d[0] / n if n > 0 else -np.inf
+        if v > best + 1e-12:
+            best, k_best = v, k
+    return k_best
+
+
+def _choose_corners(lay: _Layout, given: Sequence[int] | None) -> None:
+    """Four corners on the counter-clockwise loop: panel vertices, or edge middles if too few."""
+    from .patterns import choose_corners
+    from .patterns.piece import piece_from_polygon
+
+    spec, ccw = lay.spec, lay.ccw
+    starts = []        # outline index of each ccw item's start
+    parts = []
+    count = 0
+    for e, rev in ccw:
+        pts = lay.polys[e][0][::-1] if rev else lay.polys[e][0]
+        starts.append(count)
+        parts.append(pts[:-1])
+        count += len(pts) - 1
+    outline = np.concatenate(parts)
+    start_vertex = [spec.edges[e].end if rev else spec.edges[e].start for e, rev in ccw]
+    if given is not None:
+        where = {v: k for k, v in enumerate(start_vertex)}
+        bad = [v for v in given if v not in where]
+        if len(given) != 4 or bad or len(set(given)) != 4:
+            raise InputError(f"panel {spec.name!r}: corners must be 4 distinct vertex indices of the "
+                             f"panel (0..{len(spec.vertices) - 1}), got {list(given)}")
+        ks = sorted(where[v] for v in given)
+        first = ks.index(where[given[0]])
+        ks = ks[first:] + ks[:first]
+        lay.corners = [(k, 0.0) for k in ks]
+        lay.corner_method = "given"
+        return
+    if len(ccw) >= 4:
+        idx = np.asarray(starts)
+        piece = piece_from_polygon(spec.name, outline, vertices=idx, turn_points=idx)
+        if len(piece.outline) == len(outline):
+            choice = choose_corners(piece)
+            by_outline = {s: k for k, s in enumerate(starts)}
+            if not choice.inserted and all(int(c) in by_outline for c in choice.corners):
+                lay.corners = [(by_outline[int(c)], 0.0) for c in choice.corners]
+                lay.corner_method = choice.method
+                return
+    # fewer than 4 vertices (a triangle: a godet, a collar tip): split the longest pieces in half
+    pieces = [(k, 0.0, 1.0) for k in range(len(ccw))]
+    length = [lay.polys[e][1][-1] for e, _ in ccw]
+    while len(pieces) < 4:
+        i = int(np.argmax([length[k] * (b - a) for k, a, b in pieces]))
+        k, a, b = pieces[i]
+        pieces[i:i + 1] = [(k, a, 0.5 * (a + b)), (k, 0.5 * (a + b), b)]
+    pts = np.array([points_at(_ccw_poly(lay, k), np.array([a]))[0] for k, a, _ in pieces])
+    first = _bottom_first(pts)
+    pieces = pieces[first:] + pieces[:first]
+    lay.corners = [(k, a) for k, a, _ in pieces]
+    lay.corner_method = "split"
+
+
+def _ccw_poly(lay: _Layout, k: int) -> tuple[np.ndarray, np.ndarray]:
+    e, rev = lay.ccw[k]
+    pts, s = lay.polys[e]
+    return (pts[::-1], s[-1] - s[::-1]) if rev else (pts, s)
+
+
+# --------------------------------------------------------------------------- the garment
+
+
+def _parse_corners(corners: Any) -> dict[str, list[int]]:
+    """``{"panel": [i, j, k, l]}`` or text ``PANEL=i,j,k,l`` (a list of them)."""
+    if corners is None:
+        return {}
+    if isinstance(corners, dict):
+        return {str(k): [int(x) for x in v] for k, v in corners.items()}
+    out: dict[str, list[int]] = {}
+    for text in ([corners] if isinstance(corners, str) else corners):
+        name, sep, rest = str(text).rpartition("=")
+        try:
+            out[name] = [int(x) for x in rest.split(",")]
+        except ValueError:
+            name = ""
+        if not sep or not name:
+            raise InputError(f"corners {text!r}: expected PANEL=I,J,K,L (four vertex indices of the panel)")
+    return out
+
+
+def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm", units: str | None = None,
+            corners: Any = None, fixed: dict[tuple[str, int], int] | None = None,
+            progress: Callable[[str], None] | None = None, **generate_options: Any) -> Garment:
+    """Grid, sew and place every panel of a GarmentCode specification.
+
+    Parameters
+    ----------
+    spec : path or GarmentSpec
+        A GarmentCode / Garment-Pattern-Generator ``*_specification.json``.
+    edge_length : float or str
+        Target grid edge length (mm, or text with a unit: ``"1cm"``).
+    units : str, optional
+        The spec's length unit instead of its ``units_in_meter``.
+    corners : dict or list of str, optional
+        Grid corners of some panels, as four vertex indices of the panel in
+        the order bottom-left, bottom-right, top-right, top-left
+        (``{"front": [0, 1, 2, 3]}`` or ``["front=0,1,2,3"]``): a way out when the
+        automatic corners make the node counts conflict.
+    fixed : dict, optional
+        ``(panel, edge) -> intervals``: fix the count of a spec edge (not split).
+    progress : callable, optional
+        Receives progress lines.
+    **generate_options
+        Passed to :func:`clothgrid.generate` (default ``weights="uniform"``,
+        ``functional="auto"``: the real-pattern defaults).
+
+    Raises
+    ------
+    InputError
+        A malformed spec; :class:`~clothgrid.garment_counts.CountConflict` when
+        no node counts exist (the message names the conflicting constraints).
+    """
+    from .generate import generate
+    from .quality import quality, sim_figures
+
+    say = progress or (lambda _m: None)
+    t_start = time.perf_counter()
+    gs = spec if isinstance(spec, GarmentSpec) else read_garment_spec(spec, units=units)
+    h = parse_length(edge_length, "mm", what="edge length")
+    given = _parse_corners(corners)
+    unknown = [n for n in given if n not in gs.panels]
+    if unknown:
+        raise InputError(f"corners given for unknown panel(s) {', '.join(map(repr, unknown))}; the panels "
+                         f"are {', '.join(map(repr, gs.panels))}")
+    lays: dict[str, _Layout] = {}
+    t0 = time.perf_counter()
+    for name, p in gs.panels.items():
+        size = float(np.linalg.norm(np.ptp(p.vertices, axis=0))) or 1.0
+        polys = [edge_polyline(e.curve, SAMPLING_REL_TOL * size) for e in p.edges]
+        loop_pts = np.concatenate([(polys[e][0][::-1] if rev else polys[e][0])[:-1] for e, rev in p.loop])
+        flipped = signed_area(loop_pts) < 0
+        ccw = [(e, not rev) for e, rev in reversed(p.loop)] if flipped else list(p.loop)
+        lay = _Layout(p, polys, ccw, flipped)
+        try:
+            _choose_corners(lay, given.get(name))
+        except InputError as exc:
+            raise InputError(f"{gs.path}: panel {name!r}: {exc}") from None
+        lays[name] = lay
+    t_corners = time.perf_counter() - t0
+
+    # splits: corners inside edges, carried across seams
+    splits: dict[tuple[str, int], set[float]] = {}
+    for name, lay in lays.items():
+        for k, f in lay.corners:
+            if 0.0 < f < 1.0:
+                e, rev = lay.ccw[k]
+                splits.setdefault((name, e), set()).add(1.0 - f if rev else f)
+    propagate_splits(splits, gs.stitches)
+
+    # segments and the integer program
+    prob = CountProblem()
+    for name, lay in lays.items():
+        for e in range(len(lay.spec.edges)):
+            fr = [0.0] + sorted(splits.get((name, e), ())) + [1.0]
+            lay.fracs[e] = fr
+            L = lay.polys[e][1][-1]
+            for j in range(len(fr) - 1):
+                lay.seg[(e, j)] = prob.add_segment(L * (fr[j + 1] - fr[j]) / h)
+        seq: list[tuple[int, int, bool]] = []
+        starts: list[tuple[int, float]] = []
+        for k, (e, rev) in enumerate(lay.ccw):
+            m = len(lay.fracs[e]) - 1
+            for j in (range(m - 1, -1, -1) if rev else range(m)):
+                seq.append((e, j, not rev))
+                starts.append((k, 1.0 - lay.fracs[e][j + 1] if rev else lay.fracs[e][j]))
+        pos = []
+        for k, f in lay.corners:
+            hit = [i for i, (kk, ff) in enumerate(starts) if kk == k and abs(ff - f) <= 1e-12]
+            if not hit:
+                raise InputError(f"panel {name!r}: internal error: a corner is not at a segment start")
+            pos.append(hit[0])
+        first = pos[0]
+        lay.sequence = seq[first:] + seq[:first]
+        pos = [(p_ - first) % len(seq) for p_ in pos] + [len(seq)]
+        lay.sides = [list(range(pos[i], pos[i + 1])) for i in range(4)]
+        if any(not s for s in lay.sides):
+            raise InputError(f"panel {name!r}: a grid side has no segment")
+        ids = [[lay.seg[lay.sequence[i][:2]] for i in side] for side in lay.sides]
+        prob.groups.append((f"panel {name!r}: bottom = top and left = right "
+                            f"(corners at vertices {_corner_names(lay)})",
+                            [(ids[0], ids[2]), (ids[1], ids[3])]))
+        prob.minimum += [(ids[0], 2), (ids[1], 2)]
+    for st in gs.stitches:
+        la, lb = lays[st.a[0]], lays[st.b[0]]
+        ma, mb = len(la.fracs[st.a[1]]) - 1, len(lb.fracs[st.b[1]]) - 1
+        if ma != mb:
+            raise InputError(f"stitch {st.index}: internal error: its edges are split differently")
+        rows = [([la.seg[(st.a[1], j)]], [lb.seg[(st.b[1], j if st.same_direction else ma - 1 - j)]])
+                for j in range(ma)]
+        prob.groups.append((f"stitch {st.index} ({st.a[0]!r} edge {st.a[1]} ~ {st.b[0]!r} edge {st.b[1]}"
+                            + (", right_wrong" if st.same_direction else "") + ")", rows))
+    for (pn, e), n in (fixed or {}).items():
+        lay = lays[pn]
+        if len(lay.fracs[e]) != 2:
+            raise InputError(f"panel {pn!r} edge {e} is split by a corner; its count cannot be fixed")
+        prob.fixed[lay.seg[(e, 0)]] = int(n)
+    try:
+        counts, count_info = solve_counts(prob)
+    except CountConflict as exc:
+        raise CountConflict(f"{gs.path}: {exc}. Loosen it by choosing other grid corners for one of "
+                            "these panels (corners={'PANEL': [i, j, k, l]}, on the command line "
+                            "--corners PANEL=I,J,K,L: panel vertex indices bottom-left, bottom-right, "
+                            "top-right, top-left), so that other edges form its opposite sides",
+                            exc.groups) from None
+    say(f"node counts: {len(prob.targets)} segments, {count_info['constraints']} equalities, "
+        f"MILP {count_info['seconds']:.3f} s")
+
+    # sample, grid, place
+    names = list(lays)
+    grids, pts3, rest, panel_idx, quads, face_panel = [], [], [], [], [], []
+    shapes: list[tuple[int, int]] = []
+    offsets = [0]
+    edge_nodes: dict[tuple[str, int], np.ndarray] = {}
+    edge_fracs: dict[tuple[str, int], np.ndarray] = {}
+    per_panel: list[dict[str, Any]] = []
+    opts = {"weights": "uniform", "functional": "auto", **generate_options}
+    t_grid = 0.0
+    for pi, name in enumerate(names):
+        lay = lays[name]
+        loop_xy: list[np.ndarray] = []
+        seg_pos: dict[tuple[int, int], tuple[int, int]] = {}   # (edge, j) -> (loop start, count)
+        cursor = 0
+        for e, j, fwd in lay.sequence:
+            n = int(counts[lay.seg[(e, j)]])
+            fr = lay.fracs[e]
+            f = np.linspace(fr[j], fr[j + 1], n + 1)
+            if not fwd:
+                f = f[::-1]
+            xy = points_at(lay.polys[e], f)
+            loop_xy.append(xy[:-1])
+            seg_pos[(e, j)] = (cursor, n)
+            cursor += n
+        X = np.concatenate(loop_xy)
+        L = len(X)
+        side_n = [sum(int(counts[lay.seg[lay.sequence[i][:2]]]) for i in s) for s in lay.sides]
+        nu, nv = side_n[0] + 1, side_n[1] + 1
+        assert side_n[2] == nu - 1 and side_n[3] == nv - 1 and L == 2 * (nu + nv) - 4
+        bottom = X[0:nu]
+        right = X[nu - 1:nu + nv - 1]
+        top = X[nu + nv - 2:2 * nu + nv - 2][::-1]
+        left = np.vstack([X[2 * nu + nv - 3:], X[:1]])[::-1]
+        t1 = time.perf_counter()
+        b = Boundary.from_sides(bottom, right, top, left, name=name)
+        grid = generate(b, None, **opts)
+        t_grid += time.perf_counter() - t1
+        p = np.arange(L)
+        gi = np.where(p < nu - 1, p, np.where(p < nu + nv - 2, nu - 1,
+                      np.where(p < 2 * nu + nv - 3, nu - 1 - (p - (nu + nv - 2)), 0)))
+        gj = np.where(p < nu - 1, 0, np.where(p < nu + nv - 2, p - (nu - 1),
+                      np.where(p < 2 * nu + nv - 3, nv - 1, nv - 1 - (p - (2 * nu + nv - 3)))))
+        loop_node = gi * nv + gj + offsets[-1]
+        flat = grid.points.reshape(-1, 3)[:, :2]
+        # the boundary nodes are the sampled ones (generate keeps the boundary fixed)
+        drift = float(np.abs(flat[loop_node - offsets[-1]] - X).max())
+        for e in range(len(lay.spec.edges)):
+            nodes, fracs = [], []
+            fr = lay.fracs[e]
+            for j in range(len(fr) - 1):
+                start, n = seg_pos[(e, j)]
+                ids = loop_node[(start + np.arange(n + 1)) % L]
+                fj = np.linspace(fr[j], fr[j + 1], n + 1)
+                fwd = next(fw for ee, jj, fw in lay.sequence if ee == e and jj == j)
+                if not fwd:
+                    ids = ids[::-1]
+                nodes.append(ids if j == 0 else ids[1:])
+                fracs.append(fj if j == 0 else fj[1:])
+            edge_nodes[(name, e)] = np.concatenate(nodes)
+            edge_fracs[(name, e)] = np.concatenate(fracs)
+        R = euler_xyz_to_R(lay.spec.rotation)
+        xyz = np.column_stack([flat, np.zeros(len(flat))]) @ R.T + lay.spec.translation
+        q = grid.quads + offsets[-1]
+        if lay.flipped:
+            q = q[:, ::-1]
+        grids.append(grid)
+        pts3.append(xyz)
+        rest.append(flat.copy())
+        panel_idx.append(np.full(len(flat), pi, dtype=np.int32))
+        quads.append(q)
+        face_panel.append(np.full(len(q), pi, dtype=np.int32))
+        shapes.append((nu, nv))
+        offsets.append(offsets[-1] + nu * nv)
+        qual = quality(grid)
+        figs = sim_figures(grid.points, h)
+        per_panel.append({"name": name, "nodes": [nu, nv], "corners": lay.corner_method,
+                          "corner_vertices": _corner_names(lay), "flipped": lay.flipped,
+                          "functional": grid.info.get("functional"), "folded": int(qual.folded),
+                          "min_angle_deg": figs.get("min_angle_deg"), "edge_spread": figs.get("edge_spread"),
+                          "boundary_drift": drift, "seconds": grid.info.get("seconds")})
+        say(f"{name}: {nu} x {nv} nodes, corners {lay.corner_method}, {qual.folded} folded")
+    pairs, sid = [], []
+    for st in gs.stitches:
+        pr = ordered_pairs(edge_nodes[st.a], edge_nodes[st.b], st.same_direction)
+        pairs.append(pr)
+        sid.append(np.full(len(pr), st.index, dtype=np.int64))
+    info = {"edge_length_mm": h, "length_unit": "mm", "up_axis": "Y", "spec_units": gs.units,
+            "mm_per_spec_unit": gs.mm_per_unit, "counts": count_info, "panels": per_panel,
+            "seconds": {"corners": t_corners, "milp": count_info["seconds"], "gridding": t_grid,
+                        "total": time.perf_counter() - t_start},
+            "notes": list(gs.notes)}
+    return Garment(gs, np.concatenate(pts3), np.concatenate(rest), np.concatenate(panel_idx), names, shapes,
+                   np.asarray(offsets), np.concatenate(quads), np.concatenate(face_panel),
+                   np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64),
+                   np.concatenate(sid) if sid else np.zeros(0, np.int64), edge_nodes, edge_fracs, grids, info)
+
+
+def _corner_names(lay: _Layout) -> str:
+    out = []
+    for k, f in lay.corners:
+        e, rev = lay.ccw[k]
+        v = lay.spec.edges[e].end if rev else lay.spec.edges[e].start
+        out.append(str(v) if f == 0.0 else f"middle of edge {e}")
+    return ", ".join(out)
+
+
+# --------------------------------------------------------------------------- files
+
+
+def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
+                  density: float | str | None = None) -> Path:
+    """Write a garment to ``.npz`` or ``.obj``, atomically.
+
+    ``.npz``: ``points`` (N, 3) placed, ``rest`` (N, 2), ``panel`` (N,), ``panel_names``,
+    ``shapes``, ``quads``, ``triangles``, ``stitches`` (S, 2), ``stitch_id`` (S,),
+    ``spring_pairs``, ``spring_kind``, ``spring_kinds``, ``spring_rest_length``, ``masses`` (kg,
+    with ``density``), ``length_unit`` (mm), ``up_axis`` (Y), ``info`` (JSON); with ``seams="weld"``
+    also ``weld_map`` (N,), ``welded_points``, ``welded_quads``, ``welded_triangles``.
+    ``.obj``: one group per panel, ``vt`` the rest coordinates (mm) of every grid node; with
+    ``seams="weld"`` the welded vertices (faces still carry each panel's own ``vt``).
+    """
+    from .writers import atomic_write, info_json
+
+    if seams not in ("keep", "weld"):
+        raise InputError(f"seams must be 'keep' or 'weld', not {seams!r}")
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        sp = g.springs()
+        arrays: dict[str, Any] = {
+            "points": g.points, "rest": g.rest, "panel": g.panel, "panel_names": np.asarray(g.panel_names),
+            "shapes": np.asarray(g.shapes, dtype=np.int64), "quads": g.quads, "face_panel": g.face_panel,
+            "triangles": g.triangles, "stitches": g.stitches, "stitch_id": g.stitch_id,
+            "spring_pairs": sp["pairs"], "spring_kind": sp["kind"], "spring_axis": sp["axis"],
+            "spring_rest_length": sp["rest_length"], "spring_kinds": np.asarray(GARMENT_SPRING_KINDS),
+            "length_unit": np.asarray("mm"), "up_axis": np.asarray("Y"), "info": np.asarray(info_json(g.info)),
+        }
+        if density is not None:
+            arrays["masses"] = g.masses(density)
+        if seams == "weld":
+            w = g.welded()
+            arrays.update(weld_map=w["map"], welded_points=w["points"], welded_quads=w["quads"],
+                          welded_triangles=w["triangles"])
+        with atomic_write(path) as fh:
+            np.savez(fh, **arrays)
+        return path
+    if suffix == ".obj":
+        lines = [f"# clothgrid garment: {len(g.panel_names)} panels, {len(g.stitches)} stitched node pairs; "
+                 "mm, Y up; vt = flat pattern coordinates (mm)\n"]
+        if seams == "weld":
+            w = g.welded()
+            vmap, vpts = w["map"], w["points"]
+        else:
+            vmap, vpts = np.arange(len(g.points)), g.points
+        lines += [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in vpts.tolist()]
+        lines += [f"vt {u:.9g} {v:.9g}\n" for u, v in g.rest.tolist()]
+        for pi, name in enumerate(g.panel_names):
+            lines.append(f"g {name}\n")
+            for q in g.quads[g.face_panel == pi].tolist():
+                lines.append("f " + " ".join(f"{vmap[a] + 1}/{a + 1}" for a in q) + "\n")
+        with atomic_write(path) as fh:
+            fh.write("".join(lines).encode("utf-8"))
+        return path
+    raise InputError(f"unknown garment output format {path.suffix or '(no extension)'!r} for {str(path)!r}: "
+                     "use .npz or .obj")

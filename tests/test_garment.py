@@ -1,0 +1,256 @@
+"""Whole garments (issue 13): GarmentCode specs gridded, sewn node for node and placed.
+
+On every GarmentCode / Garment-Pattern-Generator spec in ``../shared/patterns``:
+``clothgrid garment`` exits 0; every stitch of the spec is in ``stitch_id`` with
+equal node counts and its nodes at matching arc-length fractions of both edges
+(1e-9, measured on freshly sampled edges); every panel's placed points are a
+rigid motion of its rest coordinates (orthogonal Procrustes) and match
+GarmentCode's placement of the panel vertices; the welded mesh is manifold,
+consistently oriented where no stitch carries ``right_wrong``, and the boundary
+loops of simple garments are their openings. Plus a known seam's orientation,
+a node-count conflict and its way out, and the older ``from``/``to`` stitches.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clothgrid.cli import main
+from clothgrid.garment import euler_xyz_to_R, garment
+from clothgrid.garment_counts import CountConflict, CountProblem, solve_counts
+from clothgrid.garment_seams import edge_polyline, fractions_of, mesh_report
+from clothgrid.patterns.garmentcode import read_garment_spec
+
+SHARED = Path(__file__).parents[2] / "shared" / "patterns"
+SPECS = sorted(SHARED.glob("g*_specification.json")) if SHARED.is_dir() else []
+needs_shared = pytest.mark.skipif(not SPECS, reason=f"no GarmentCode specs in {SHARED}")
+EDGE = "3cm"
+
+
+@lru_cache(maxsize=None)
+def _run(spec: str, tmp: str) -> dict:
+    """``clothgrid garment SPEC -o out.npz --seams weld --density 150gsm`` (once per spec)."""
+    out = Path(tmp) / (Path(spec).stem + ".npz")
+    rc = main(["garment", spec, "-o", str(out), "-o", str(out.with_suffix(".obj")), "--edge-length", EDGE,
+               "--seams", "weld", "--density", "150gsm", "-q"])
+    with np.load(out) as d:
+        arrays = {k: d[k] for k in d.files}
+    return {"rc": rc, **arrays, "obj": out.with_suffix(".obj").read_text()}
+
+
+@pytest.fixture(scope="module")
+def tmp_module(tmp_path_factory):
+    return str(tmp_path_factory.mktemp("garments"))
+
+
+@needs_shared
+@pytest.mark.parametrize("spec", SPECS, ids=[p.name.split("_spec")[0] for p in SPECS])
+def test_every_spec_sewn_node_for_node(spec, tmp_module, capsys):
+    r = _run(str(spec), tmp_module)
+    assert r["rc"] == 0, capsys.readouterr().err
+    gs = read_garment_spec(spec)
+    names = list(r["panel_names"])
+    assert names == list(gs.panels)
+    # every stitch, equal counts, matching fractions on freshly sampled edges
+    assert set(np.unique(r["stitch_id"])) == set(range(len(gs.stitches)))
+    for st in gs.stitches:
+        pairs = r["stitches"][r["stitch_id"] == st.index]
+        assert len(pairs) >= 2
+        fr = []
+        for side, (pn, e) in enumerate((st.a, st.b)):
+            panel = gs.panels[pn]
+            size = float(np.linalg.norm(np.ptp(panel.vertices, axis=0)))
+            poly = edge_polyline(panel.edges[e].curve, 1e-7 * size)
+            nodes = pairs[:, side]
+            assert (r["panel"][nodes] == names.index(pn)).all()
+            f, dist = fractions_of(poly, r["rest"][nodes])
+            assert dist.max() <= 1e-9 * size
+            fr.append(f)
+        fa, fb = fr
+        assert fa[0] == pytest.approx(0, abs=1e-12) and fa[-1] == pytest.approx(1, abs=1e-12)
+        assert np.all(np.diff(fa) > 0)
+        np.testing.assert_allclose(fb, fa if st.same_direction else 1.0 - fa, atol=1e-9)
+    # each panel: a rigid motion of its rest shape, GarmentCode's placement of its vertices
+    for pi, pn in enumerate(names):
+        idx = np.flatnonzero(r["panel"] == pi)
+        X = np.column_stack([r["rest"][idx], np.zeros(len(idx))])
+        Y = r["points"][idx]
+        Xc, Yc = X - X.mean(0), Y - Y.mean(0)
+        U, _, Vt = np.linalg.svd(Xc.T @ Yc)
+        D = np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))])
+        Rf = (U @ D @ Vt).T
+        size = float(np.linalg.norm(np.ptp(X, axis=0)))
+        assert np.abs(Xc @ Rf.T - Yc).max() <= 1e-9 * size
+        p = gs.panels[pn]
+        R = euler_xyz_to_R(p.rotation)
+        for v in p.vertices:
+            k = idx[np.argmin(np.linalg.norm(r["rest"][idx] - v, axis=1))]
+            assert np.linalg.norm(r["rest"][k] - v) <= 1e-9 * size      # every panel vertex is a node
+            np.testing.assert_allclose(r["points"][k], R @ np.r_[v, 0.0] + p.translation, atol=1e-6 * size)
+    # the welded mesh: manifold; oriented unless a stitch turns the fabric (right_wrong)
+    rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
+    assert rep["degenerate"] == 0 and rep["nonmanifold_edges"] == 0 and rep["nonmanifold_vertices"] == 0
+    assert rep["oriented"] == (not any(st.same_direction for st in gs.stitches))
+    np.testing.assert_array_equal(r["welded_quads"], r["weld_map"][r["quads"]])
+    # springs: seams of rest length 0, their own kind; masses: density x flat area
+    seam = r["spring_kind"] == list(r["spring_kinds"]).index("seam")
+    assert seam.sum() == (r["stitches"][:, 0] != r["stitches"][:, 1]).sum()
+    assert (r["spring_rest_length"][seam] == 0).all() and (r["spring_rest_length"][~seam] > 0).all()
+    q = r["quads"]
+    d1, d2 = r["rest"][q[:, 2]] - r["rest"][q[:, 0]], r["rest"][q[:, 3]] - r["rest"][q[:, 1]]
+    area_m2 = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]).sum() * 1e-6
+    assert r["masses"].sum() == pytest.approx(0.150 * area_m2, rel=1e-9)
+    # .obj: a group per panel, the rest coordinates as UVs, welded vertices
+    obj = r["obj"]
+    assert [ln[2:] for ln in obj.splitlines() if ln.startswith("g ")] == names
+    assert sum(ln.startswith("vt ") for ln in obj.splitlines()) == len(r["rest"])
+    assert sum(ln.startswith("v ") for ln in obj.splitlines()) == len(r["welded_points"])
+
+
+@needs_shared
+def test_seams_close_the_gaps_garmentcode_leaves():
+    """GarmentCode places the panels around the body with gaps; sewn in the default (opposite)
+    direction most seams join nearer nodes than the other way round, whatever the gap."""
+    better = total = 0
+    for spec in SPECS:
+        g = garment(spec, edge_length="6cm")
+        for st in g.spec.stitches:
+            pr = g.stitches[g.stitch_id == st.index]
+            d = np.linalg.norm(g.points[pr[:, 0]] - g.points[pr[:, 1]], axis=1).mean()
+            d_rev = np.linalg.norm(g.points[pr[:, 0]] - g.points[pr[::-1, 1]], axis=1).mean()
+            better += d <= d_rev + 1e-6
+            total += 1
+    assert better >= 0.9 * total
+
+
+@needs_shared
+@pytest.mark.parametrize("name, openings", [("gcn_rand_KEJUMAMSBX", 2), ("gpg_skirt_4_panels", 2),
+                                            ("gpg_dress", 4), ("gcn_rand_TLROKVCYFK", 4),
+                                            ("gpg_pants_flare", 3)])
+def test_boundary_loops_are_the_openings(name, openings):
+    g = garment(SHARED / f"{name}_specification.json", edge_length="4cm")
+    w = g.welded()
+    rep = mesh_report(w["quads"], len(w["points"]))
+    loops = rep["boundary_loops"]
+    assert len(loops) == openings
+    assert rep["euler"] == 2 - openings              # one piece of cloth: a sphere with the openings cut
+    if "skirt" in name:                              # waist above hem
+        heights = sorted(w["points"][lp, 1].mean() for lp in loops)
+        assert heights[1] - heights[0] > 200         # mm
+
+
+# --------------------------------------------------------------------------- small specs
+
+
+def _square(name, x0, translation, rotation=(0, 0, 0), size=10.0, clockwise=False):
+    v = [[0, 0], [size, 0], [size, size], [0, size]]
+    e = [[0, 1], [1, 2], [2, 3], [3, 0]]
+    if clockwise:
+        e = [[b, a] for a, b in e[::-1]]
+    return {"vertices": v, "edges": [{"endpoints": p} for p in e], "translation": translation,
+            "rotation": list(rotation)}
+
+
+def _write(tmp_path, panels, stitches, name="spec.json"):
+    path = tmp_path / name
+    path.write_text(json.dumps({"pattern": {"panels": panels, "stitches": stitches},
+                                "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
+    return path
+
+
+def test_known_seam_orientation(tmp_path):
+    """A's right edge (1: up, x = 10) sewn to B's left edge (3: down, x = 0) with B placed 10 cm to the
+    right: GarmentCode's default joins A's end to B's start, so the paired nodes coincide in 3D."""
+    panels = {"A": _square("A", 0, [0, 0, 0]), "B": _square("B", 0, [10, 0, 0])}
+    path = _write(tmp_path, panels, [[{"panel": "A", "edge": 1}, {"panel": "B", "edge": 3}]])
+    g = garment(path, edge_length="2cm")
+    pr = g.stitches
+    np.testing.assert_allclose(g.points[pr[:, 0]], g.points[pr[:, 1]], atol=1e-9)
+    np.testing.assert_allclose(g.rest[pr[0]], [[100, 0], [0, 0]])    # A's start (10, 0) ~ B's end (0, 0)
+    rep = g.mesh_report()
+    assert rep["oriented"] and len(rep["boundary_loops"]) == 1 and rep["nonmanifold_edges"] == 0
+    # the same stitch marked right_wrong: start meets start (the edges run the same way)
+    path = _write(tmp_path, panels, [[{"panel": "A", "edge": 1}, {"panel": "B", "edge": 3}, "right_wrong"]])
+    g = garment(path, edge_length="2cm")
+    np.testing.assert_allclose(g.rest[g.stitches[0]], [[100, 0], [0, 100]])
+    # a panel drawn clockwise (B's loop reversed: edges 0: 0-3, 1: 3-2, 2: 2-1, 3: 1-0) is gridded
+    # counter-clockwise but its faces keep the spec's loop direction (its right side faces -z): the
+    # default seam to its edge 0 (0, 0)-(0, 10) turns B over, A's end (10, 10) meeting B's (0, 0),
+    # and the sewn sheet is still consistently oriented
+    panels["B"] = _square("B", 0, [10, 0, 0], clockwise=True)
+    path = _write(tmp_path, panels, [[{"panel": "A", "edge": 1}, {"panel": "B", "edge": 0}]])
+    g = garment(path, edge_length="2cm")
+    np.testing.assert_allclose(g.rest[g.stitches[0]], [[100, 0], [0, 100]])
+    np.testing.assert_allclose(g.points[g.stitches[:, 0]], g.points[g.stitches[::-1, 1]], atol=1e-9)
+    assert g.mesh_report()["oriented"]
+
+
+def test_placement_is_garmentcode_rotation(rng):
+    from scipy.spatial.transform import Rotation
+
+    for _ in range(5):
+        a = rng.uniform(-180, 180, 3)
+        np.testing.assert_allclose(euler_xyz_to_R(a), Rotation.from_euler("xyz", a, degrees=True).as_matrix(),
+                                   atol=1e-12)
+    np.testing.assert_allclose(euler_xyz_to_R([0, 0, 90]) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+
+
+def test_node_count_conflict_is_named_and_loosened(tmp_path, capsys):
+    """P's bottom and top are sewn to Q's bottom-left part and Q's top: P forces them equal, Q makes
+    its top longer than that part by its bottom-right part, which must then have 0 intervals."""
+    q = {"vertices": [[0, 0], [5, 0], [10, 0], [10, 10], [0, 10]],
+         "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]}, {"endpoints": [2, 3]},
+                   {"endpoints": [3, 4]}, {"endpoints": [4, 0]}], "translation": [20, 0, 0], "rotation": [0, 0, 0]}
+    panels = {"P": _square("P", 0, [0, 0, 0]), "Q": q}
+    stitches = [[{"panel": "P", "edge": 0}, {"panel": "Q", "edge": 0}],
+                [{"panel": "P", "edge": 2}, {"panel": "Q", "edge": 3}]]
+    path = _write(tmp_path, panels, stitches)
+    with pytest.raises(CountConflict) as err:
+        garment(path, edge_length="2cm", corners={"Q": [0, 2, 3, 4]})
+    msg = str(err.value)
+    assert "stitch 0" in msg and "stitch 1" in msg and "panel 'P'" in msg and "panel 'Q'" in msg
+    assert "--corners" in msg
+    out = tmp_path / "g.npz"
+    assert main(["garment", str(path), "-o", str(out), "--corners", "Q=0,2,3,4", "-q"]) == 2
+    assert "conflict" in capsys.readouterr().err and not out.exists()
+    # the way out: other corners for Q (its vertex 1 a corner: edge 0 alone is its bottom)
+    assert main(["garment", str(path), "-o", str(out), "--corners", "Q=0,1,3,4", "-q"]) == 0
+    with np.load(out) as d:
+        assert set(d["stitch_id"]) == {0, 1}
+
+
+def test_counts_program_small():
+    prob = CountProblem()
+    a, b, c = (prob.add_segment(t) for t in (4.2, 3.9, 10.0))
+    prob.groups.append(("a=b", [([a], [b])]))
+    prob.groups.append(("c=a+b", [([c], [a, b])]))
+    n, info = solve_counts(prob)
+    assert n[a] == n[b] and n[c] == n[a] + n[b] and n[a] in (4, 5)
+    assert info["seconds"] < 5
+
+
+@needs_shared
+def test_older_from_to_stitches_read_the_same(tmp_path):
+    src = SHARED / "gpg_skirt_4_panels_specification.json"
+    data = json.loads(src.read_text())
+    data["pattern"]["stitches"] = [{"from": a, "to": b} for a, b in data["pattern"]["stitches"]]
+    path = tmp_path / "old_specification.json"
+    path.write_text(json.dumps(data))
+    new, old = read_garment_spec(src), read_garment_spec(path)
+    assert new.stitches == old.stitches and len(old.stitches) == 8
+
+
+def test_bad_stitches_are_input_errors(tmp_path):
+    from clothgrid.errors import InputError
+
+    panels = {"A": _square("A", 0, [0, 0, 0])}
+    for bad, what in ([[{"panel": "Z", "edge": 0}, {"panel": "A", "edge": 1}]], "no panel named"), \
+                     ([[{"panel": "A", "edge": 9}, {"panel": "A", "edge": 1}]], "has no edge 9"), \
+                     ([[{"panel": "A", "edge": 0}, {"panel": "A", "edge": 1}, "wrong"]], "right_wrong"):
+        with pytest.raises(InputError, match=what):
+            read_garment_spec(_write(tmp_path, panels, bad))
