@@ -84,3 +84,86 @@ def test_report_json_and_a_report_that_cannot_be_written(tmp_path):
     out2 = tmp_path / "m2"
     assert main(["generate", str(SKIRT), "-o", str(out2 / "{piece}.npz"), "--report", str(bad), "-q"]) == 2
     assert not out2.exists() or not any(out2.iterdir())
+
+
+# --------------------------------------------------------------------------- outlines and corners
+
+def test_spike_points_takes_slits_and_back_steps_but_not_darts():
+    from clothgrid.geometry import spike_points
+    # a 100 x 60 rectangle with a 25 mm slit 0.07 mm wide in its left side
+    slit = np.array([[0, 0], [100, 0], [100, 60], [0, 60], [0, 30.035], [25, 30.0], [0, 29.965]])
+    assert spike_points(slit, 0.1).tolist() == [False] * 5 + [True, False]
+    # a slit drawn with points along both legs
+    legs = np.array([[0, 0], [100, 0], [100, 60], [0, 60], [0, 30.01], [10, 30.005], [20, 30.0],
+                     [10, 29.995], [0, 29.99]])
+    assert spike_points(legs, 0.1).tolist() == [False] * 5 + [True, True, True, False]
+    # a step back of 0.1 mm on the bottom side
+    step = np.array([[0, 0], [50, 0], [49.9, 0.0], [100, 0], [100, 60], [0, 60]])
+    assert spike_points(step, 0.2)[1:3].any() and spike_points(step, 0.2).sum() == 1
+    # a dart 10 mm wide and 60 mm deep stays, and so does a plain rectangle
+    dart = np.array([[0, 0], [45, 0], [50, 60], [55, 0], [100, 0], [100, 80], [0, 80]])
+    assert not spike_points(dart, 0.8).any()
+    assert not spike_points(np.array([[0, 0], [1, 0], [1, 1], [0, 1]]), 0.01).any()
+
+
+def test_piece_outline_loses_its_slit_with_a_note():
+    from clothgrid.patterns.piece import piece_from_polygon
+    slit = np.array([[0, 0], [100, 0], [100, 60], [0, 60], [0, 30.035], [25, 30.0], [0, 29.965]])
+    piece = piece_from_polygon("slit", slit)
+    assert len(piece.outline) == 6 and piece.outline[:, 0].max() == 100
+    assert any("zero-width spikes" in n for n in piece.notes)
+
+
+def _poly(name, pts):
+    from clothgrid.patterns.piece import piece_from_polygon
+    pts = np.asarray(pts, dtype=float)
+    return piece_from_polygon(name, pts, vertices=np.arange(len(pts)))
+
+
+def test_rounded_corners_are_corners():
+    # a 260 x 20 mm band, bottom corners sharp, top corners rounded (radius 8 mm, densely sampled)
+    from clothgrid.patterns import choose_corners
+    a = np.linspace(0, np.pi / 2, 40)
+    right = np.c_[252 + 8 * np.cos(a), 12 + 8 * np.sin(a)]
+    left = np.c_[8 - 8 * np.sin(a), 12 + 8 * np.cos(a)]
+    band = np.vstack([[[0, 0], [260, 0]], right, left])
+    choice = choose_corners(_poly("band", band))
+    pts = choice.points
+    top = pts[pts[:, 1] > 10]
+    assert len(top) == 2                                        # were at the middle of the long sides
+    assert top[:, 0].min() < 10 and top[:, 0].max() > 250
+    grid = generate_piece(_poly("band", band), edge_length=5.0)
+    assert quality(grid).folded == 0
+
+
+def test_dart_mouths_are_not_corners():
+    from clothgrid.patterns import choose_corners
+    from clothgrid.patterns.corners import dart_mouths, turn_angles
+    # a skirt panel 500 wide: two darts 20 mm wide, 120 mm deep in the waist (top)
+    top = [[500, 400], [370, 400], [360, 280], [350, 400], [150, 400], [140, 280], [130, 400], [0, 400]]
+    outline = np.array([[0, 0], [500, 0]] + top, dtype=float)
+    piece = _poly("skirt", outline)
+    darts = dart_mouths(piece.outline, range(len(piece.outline)), turn_angles(piece.outline))
+    assert len(darts) == 2
+    choice = choose_corners(piece)
+    assert sorted(map(tuple, choice.points.tolist())) == [(0, 0), (0, 400), (500, 0), (500, 400)]
+    assert "dart mouths" in choice.message
+
+
+def test_added_corners_sit_where_the_outline_is_convex():
+    # a crescent: two sharp tips, a convex outer arc (314 mm) and a concave inner one (230 mm);
+    # a corner in the middle of the inner arc (the old rule: middle of the longest side) folds
+    from clothgrid.patterns import choose_corners
+    t = np.linspace(0, np.pi, 80)
+    outer = np.c_[100 * np.cos(t), 100 * np.sin(t)][:-1]             # (100, 0) over the top
+    inner = np.c_[100 * np.cos(t), 40 * np.sin(t)][::-1][:-1]        # (-100, 0) back under it
+    crescent = np.vstack([outer, inner])
+    piece = _poly("crescent", crescent)
+    choice = choose_corners(piece)
+    assert choice.method == "split"
+    s = piece.outline
+    on_inner = [i for i in choice.corners if 0 < abs(s[i, 0]) < 99 and s[i, 1] < 41 and
+                abs(s[i, 1] - 40 * np.sqrt(max(0.0, 1 - (s[i, 0] / 100) ** 2))) < 1e-6]
+    assert on_inner == []
+    grid = generate_piece(piece, edge_length=8.0)
+    assert quality(grid).folded == 0

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PLANAR_TOL", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame"]
+__all__ = ["PLANAR_TOL", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
+           "spike_points", "SPIKE_TURN_DEG"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
 PLANAR_TOL = 1e-9
@@ -80,3 +81,91 @@ def plane_frame(points: np.ndarray, fit: np.ndarray | None = None) -> tuple[np.n
     if vector_area(loop) @ normal < 0:
         normal = -normal
     return centre, plane_axes(normal), dist
+
+
+#: A vertex where a closed outline turns back by this much (degrees) starts a spike.
+SPIKE_TURN_DEG = 170.0
+
+
+def spike_points(loop: np.ndarray, width: float) -> np.ndarray:
+    """Mask of the points of a closed 2D outline that lie on zero-width spikes.
+
+    A spike is where the outline runs out and straight back: a slit or a notch
+    mark drawn into a cut line, not cloth; a step back of at most ``width``
+    (a turn back by :data:`SPIKE_TURN_DEG` or more next to so short an edge)
+    is one too. A spike starts at a vertex that turns
+    back by :data:`SPIKE_TURN_DEG` or more whose two neighbours are at most
+    ``width`` apart, and goes on outwards, both legs a point at a time (or one
+    leg, where the other has no point there), while the legs still run back
+    to back no more than ``width`` apart. Where a dart is narrower than
+    ``width`` near its tip, that much of its tip is taken off too.
+
+    Parameters
+    ----------
+    loop : numpy.ndarray
+        ``(n, 2)`` outline, consecutive duplicates already removed.
+    width : float
+        Widest spike removed (same units as ``loop``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` boolean, True for the points on spikes.
+    """
+    p = np.asarray(loop, dtype=np.float64)[:, :2]
+    n = len(p)
+    out = np.zeros(n, dtype=bool)
+    if n < 4:
+        return out
+    d_in = p - np.roll(p, 1, axis=0)
+    d_out = np.roll(p, -1, axis=0) - p
+    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+    limit = np.radians(SPIKE_TURN_DEG)
+    tips = np.flatnonzero(np.abs(np.arctan2(cross, (d_in * d_out).sum(axis=1))) >= limit)
+    prev = np.roll(np.arange(n), 1)
+    nxt = np.roll(np.arange(n), -1)
+    alive = n
+
+    def gap(a: int, b: int) -> float:
+        return float(np.hypot(*(p[a] - p[b])))
+
+    def opposite(a0: int, a1: int, b0: int, b1: int) -> bool:
+        """Do a0->a1 (towards the tip) and b0->b1 (away from it) run back to back?"""
+        u, v = p[a1] - p[a0], p[b1] - p[b0]
+        nu, nv = np.hypot(*u), np.hypot(*v)
+        if nu == 0 or nv == 0:
+            return True
+        return float(u @ v) / (nu * nv) <= np.cos(np.pi - limit)
+
+    for t in tips:
+        if out[t] or alive < 4:
+            continue
+        left, right = int(prev[t]), int(nxt[t])
+        if gap(left, right) > width:
+            if min(gap(left, t), gap(t, right)) <= width:     # a back-step of at most width
+                out[t] = True
+                nxt[left], prev[right] = right, left
+                alive -= 1
+            continue
+        taken = [int(t)]
+        while alive - len(taken) > 3:
+            pl, nr = int(prev[left]), int(nxt[right])
+            if pl == right or nr == left:
+                break
+            back = opposite(pl, left, right, nr)
+            if back and gap(pl, nr) <= width:
+                taken += [left, right]
+                left, right = pl, nr
+            elif back and gap(pl, right) <= width and opposite(pl, left, left, right):
+                taken.append(left)
+                left = pl
+            elif back and gap(left, nr) <= width and opposite(left, right, right, nr):
+                taken.append(right)
+                right = nr
+            else:
+                break
+        if alive - len(taken) >= 3:
+            out[taken] = True
+            nxt[left], prev[right] = right, left
+            alive -= len(taken)
+    return out

@@ -10,7 +10,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError, PiecesError
-from ..geometry import signed_area
+from ..geometry import signed_area, spike_points
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
 __all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
@@ -18,6 +18,8 @@ __all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "patte
 
 #: the fewest distinct outline points of a piece (a triangle: a godet, a gusset)
 MIN_POINTS = 3
+#: Widest zero-width spike taken off an outline, relative to the piece's size (its bounding-box diagonal).
+SPIKE_WIDTH = 1e-3
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -252,7 +254,9 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     """Validate and orient a closed outline (mm) and build a :class:`Piece`.
 
     Consecutive duplicate points (and a last point equal to the first) are
-    dropped, the outline is made counter-clockwise, and ``vertices`` /
+    dropped, so are zero-width spikes (:func:`clothgrid.geometry.spike_points`,
+    at most :data:`SPIKE_WIDTH` of the size wide; a note says where), the
+    outline is made counter-clockwise, and ``vertices`` /
     ``turn_points`` (indices into ``points``) are carried along.
 
     Raises
@@ -279,6 +283,19 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     new_index = np.cumsum(keep) - 1           # index of the kept point each point merged into
     new_index = np.where(new_index < 0, int(keep.sum()) - 1, new_index)
     pts = pts[keep]
+    # zero-width spikes (a slit or a notch mark drawn into the line) are not cloth
+    spikes = spike_points(pts, SPIKE_WIDTH * size)
+    if spikes.any() and (~spikes).sum() >= MIN_POINTS:
+        at = pts[spikes].mean(axis=0)
+        kept = ~spikes
+        again = np.cumsum(kept) - 1
+        again = np.where(again < 0, int(kept.sum()) - 1, again)
+        new_index = again[new_index]
+        pts = pts[kept]
+        kwargs["notes"] = tuple(kwargs.get("notes", ())) + (
+            f"removed {int(spikes.sum())} outline point{'s' if spikes.sum() != 1 else ''} on "
+            f"zero-width spikes (slits or notch marks in the line) near "
+            f"({at[0]:.6g}, {at[1]:.6g})",)
     n = len(pts)
     if n < MIN_POINTS:
         raise InputError(f"{label}: only {n} distinct point{'s' if n != 1 else ''}; a piece "
