@@ -446,6 +446,13 @@ def _split_rows(a, ae, ao):
                 ao[i, j // 2] = a[i, j]
 
 
+def _merge_rows(ae: np.ndarray, ao: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`_split` for a stencil array: ``(n, nv)`` from its even and odd rows."""
+    out = np.empty((ae.shape[0], ae.shape[1] + ao.shape[1]), dtype=ae.dtype)
+    out[:, 0::2], out[:, 1::2] = ae, ao
+    return out
+
+
 def _parity_planes(x: np.ndarray, dtype=np.float64):
     nu, nv, k = x.shape
     xe, xo = np.empty((k, nu, (nv + 1) // 2), dtype=dtype), np.empty((k, nu, nv // 2), dtype=dtype)
@@ -507,7 +514,18 @@ class CpuMultigrid:
         else:
             self.b = [(np.zeros((k, 1, 1)), np.zeros((k, 1, 1)))]
         fine = levels[0]
-        self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
+        # A level 0 with an explicit centre (a 9-point level: the 5-point stencil plus a diagonal
+        # term, e.g. the heat solver's mass over the time step) runs the coarse levels' kernels in
+        # float64; it always has a right-hand side array.
+        self.nine0 = fine.sep is None and fine.nine
+        if self.nine0:
+            self.st = [sum((_split(np.ascontiguousarray(a, dtype=np.float64))
+                            for a in (fine.C, fine.E, fine.N, fine.NE, fine.NW)), ())]
+            if rhs is None:
+                self._has_b = True
+                self.b = [_parity_planes(np.zeros(x0.shape))]
+        else:
+            self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
         self.sep = [False]
         dt = np.float32
         for lv in levels[1:]:
@@ -531,7 +549,7 @@ class CpuMultigrid:
         for p in ((1, 0) if reverse else (0, 1)):
             own, other = (xe, xo) if p == 0 else (xo, xe)
             b = be if p == 0 else bo
-            if level == 0:
+            if level == 0 and not self.nine0:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
                                                     p, nv, self._has_b, self.mb)
@@ -553,7 +571,7 @@ class CpuMultigrid:
         after pre-smoothing); ``x[l+1] = 0``."""
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
-        if level == 0:
+        if level == 0 and not self.nine0:
             Ee, _, Ne, No = st
             _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco)
         elif self.sep[level]:
@@ -574,7 +592,10 @@ class CpuMultigrid:
         """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
         (level 0), or ``b[l+1] = P^T b[l]`` (coarser levels); ``x[l+1] = 0``."""
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
-        if level == 0:
+        if level == 0 and self.nine0:
+            re, ro = _parity_planes(self._residual9())
+            _pick("_restrict_rhs", self.nodes[0])(re, ro, self.nv[0], bce, bco, xce, xco)
+        elif level == 0:
             (xe, xo), (be, bo) = self.x[0], self.b[0]
             Ee, Eo, Ne, No = self.st[0]
             _pick("_restrict5_full", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self._has_b, self.nv[0],
@@ -590,9 +611,29 @@ class CpuMultigrid:
 
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
+        if self.nine0:
+            C = _merge_rows(*self.st[0][:2])[..., None]
+            r = self._residual9()[1:-1, 1:-1]
+            return float(np.max(np.linalg.norm(r, axis=-1) / C[1:-1, 1:-1, 0])) if r.size else 0.0
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         Ee, Eo, Ne, No = self.st[0]
         return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
+
+    def _residual9(self) -> np.ndarray:
+        """``b - A x`` of a 9-point level 0 as an ``(nu, nv, k)`` float64 array (zero on the boundary)."""
+        C, E, N, NE, NW = (_merge_rows(*self.st[0][2 * q:2 * q + 2]) for q in range(5))
+        x = self.solution()
+        b = np.empty(self._shape)
+        _merge_grid(*self.b[0], b)
+        r = np.zeros(self._shape)
+        c = x[1:-1, 1:-1]
+        s = b[1:-1, 1:-1] - C[1:-1, 1:-1, None] * c
+        s += E[:-2, 1:-1, None] * x[:-2, 1:-1] + E[1:-1, 1:-1, None] * x[2:, 1:-1]
+        s += N[1:-1, :-2, None] * x[1:-1, :-2] + N[1:-1, 1:-1, None] * x[1:-1, 2:]
+        s += NE[1:-1, 1:-1, None] * x[2:, 2:] + NE[:-2, :-2, None] * x[:-2, :-2]
+        s += NW[1:-1, 1:-1, None] * x[:-2, 2:] + NW[2:, :-2, None] * x[2:, :-2]
+        r[1:-1, 1:-1] = s
+        return r
 
     def solution(self) -> np.ndarray:
         """Level 0's iterate as a float64 ``(nu, nv, k)`` array."""
