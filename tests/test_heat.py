@@ -155,7 +155,7 @@ def _direct(p: HeatProblem) -> np.ndarray:
 @pytest.mark.parametrize("case", ["blocks", "fabric", "inclusion-insulated-v"])
 def test_conductivity_jumps_of_1e4_converge(case, rng):
     """Conductivity 0.025 (air) against 250 W/(m K): contrast 10^4, in random blocks, in layers and around an
-    inclusion, with the V-cycle alone stalling (0.9 per cycle); PCG meets 1e-10 and matches a direct solve."""
+    inclusion, with the V-cycle alone stalling (0.9 per cycle); PCG meets 1e-11 and matches a direct solve."""
     n = 128
     if case == "blocks":
         k = np.where(rng.random((n // 8, n // 8)) < 0.5, 0.025, 250.0).repeat(8, 0).repeat(8, 1)
@@ -170,9 +170,9 @@ def test_conductivity_jumps_of_1e4_converge(case, rng):
         k[n // 3:n // 2, n // 4:3 * n // 4] = 250.0
         sides = dict(left=34, right=20)     # insulated bottom and top
     p = HeatProblem(k, (0.01, 0.01), **sides)
-    res = solve_steady(p, tol=1e-10, max_iter=300)
-    assert res.info["converged"] and res.info["residual"] <= 1e-10
-    assert res.info["iterations"] < 120
+    res = solve_steady(p, tol=1e-11, max_iter=300)
+    assert res.info["converged"] and res.info["residual"] <= 1e-11
+    assert res.info["iterations"] < 150      # the residual-to-error amplification is ~cond(A) ~ 1e8 here
     ref = _direct(p)
     assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
 
