@@ -1,4 +1,4 @@
-"""Command-line interface: ``clothgrid generate``, ``clothgrid demo``.
+"""Command-line interface: ``clothgrid generate``, ``demo``, ``pieces``, ``garment``, ``heat``.
 
 Exit codes: 0 success, 2 bad input or options (including usage errors),
 3 an iterative solve did not converge within ``--max-iter`` or, with
@@ -237,7 +237,129 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_cmd_demo)
     _add_pieces_parser(sub)  # clothgrid pieces FILE
     _add_garment_parser(sub)  # clothgrid garment SPEC
+    _add_heat_parser(sub)    # clothgrid heat
     return parser
+
+
+def _size(text: str) -> tuple[float, float]:
+    from .heat import _parse_size
+
+    try:
+        return _parse_size(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _range(text: str) -> tuple[float, float]:
+    parts = [x for x in re.split(r"[,:\s]+", text.strip()) if x]
+    try:
+        lo, hi = (float(x) for x in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid range {text!r}: expected LO,HI (black, white)") from None
+    return lo, hi
+
+
+def _add_heat_parser(sub: Any) -> None:
+    """Add ``clothgrid heat``: temperature in a non-uniform medium (docs/heat.md)."""
+    h = sub.add_parser(
+        "heat", help="temperature in a non-uniform medium (steady or transient heat conduction)",
+        description="Heat conduction on a rectangle of cells, SI units: -div(k grad T) = q (steady) or "
+                    "rho c dT/dt = div(k grad T) + q (with --dt and --steps). Finite volumes with the "
+                    "harmonic mean of the cells' conductivity on each face, solved by conjugate gradients "
+                    "preconditioned with clothgrid's multigrid. A field is a number, a .npy array of shape "
+                    "(nx, ny) (index [i, j], i along x), or a grayscale image mapped to a range (top row: "
+                    "top side). Sides not named are insulated. See docs/heat.md.")
+    h.add_argument("--conductivity", required=True, metavar="K",
+                   help="conductivity per cell, W/(m K): a number, a .npy file or an image")
+    h.add_argument("--conductivity-range", type=_range, metavar="LO,HI",
+                   help="an image's conductivity at black and white")
+    h.add_argument("--size", type=_size, required=True, metavar="WxH",
+                   help="width (x) and height (y) of the rectangle in metres, e.g. 0.01x0.004")
+    h.add_argument("--cells", type=parse_nodes, metavar="NXxNY",
+                   help="cells along x and y (needed when every field is a number)")
+    for side in ("left", "right", "bottom", "top"):
+        h.add_argument(f"--{side}", metavar="SIDE",
+                       help=f"{side} side: a temperature in C (34 or T=34), a flux into the medium in W/m2 "
+                            "(q=150), convection (h=10,T=20: W/(m2 K) and ambient C) or insulated "
+                            "(default)" if side == "left" else f"{side} side (as --left; default insulated)")
+    h.add_argument("--source", default="0", metavar="Q",
+                   help="heat source per cell, W/m3: number, .npy or image (default 0)")
+    h.add_argument("--source-range", type=_range, metavar="LO,HI", help="an image's source at black and white")
+    h.add_argument("--capacity", metavar="RHOC",
+                   help="volumetric heat capacity rho c per cell, J/(m3 K) (transient): number, .npy or image")
+    h.add_argument("--capacity-range", type=_range, metavar="LO,HI", help="an image's rho c at black and white")
+    h.add_argument("--dt", type=_positive_float, metavar="S", help="time step in seconds (transient)")
+    h.add_argument("--steps", type=_positive_int, metavar="N", help="number of time steps (transient)")
+    h.add_argument("--scheme", choices=("crank-nicolson", "backward-euler"), default="crank-nicolson",
+                   help="time stepping (default: crank-nicolson)")
+    h.add_argument("--initial", default="20", metavar="T0",
+                   help="initial temperature in C, number or .npy (transient; default 20)")
+    h.add_argument("--save-every", type=_positive_int, metavar="N",
+                   help="keep every N-th step's field in the .npz (history, times)")
+    h.add_argument("--tol", type=parse_tol, default=1e-8, metavar="T",
+                   help="relative residual ||b - A T|| / ||b|| to reach (default 1e-8; per step)")
+    h.add_argument("--max-iter", type=_positive_int, default=500, metavar="N",
+                   help="most conjugate-gradient iterations per solve (default 500)")
+    h.add_argument("--error-bound", action="store_true",
+                   help="steady: also compute a guaranteed bound on the temperature error (one more solve)")
+    h.add_argument("--backend", choices=BACKENDS, default="cpu",
+                   help="where the multigrid runs: cpu only for heat (gl and cuda exit 2: docs/heat.md)")
+    h.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
+                   help="output file by extension: .npz (temperature, x, y, conductivity, info), .vts "
+                        "(ParaView) or .png (field and isotherms); repeatable")
+    h.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
+    h.set_defaults(func=_cmd_heat)
+
+
+def _cmd_heat(args: argparse.Namespace) -> int:
+    """``clothgrid heat``: solve, print one summary line, write the outputs (all or none)."""
+    from . import heat
+
+    outs = [Path(o) for o in args.output]
+    for o in outs:   # before any work: a bad name or folder fails at once
+        if o.suffix.lower() not in heat.HEAT_OUTPUTS:
+            raise InputError(f"unknown heat output format {o.suffix or o.name!r}: use "
+                             f"{', '.join(heat.HEAT_OUTPUTS)}")
+        if not o.parent.is_dir():
+            raise InputError(f"output folder {str(o.parent)!r} does not exist")
+    if (args.dt is None) != (args.steps is None):
+        raise InputError("a transient run needs both --dt and --steps")
+    problem = heat.HeatProblem(
+        conductivity=heat.load_field(args.conductivity, name="conductivity", value_range=args.conductivity_range,
+                                     shape=args.cells),
+        size=args.size, left=args.left, right=args.right, bottom=args.bottom, top=args.top,
+        source=heat.load_field(args.source, name="source", value_range=args.source_range, positive=False,
+                               shape=args.cells),
+        capacity=None if args.capacity is None else heat.load_field(
+            args.capacity, name="heat capacity", value_range=args.capacity_range, shape=args.cells),
+        cells=args.cells)
+    progress = _progress(args.quiet)
+    if args.dt is None:
+        res = heat.solve_steady(problem, backend=args.backend, tol=args.tol, max_iter=args.max_iter,
+                                error_bound=args.error_bound, progress=progress)
+    else:
+        res = heat.solve_transient(problem, dt=args.dt, steps=args.steps, initial=args.initial,
+                                   scheme=args.scheme, save_every=args.save_every, backend=args.backend,
+                                   tol=args.tol, max_iter=args.max_iter, progress=progress)
+    info, T = res.info, res.temperature
+    flows = res.heat_flows()
+    bound = f", error bound {info['error_bound']:.2e} K" if "error_bound" in info else ""
+    print(f"heat: {T.shape[0]} x {T.shape[1]} cells, T {T.min():.6g} to {T.max():.6g} C; "
+          f"{info['iterations']} CG iterations, relative residual {info['residual']:.2e} (tol {info['tol']:.1e})"
+          f"{bound}, {info['seconds']:.3f} s")
+    print("heat in (W per metre depth): " + ", ".join(f"{k} {v:.6g}" for k, v in flows.items())
+          + f"; sum {sum(flows.values()):.3g}")
+    written: list[Path] = []
+    try:
+        for o in outs:
+            written.append(res.save(o))
+    except BaseException:
+        for w in written:
+            w.unlink(missing_ok=True)
+        raise
+    if progress:
+        progress(f"wrote {', '.join(map(str, written))}")
+    return 0
 
 
 def _add_garment_parser(sub: Any) -> None:

@@ -92,6 +92,10 @@ class Level:
     ``(nu, nv)`` float32 arrays (zero where a coupling leaves the grid). Level
     ``l+1`` keeps rows :func:`coarse_rows` of level ``l`` and all columns.
 
+    A level 0 may also be given as a 9-point level (all five arrays, ``NE`` and ``NW`` zero): the
+    5-point stencil with an explicit centre, e.g. plus a mass diagonal (:mod:`clothgrid.heat`'s
+    time steps); only the cpu backend's multigrid takes it.
+
     With separable weights every level also carries ``sep``
     (:class:`Separable`); a coarse level then forms its five arrays only when
     asked (the CPU kernels read ``sep`` instead: 335 MB less at 4096^2).

@@ -446,6 +446,13 @@ def _split_rows(a, ae, ao):
                 ao[i, j // 2] = a[i, j]
 
 
+def _merge_rows(ae: np.ndarray, ao: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`_split` for a stencil array: ``(n, nv)`` from its even and odd rows."""
+    out = np.empty((ae.shape[0], ae.shape[1] + ao.shape[1]), dtype=ae.dtype)
+    out[:, 0::2], out[:, 1::2] = ae, ao
+    return out
+
+
 def _parity_planes(x: np.ndarray, dtype=np.float64):
     nu, nv, k = x.shape
     xe, xo = np.empty((k, nu, (nv + 1) // 2), dtype=dtype), np.empty((k, nu, nv // 2), dtype=dtype)
@@ -507,7 +514,18 @@ class CpuMultigrid:
         else:
             self.b = [(np.zeros((k, 1, 1)), np.zeros((k, 1, 1)))]
         fine = levels[0]
-        self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
+        # A level 0 with an explicit centre (a 9-point level: the 5-point stencil plus a diagonal
+        # term, e.g. the heat solver's mass over the time step) runs the coarse levels' kernels in
+        # float64; it always has a right-hand side array.
+        self.nine0 = fine.sep is None and fine.nine
+        if self.nine0:
+            self.st = [sum((_split(np.ascontiguousarray(a, dtype=np.float64))
+                            for a in (fine.C, fine.E, fine.N, fine.NE, fine.NW)), ())]
+            if rhs is None:
+                self._has_b = True
+                self.b = [_parity_planes(np.zeros(x0.shape))]
+        else:
+            self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
         self.sep = [False]
         dt = np.float32
         for lv in levels[1:]:
@@ -525,13 +543,31 @@ class CpuMultigrid:
             else:
                 self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
 
+    def load(self, x0: np.ndarray, rhs: np.ndarray) -> None:
+        """Replace level 0's iterate and right-hand side, keeping the hierarchy's arrays.
+
+        Beyond :class:`~clothgrid.backends.protocol.MultigridOps` (cpu only): the heat solver's
+        conjugate-gradient wrapper (:mod:`clothgrid.heat`) applies one V-cycle to a new residual
+        every iteration; rebuilding the operations each time cost 20x the V-cycle. The operations
+        must have been made with a right-hand side; shapes as in the constructor.
+        """
+        if not self._has_b or x0.shape != self._shape or rhs.shape != (self._shape[0] - 2, self._shape[1] - 2,
+                                                                        self._shape[2]):
+            raise ValueError("load needs operations made with a right-hand side, and arrays of their shapes")
+        for (even, odd), a in ((self.x[0], x0), (self.b[0], None)):
+            if a is None:       # the right-hand side: zero on the boundary
+                a = np.zeros(self._shape)
+                a[1:-1, 1:-1] = rhs
+            even[...] = np.moveaxis(a[:, 0::2], 2, 0)   # NumPy copies: the threaded split kernel
+            odd[...] = np.moveaxis(a[:, 1::2], 2, 0)    # costs more in thread start-up at these sizes
+
     def smooth(self, level: int, reverse: bool = False) -> None:
         """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
         for p in ((1, 0) if reverse else (0, 1)):
             own, other = (xe, xo) if p == 0 else (xo, xe)
             b = be if p == 0 else bo
-            if level == 0:
+            if level == 0 and not self.nine0:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
                                                     p, nv, self._has_b, self.mb)
@@ -553,7 +589,7 @@ class CpuMultigrid:
         after pre-smoothing); ``x[l+1] = 0``."""
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
-        if level == 0:
+        if level == 0 and not self.nine0:
             Ee, _, Ne, No = st
             _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco)
         elif self.sep[level]:
@@ -574,7 +610,10 @@ class CpuMultigrid:
         """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
         (level 0), or ``b[l+1] = P^T b[l]`` (coarser levels); ``x[l+1] = 0``."""
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
-        if level == 0:
+        if level == 0 and self.nine0:
+            re, ro = _parity_planes(self._residual9())
+            _pick("_restrict_rhs", self.nodes[0])(re, ro, self.nv[0], bce, bco, xce, xco)
+        elif level == 0:
             (xe, xo), (be, bo) = self.x[0], self.b[0]
             Ee, Eo, Ne, No = self.st[0]
             _pick("_restrict5_full", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self._has_b, self.nv[0],
@@ -590,9 +629,29 @@ class CpuMultigrid:
 
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
+        if self.nine0:
+            C = _merge_rows(*self.st[0][:2])[..., None]
+            r = self._residual9()[1:-1, 1:-1]
+            return float(np.max(np.linalg.norm(r, axis=-1) / C[1:-1, 1:-1, 0])) if r.size else 0.0
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         Ee, Eo, Ne, No = self.st[0]
         return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
+
+    def _residual9(self) -> np.ndarray:
+        """``b - A x`` of a 9-point level 0 as an ``(nu, nv, k)`` float64 array (zero on the boundary)."""
+        C, E, N, NE, NW = (_merge_rows(*self.st[0][2 * q:2 * q + 2]) for q in range(5))
+        x = self.solution()
+        b = np.empty(self._shape)
+        _merge_grid(*self.b[0], b)
+        r = np.zeros(self._shape)
+        c = x[1:-1, 1:-1]
+        s = b[1:-1, 1:-1] - C[1:-1, 1:-1, None] * c
+        s += E[:-2, 1:-1, None] * x[:-2, 1:-1] + E[1:-1, 1:-1, None] * x[2:, 1:-1]
+        s += N[1:-1, :-2, None] * x[1:-1, :-2] + N[1:-1, 1:-1, None] * x[1:-1, 2:]
+        s += NE[1:-1, 1:-1, None] * x[2:, 2:] + NE[:-2, :-2, None] * x[:-2, :-2]
+        s += NW[1:-1, 1:-1, None] * x[:-2, 2:] + NW[2:, :-2, None] * x[2:, :-2]
+        r[1:-1, 1:-1] = s
+        return r
 
     def solution(self) -> np.ndarray:
         """Level 0's iterate as a float64 ``(nu, nv, k)`` array."""

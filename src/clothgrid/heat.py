@@ -1,0 +1,852 @@
+"""Heat conduction in a non-uniform medium on clothgrid's multigrid (the paper's future work).
+
+The paper ends: the same solver, with four weights per node, solves other PDEs
+such as heat transfer in a non-uniform medium. This module is that: steady
+
+    -div(k grad T) = q
+
+and transient
+
+    rho c dT/dt = div(k grad T) + q
+
+on a rectangle of ``nx x ny`` equal cells, in SI units: lengths in metres,
+conductivity ``k`` in W/(m K), volumetric heat capacity ``rho c`` in
+J/(m^3 K), source ``q`` in W/m^3, temperatures in degrees C (any affine scale
+works: only differences enter), heat fluxes in W/m^2 and heat flows in W per
+metre of depth (the problem is 2D: a slab of unit depth).
+
+Discretisation: cell-centred finite volumes. The conductance of the face
+between two cells is the harmonic mean of their conductivities times face
+length over centre distance (``dy/dx * 2 k1 k2 / (k1 + k2)``): the exact
+conductance of two half cells in series, so a layered wall is solved exactly.
+These are the paper's "four weights per node": per-edge weights ``wu``,
+``wv`` of :class:`clothgrid.weights.Weights` on a node array of
+``(nx + 2) x (ny + 2)`` nodes whose interior nodes are the cells and whose
+outer ring holds the boundary data:
+
+- fixed temperature ``T_b``: the ring node holds ``T_b``, its conductance to
+  the boundary cell is ``2 k dy/dx`` (the half cell);
+- convection (``h`` in W/(m^2 K), ambient ``T_inf``): the ring node holds
+  ``T_inf``, the conductance is the half cell and ``1/h`` in series,
+  ``dy / (dx/(2k) + 1/h)``;
+- fixed flux ``q_b`` (W/m^2 into the medium; insulated is ``q_b = 0``): no
+  conductance, ``q_b dy`` enters the boundary cell's right-hand side.
+
+The system ``A T = b`` is symmetric positive definite (an M-matrix). It is
+solved by conjugate gradients preconditioned with one V-cycle of the grid
+solver's multigrid (:mod:`clothgrid.solvers.multigrid`: zebra line
+Gauss-Seidel along ``u``, semi-coarsening along ``v``, Galerkin coarse
+operators built by :func:`clothgrid.multigrid_levels.build_hierarchy`). The
+V-cycle alone stalls on conductivity jumps of 10^4 (its linear interpolation
+along ``v`` does not follow the jumps: measured factor 0.9 per cycle); as a
+preconditioner of CG it converges in 4 to 80 iterations on every case measured
+(docs/heat.md). The grid is oriented so that the sides that fix the
+temperature (fixed temperature, convection) close the coarsened direction
+``v``: insulated ``v``-sides cost the coarse grid its constants (23 instead of
+4 iterations on a uniform medium).
+
+Time steps are implicit, backward Euler or Crank-Nicolson, with the mass
+``rho c dx dy / dt`` on the diagonal: the hierarchy's level 0 is then a
+9-point level with an explicit centre, which only the cpu backend's
+multigrid takes. The gl and cuda backends run neither: the conjugate
+gradient wrapper gives the V-cycle a new right-hand side every iteration,
+which :class:`~clothgrid.backends.protocol.MultigridOps` cannot reload on a
+device without rebuilding the hierarchy there (see docs/heat.md).
+
+Stopping: the relative residual ``||b - A T|| / ||b||`` (2-norm), recomputed
+from the final temperature in float64, must be at most ``tol`` for
+``info["converged"]``; ``error_bound=True`` adds a guaranteed bound on the
+largest temperature error (kelvin) from the M-matrix barrier argument of
+:mod:`clothgrid.solvers.bounds`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .errors import BackendUnavailableError, InputError, NotConvergedError
+from .multigrid_levels import Level, build_hierarchy, coarsen
+from .weights import Weights
+
+__all__ = ["Side", "temperature", "flux", "convection", "INSULATED", "parse_side", "load_field", "HeatProblem",
+           "HeatResult", "solve_steady", "solve_transient", "SCHEMES", "HEAT_OUTPUTS"]
+
+#: Time-stepping schemes of :func:`solve_transient`.
+SCHEMES = ("backward-euler", "crank-nicolson")
+#: Output formats of :meth:`HeatResult.save`.
+HEAT_OUTPUTS = (".npz", ".vts", ".png")
+SIDES = ("left", "right", "bottom", "top")
+
+
+# --------------------------------------------------------------------------- boundary conditions
+
+
+@dataclass(frozen=True)
+class Side:
+    """A boundary condition on one side of the rectangle.
+
+    Attributes
+    ----------
+    kind : {"temperature", "flux", "convection"}
+    value : float
+        The fixed temperature (C), the flux into the medium (W/m^2), or the
+        ambient temperature (C) of convection.
+    h : float
+        Heat-transfer coefficient of convection, W/(m^2 K) (0 otherwise).
+    """
+
+    kind: str
+    value: float
+    h: float = 0.0
+
+    @property
+    def fixes(self) -> bool:
+        """True when the side ties the temperature (fixed temperature or convection)."""
+        return self.kind in ("temperature", "convection")
+
+    def __str__(self) -> str:
+        if self.kind == "temperature":
+            return f"T={self.value:g}"
+        if self.kind == "convection":
+            return f"h={self.h:g},T={self.value:g}"
+        return "insulated" if self.value == 0 else f"q={self.value:g}"
+
+
+def _finite(x: float, what: str) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be a number, not {x!r}") from None
+    if not math.isfinite(v):
+        raise InputError(f"{what} must be finite, not {x!r}")
+    return v
+
+
+def temperature(value: float) -> Side:
+    """A fixed temperature (C) on a side."""
+    return Side("temperature", _finite(value, "a side's temperature"))
+
+
+def flux(value: float) -> Side:
+    """A fixed heat flux into the medium (W/m^2) on a side; 0 is insulated."""
+    return Side("flux", _finite(value, "a side's heat flux"))
+
+
+def convection(h: float, ambient: float) -> Side:
+    """Convection to an ambient temperature ``ambient`` (C) with coefficient ``h`` (W/(m^2 K), > 0)."""
+    hv = _finite(h, "the heat-transfer coefficient h")
+    if hv <= 0:
+        raise InputError(f"the heat-transfer coefficient h must be positive, not {h!r}")
+    return Side("convection", _finite(ambient, "the ambient temperature"), hv)
+
+
+#: An insulated side (zero flux).
+INSULATED = flux(0.0)
+
+
+def parse_side(text: str | float | Side | None) -> Side:
+    """A :class:`Side` from its text form.
+
+    ``"34"`` or ``"T=34"``: fixed temperature 34 C; ``"q=150"``: 150 W/m^2
+    into the medium; ``"h=10,T=20"``: convection with ``h = 10 W/(m^2 K)`` to
+    air at 20 C; ``"insulated"`` (or ``None``): no flux.
+    """
+    if text is None:
+        return INSULATED
+    if isinstance(text, Side):
+        return text
+    if isinstance(text, (int, float)):
+        return temperature(text)
+    s = str(text).strip().lower().replace(" ", "")
+    if s in ("insulated", "adiabatic", "none"):
+        return INSULATED
+    parts = dict(p.split("=", 1) if "=" in p else ("t", p) for p in s.split(",") if p)
+    keys = set(parts)
+    try:
+        if keys == {"t"}:
+            return temperature(parts["t"])
+        if keys == {"q"}:
+            return flux(parts["q"])
+        if keys == {"h", "t"}:
+            return convection(parts["h"], parts["t"])
+    except InputError as exc:
+        raise InputError(f"invalid side {text!r}: {exc}") from None
+    raise InputError(f"invalid side {text!r}: expected a temperature (34 or T=34), a flux (q=150, W/m2 "
+                     "into the medium), convection (h=10,T=20) or 'insulated'")
+
+
+# --------------------------------------------------------------------------- fields
+
+
+def load_field(value: Any, *, name: str, shape: tuple[int, int] | None = None,
+               value_range: tuple[float, float] | None = None, positive: bool = True) -> np.ndarray | float:
+    """A per-cell field: a number, an array, a ``.npy`` file or a grayscale image.
+
+    Arrays are indexed ``[i, j]``, ``i`` along x (left to right) and ``j``
+    along y (bottom to top), shape ``(nx, ny)``. An image (``.png``, ``.jpg``,
+    ...) is read as gray levels in ``[0, 1]`` (the mean of its colour
+    channels), black mapped to ``value_range[0]`` and white to
+    ``value_range[1]``; its top row is the top of the rectangle (``j = ny-1``)
+    and each pixel is a cell.
+
+    Parameters
+    ----------
+    value : float, array_like, str or Path
+    name : str
+        What the field is, for messages.
+    shape : (int, int), optional
+        The cells' shape the field must have.
+    value_range : (float, float), optional
+        For images: the values of black and white.
+    positive : bool
+        Values must be > 0 (else >= 0 is not checked: any finite value).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        A number stays a number; anything else is a float64 ``(nx, ny)`` array.
+    """
+    if isinstance(value, (int, float, np.number)) and not isinstance(value, bool):
+        v = _finite(value, name)
+        if positive and v <= 0:
+            raise InputError(f"{name} must be positive, not {value!r}")
+        return v
+    if isinstance(value, (str, Path)):
+        path = Path(value)
+        try:
+            v = float(str(value))
+        except ValueError:
+            pass
+        else:
+            return load_field(v, name=name, shape=shape, value_range=value_range, positive=positive)
+        if not path.is_file():
+            raise InputError(f"{name}: no such file {str(path)!r}")
+        if path.suffix.lower() == ".npy":
+            try:
+                arr = np.load(path, allow_pickle=False)
+            except (OSError, ValueError) as exc:
+                raise InputError(f"{name}: cannot read {str(path)!r}: {exc}") from None
+        else:
+            arr = _read_image(path, name, value_range)
+    else:
+        arr = np.asarray(value)
+    if arr.dtype.kind not in "fiu":
+        raise InputError(f"{name} must hold numbers, not {arr.dtype}")
+    arr = np.ascontiguousarray(arr, dtype=np.float64)
+    if arr.ndim != 2 or min(arr.shape) < 1:
+        raise InputError(f"{name} must be a 2D array of cells (nx, ny), not of shape {arr.shape}")
+    if shape is not None and arr.shape != tuple(shape):
+        raise InputError(f"{name} has shape {arr.shape}, the cells are {tuple(shape)}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} holds NaN or infinite values")
+    if positive and not np.all(arr > 0):
+        bad = np.argwhere(~(arr > 0))[0]
+        raise InputError(f"{name} must be positive everywhere; cell ({bad[0]}, {bad[1]}) holds {arr[tuple(bad)]!r}")
+    return arr
+
+
+def _read_image(path: Path, name: str, value_range: tuple[float, float] | None) -> np.ndarray:
+    if value_range is None:
+        raise InputError(f"{name}: an image needs a value range (black, white), e.g. --conductivity-range 0.03,0.3")
+    lo, hi = (_finite(v, f"{name}'s range") for v in value_range)
+    import matplotlib.image as mpimg
+
+    try:
+        img = np.asarray(mpimg.imread(path), dtype=np.float64)
+    except (OSError, ValueError, SyntaxError) as exc:
+        raise InputError(f"{name}: cannot read the image {str(path)!r}: {exc}") from None
+    if path.suffix.lower() not in (".png",) and img.max(initial=0) > 1:
+        img = img / 255.0
+    if img.ndim == 3:
+        img = img[..., :3].mean(axis=-1) if img.shape[-1] >= 3 else img[..., 0]
+    if img.ndim != 2:
+        raise InputError(f"{name}: {str(path)!r} is not a 2D image")
+    gray = np.clip(img, 0.0, 1.0)[::-1].T        # rows top-down -> [i, j] with j upward
+    return lo + (hi - lo) * gray
+
+
+# --------------------------------------------------------------------------- the problem
+
+
+def _parse_size(size: Any) -> tuple[float, float]:
+    if isinstance(size, str):
+        parts = size.lower().replace(" ", "").split("x")
+    else:
+        parts = list(size) if isinstance(size, (tuple, list, np.ndarray)) else [size]
+    if len(parts) != 2:
+        raise InputError(f"size must be width x height in metres (e.g. 0.01x0.004), not {size!r}")
+    w, h = (_finite(p, "the size") for p in parts)
+    if w <= 0 or h <= 0:
+        raise InputError(f"size must be positive, not {size!r}")
+    return w, h
+
+
+@dataclass
+class HeatProblem:
+    """Heat conduction on a rectangle of ``nx x ny`` equal cells (SI units).
+
+    Parameters
+    ----------
+    conductivity : float or array_like
+        ``k`` per cell, W/(m K), ``(nx, ny)`` (``[i, j]``, i along x), or a
+        number (then ``cells`` gives the grid).
+    size : (float, float) or str
+        Width (x) and height (y) in metres, or ``"0.01x0.004"``.
+    left, right, bottom, top : Side, str or float, optional
+        Boundary conditions (:func:`parse_side`); a side not given is insulated.
+    source : float or array_like
+        Heat source per cell, W/m^3 (default 0).
+    capacity : float or array_like
+        Volumetric heat capacity ``rho c`` per cell, J/(m^3 K) (transient only).
+    cells : (int, int), optional
+        ``(nx, ny)``, needed when every field is a number.
+    """
+
+    conductivity: Any
+    size: Any
+    left: Any = None
+    right: Any = None
+    bottom: Any = None
+    top: Any = None
+    source: Any = 0.0
+    capacity: Any = None
+    cells: tuple[int, int] | None = None
+    k: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.size = _parse_size(self.size)
+        for s in SIDES:
+            setattr(self, s, parse_side(getattr(self, s)))
+        shape = None if self.cells is None else tuple(int(c) for c in self.cells)
+        if shape is not None and (len(shape) != 2 or min(shape) < 1):
+            raise InputError(f"cells must be two counts >= 1, not {self.cells!r}")
+        k = load_field(self.conductivity, name="conductivity", shape=shape)
+        if isinstance(k, np.ndarray):
+            shape = k.shape
+        if shape is None:
+            raise InputError("give the number of cells (cells=(nx, ny), --cells NXxNY) when the conductivity "
+                             "is one number")
+        self.cells = shape
+        self.k = np.broadcast_to(k, shape).astype(np.float64) if not isinstance(k, np.ndarray) else k
+        self.source = load_field(self.source, name="source", shape=shape, positive=False)
+        if self.capacity is not None:
+            self.capacity = load_field(self.capacity, name="heat capacity", shape=shape)
+
+    # -- geometry
+    @property
+    def spacing(self) -> tuple[float, float]:
+        """``(dx, dy)``, metres."""
+        return self.size[0] / self.cells[0], self.size[1] / self.cells[1]
+
+    def centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """``x``, ``y`` of the cell centres as ``(nx, ny)`` arrays (metres)."""
+        (nx, ny), (dx, dy) = self.cells, self.spacing
+        return np.meshgrid((np.arange(nx) + 0.5) * dx, (np.arange(ny) + 0.5) * dy, indexing="ij")
+
+    @property
+    def fixed(self) -> bool:
+        """True when some side ties the temperature (else a steady problem is singular)."""
+        return any(getattr(self, s).fixes for s in SIDES)
+
+    # -- discretisation
+    def boundary_conductance(self, side: str) -> np.ndarray:
+        """Per boundary cell of ``side``: conductance to the side's ring node (W/(m K) per metre depth)."""
+        (dx, dy), s = self.spacing, getattr(self, side)
+        k = {"left": self.k[0], "right": self.k[-1], "bottom": self.k[:, 0], "top": self.k[:, -1]}[side]
+        normal, face = (dx, dy) if side in ("left", "right") else (dy, dx)
+        if s.kind == "temperature":
+            return 2.0 * k * face / normal
+        if s.kind == "convection":
+            return face / (normal / (2.0 * k) + 1.0 / s.h)
+        return np.zeros_like(k)
+
+    def system(self) -> tuple[Weights, np.ndarray, np.ndarray]:
+        """The finite-volume system on the node array.
+
+        Returns
+        -------
+        weights : Weights
+            ``wu (nx+1, ny+2)``, ``wv (nx+2, ny+1)``: face conductances
+            (harmonic means) between cells, and boundary conductances between
+            the boundary cells and the ring nodes (zero along the ring).
+        ring : numpy.ndarray
+            ``(nx+2, ny+2)`` the ring nodes' temperatures (interior zero).
+        rhs : numpy.ndarray
+            ``(nx, ny)`` sources and fixed fluxes, W per metre depth.
+        """
+        (nx, ny), (dx, dy), k = self.cells, self.spacing, self.k
+        wu, wv = np.zeros((nx + 1, ny + 2)), np.zeros((nx + 2, ny + 1))
+        wu[1:-1, 1:-1] = (dy / dx) * 2.0 * k[:-1] * k[1:] / (k[:-1] + k[1:])
+        wv[1:-1, 1:-1] = (dx / dy) * 2.0 * k[:, :-1] * k[:, 1:] / (k[:, :-1] + k[:, 1:])
+        wu[0, 1:-1] = self.boundary_conductance("left")
+        wu[-1, 1:-1] = self.boundary_conductance("right")
+        wv[1:-1, 0] = self.boundary_conductance("bottom")
+        wv[1:-1, -1] = self.boundary_conductance("top")
+        ring = np.zeros((nx + 2, ny + 2))
+        rhs = np.broadcast_to(np.asarray(self.source, dtype=np.float64) * dx * dy, (nx, ny)).copy()
+        for side, sl_ring, sl_cell, face in (("left", (0, slice(1, -1)), (0, slice(None)), dy),
+                                             ("right", (-1, slice(1, -1)), (-1, slice(None)), dy),
+                                             ("bottom", (slice(1, -1), 0), (slice(None), 0), dx),
+                                             ("top", (slice(1, -1), -1), (slice(None), -1), dx)):
+            s = getattr(self, side)
+            if s.fixes:
+                ring[sl_ring] = s.value
+            else:
+                rhs[sl_cell] += s.value * face
+        return Weights(wu=wu, wv=wv, kind="heat"), ring, rhs
+
+    def mass(self) -> np.ndarray:
+        """``rho c dx dy`` per cell (J/(m K) per metre depth)."""
+        if self.capacity is None:
+            raise InputError("a transient solve needs the heat capacity rho c (capacity=..., --capacity)")
+        (dx, dy) = self.spacing
+        return np.broadcast_to(np.asarray(self.capacity) * dx * dy, self.cells).astype(np.float64)
+
+    def heat_flows(self, T: np.ndarray) -> dict[str, float]:
+        """Heat flowing into the medium through each side, and from the sources (W per metre depth)."""
+        (dx, dy) = self.spacing
+        out: dict[str, float] = {}
+        cells = {"left": T[0], "right": T[-1], "bottom": T[:, 0], "top": T[:, -1]}
+        for side in SIDES:
+            s = getattr(self, side)
+            if s.fixes:
+                out[side] = float(np.sum(self.boundary_conductance(side) * (s.value - cells[side])))
+            else:
+                out[side] = float(s.value * (self.size[1] if side in ("left", "right") else self.size[0]))
+        out["source"] = float(np.sum(np.broadcast_to(self.source, self.cells)) * dx * dy)
+        return out
+
+
+# --------------------------------------------------------------------------- the operator and its solver
+
+
+class _Operator:
+    """``A + diag(shift)`` of a problem on one orientation, with its multigrid hierarchy.
+
+    ``transpose`` swaps x and y so that the coarsened direction ``v`` is the
+    one closed by fixing sides. ``scale`` multiplies the conductances (0.5 for
+    Crank-Nicolson).
+    """
+
+    def __init__(self, weights: Weights, shift: np.ndarray | None, transpose: bool, backend: Any,
+                 scale: float = 1.0):
+        wu, wv = weights.wu * scale, weights.wv * scale
+        if transpose:
+            wu, wv = wv.T.copy(), wu.T.copy()
+        self.wu, self.wv, self.transpose, self.backend = wu, wv, transpose, backend
+        self.shift = None if shift is None else (shift.T.copy() if transpose else shift)
+        nu, nv = wv.shape[0], wu.shape[1]
+        self.shape = (nu - 2, nv - 2)
+        if self.shift is None:
+            self.levels = build_hierarchy(Weights(wu=wu, wv=wv, kind="heat"))
+        else:
+            C = np.zeros((nu, nv))
+            C[1:-1, 1:-1] = wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:] + self.shift
+            E, N = np.zeros((nu, nv)), np.zeros((nu, nv))
+            E[:-1], N[:, :-1] = wu, wv
+            zero = np.zeros((nu, nv))
+            levels = [Level(C=C, E=E, N=N, NE=zero, NW=zero)]
+            while levels[-1].shape[1] > 3:
+                levels.append(coarsen(levels[-1]))
+            self.levels = levels
+        self._pad = np.zeros((nu, nv, 1))
+        self._ops: Any = None
+
+    def orient(self, a: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(a.T) if self.transpose else a
+
+    def apply(self, p: np.ndarray) -> np.ndarray:
+        """``(A + shift) p`` for an interior array ``p`` (ring zero)."""
+        self._pad[1:-1, 1:-1, 0] = p
+        out = -self.backend.residual(self._pad, self.wu, self.wv)[..., 0]
+        if self.shift is not None:
+            out += self.shift * p
+        return out
+
+    def precondition(self, r: np.ndarray) -> np.ndarray:
+        """One V(1,1) cycle of the multigrid from zero on ``A z = r``."""
+        from .solvers.multigrid import vcycle
+
+        if self._ops is None:
+            self._ops = self.backend.multigrid(self.levels, np.zeros(self._pad.shape), rhs=r[..., None])
+        else:   # the cpu operations take a new right-hand side without rebuilding (CpuMultigrid.load)
+            self._ops.load(np.zeros(self._pad.shape), r[..., None])
+        ops = self._ops
+        vcycle(ops)
+        return ops.solution()[1:-1, 1:-1, 0]
+
+    def diagonal(self) -> np.ndarray:
+        wu, wv = self.wu, self.wv
+        d = wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
+        return d + self.shift if self.shift is not None else d
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``sum(a * b)`` without BLAS: OpenBLAS's threads, started after Numba's have run, made each
+    dot product 100x slower on a loaded machine (8 ms instead of 0.08 ms at 256^2)."""
+    return float(np.multiply(a, b).sum())
+
+
+def _pcg(op: _Operator, b: np.ndarray, x: np.ndarray, tol: float, max_iter: int) -> tuple[np.ndarray, int, float]:
+    """Flexible preconditioned CG on ``op x = b`` from ``x``; stops on the true relative residual.
+
+    Returns ``(x, iterations, relative residual ||b - A x|| / ||b||)`` (the
+    residual recomputed from ``x`` at the end).
+    """
+    nb = math.sqrt(_dot(b, b))
+    if nb == 0.0:
+        return np.zeros_like(b), 0, 0.0
+    r = b - op.apply(x)
+    rel = math.sqrt(_dot(r, r)) / nb
+    it = 0
+    while rel > tol and it < max_iter:
+        z = op.precondition(r)
+        p = z.copy()
+        rz = _dot(r, z)
+        while it < max_iter:
+            q = op.apply(p)
+            pq = _dot(p, q)
+            if not pq > 0:
+                break
+            a = rz / pq
+            x += a * p
+            r -= a * q
+            it += 1
+            rel = math.sqrt(_dot(r, r)) / nb
+            if rel <= tol:
+                break
+            z_new = op.precondition(r)
+            rz_new = _dot(r, z_new)
+            beta = (rz_new - _dot(r, z)) / rz    # flexible (Polak-Ribiere): float32 coarse levels
+            z, rz = z_new, rz_new
+            p = z + beta * p
+        r = b - op.apply(x)                           # the true residual: restart if the recursion drifted
+        rel = math.sqrt(_dot(r, r)) / nb
+    return x, it, rel
+
+
+def _error_bound(op: _Operator, b: np.ndarray, x: np.ndarray, max_iter: int) -> float:
+    """Guaranteed ``max |T* - T|`` (kelvin): ``max |D^-1 r| * max z``, ``D^-1 A z = 1`` (bounds.py's barrier)."""
+    d = op.diagonal()
+    step = float(np.max(np.abs(b - op.apply(x)) / d))
+    z, _, _ = _pcg(op, d.copy(), np.zeros_like(d), 1e-3, max_iter)
+    delta = float(np.max(np.abs(d - op.apply(z)) / d))   # A z >= (1 - delta) D 1, and A^-1 >= 0
+    if not delta < 1:
+        return math.inf
+    return step * float(np.max(z)) / (1.0 - delta)
+
+
+def _backend(name: str) -> Any:
+    from .backends import get_backend
+
+    if name not in ("auto", "cpu"):
+        from .backends import load_backend
+
+        load_backend(name)   # an unknown name raises its usual InputError
+        raise BackendUnavailableError(
+            f"heat runs on the cpu backend only, not {name!r}: its conjugate-gradient wrapper gives the "
+            "multigrid a new right-hand side every iteration and time steps need a mass diagonal on the "
+            "finest level, neither of which the gl and cuda multigrid operations take (docs/heat.md)")
+    return get_backend("cpu")
+
+
+def _transpose_for(problem: HeatProblem) -> bool:
+    """Whether to swap x and y: the coarsened direction v should be closed by fixing sides."""
+    fx = problem.left.fixes + problem.right.fixes
+    fy = problem.bottom.fixes + problem.top.fixes
+    return fx > fy
+
+
+@dataclass
+class HeatResult:
+    """A solved temperature field.
+
+    Attributes
+    ----------
+    temperature : numpy.ndarray
+        ``(nx, ny)`` cell temperatures, C (``[i, j]``, i along x).
+    x, y : numpy.ndarray
+        ``(nx, ny)`` cell-centre coordinates, metres.
+    problem : HeatProblem
+    info : dict
+        ``solver``, ``backend``, ``iterations`` (PCG iterations, all steps),
+        ``residual`` (relative, the last solve's), ``tol``, ``converged``,
+        ``seconds``, ``levels``, ``transposed``; transient: ``scheme``, ``dt``,
+        ``steps``, ``time``; with ``error_bound``: ``error_bound`` (kelvin).
+    times, history : numpy.ndarray, optional
+        Transient: the saved times (s) and ``(len(times), nx, ny)`` fields.
+    """
+
+    temperature: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    problem: HeatProblem
+    info: dict[str, Any]
+    times: np.ndarray | None = None
+    history: np.ndarray | None = None
+
+    def heat_flows(self) -> dict[str, float]:
+        """Heat into the medium per side and from the sources, W per metre depth (:meth:`HeatProblem.heat_flows`)."""
+        return self.problem.heat_flows(self.temperature)
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``.npz`` (``temperature``, ``x``, ``y``, ``conductivity``, ``info``; transient also
+        ``times``, ``history``), ``.vts`` (ParaView) or ``.png`` (field and isotherms), atomically."""
+        from .writers import atomic_write, info_json
+
+        path = Path(path)
+        ext = path.suffix.lower()
+        if ext == ".png":
+            return plot_temperature(self, path)
+        if ext not in HEAT_OUTPUTS:
+            raise InputError(f"unknown heat output format {ext or path.name!r}: use {', '.join(HEAT_OUTPUTS)}")
+        with atomic_write(path) as fh:
+            if ext == ".npz":
+                extra = {} if self.times is None else {"times": self.times, "history": self.history}
+                np.savez(fh, temperature=self.temperature, x=self.x, y=self.y, conductivity=self.problem.k,
+                         info=np.array(info_json(self.info)), **extra)
+            else:
+                fh.write(_vts(self).encode("utf-8"))
+        return path
+
+
+def _b64(a: np.ndarray) -> str:
+    import base64
+
+    data = np.ascontiguousarray(a, dtype="<f8").tobytes()
+    return base64.b64encode(np.uint64(len(data)).astype("<u8").tobytes() + data).decode("ascii")
+
+
+def _vts(res: HeatResult) -> str:
+    """VTK XML structured grid of the cell centres, point data temperature and conductivity."""
+    from .writers import info_json
+
+    nx, ny = res.temperature.shape
+    pts = np.stack([res.x, res.y, np.zeros_like(res.x)], axis=-1).transpose(1, 0, 2).reshape(-1, 3)
+    flat = lambda a: np.asarray(a).T.reshape(-1)   # VTK: x index fastest
+    extent = f"0 {nx - 1} 0 {ny - 1} 0 0"
+    comment = f"clothgrid heat {nx} x {ny} cell centres, metres and C; info: {info_json(res.info)}".replace("--", "- -")
+    return "\n".join([
+        '<?xml version="1.0"?>', f"<!-- {comment} -->",
+        '<VTKFile type="StructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+        f'  <StructuredGrid WholeExtent="{extent}">', f'    <Piece Extent="{extent}">',
+        '      <PointData Scalars="temperature">',
+        f'        <DataArray type="Float64" Name="temperature" format="binary">{_b64(flat(res.temperature))}</DataArray>',
+        f'        <DataArray type="Float64" Name="conductivity" format="binary">{_b64(flat(res.problem.k))}</DataArray>',
+        "      </PointData>", "      <Points>",
+        f'        <DataArray type="Float64" Name="Points" NumberOfComponents="3" format="binary">{_b64(pts)}</DataArray>',
+        "      </Points>", "    </Piece>", "  </StructuredGrid>", "</VTKFile>", ""])
+
+
+def plot_temperature(res: HeatResult, path: str | Path, *, title: str | None = None, isotherms: int = 12,
+                     layers: bool = True) -> Path:
+    """Draw the temperature field with isotherms (and the conductivity's interfaces) to an image file.
+
+    Parameters
+    ----------
+    res : HeatResult
+    path : str or Path
+        Image file, format by extension; written atomically.
+    title : str, optional
+    isotherms : int
+        Number of isotherm levels.
+    layers : bool
+        Outline where the conductivity changes (thin grey lines).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .writers import atomic_write
+
+    path = Path(path)
+    fmt = path.suffix[1:].lower() or "png"
+    if fmt not in FigureCanvasAgg.get_supported_filetypes():
+        raise InputError(f"cannot draw to {str(path)!r}: unknown image format {fmt!r}")
+    w, h = res.problem.size
+    scale, unit = (1e3, "mm") if max(w, h) < 1 else (1.0, "m")
+    fig = Figure(figsize=(8, max(2.5, min(8, 8 * h / w + 1.2))), dpi=150)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    T = res.temperature
+    im = ax.imshow(T.T, origin="lower", extent=(0, w * scale, 0, h * scale), cmap="inferno", aspect="equal",
+                   interpolation="nearest")
+    if T.shape[0] > 1 and T.shape[1] > 1 and np.ptp(T) > 0:
+        cs = ax.contour(res.x * scale, res.y * scale, T, levels=isotherms, colors="white", linewidths=0.6)
+        ax.clabel(cs, fontsize=6, fmt="%.3g")
+    k = res.problem.k
+    if layers and k.shape[0] > 1 and k.shape[1] > 1 and np.ptp(k) > 0:
+        ax.contour(res.x * scale, res.y * scale, np.log(k), levels=np.unique(np.log(k))[:-1] + 1e-9,
+                   colors="0.6", linewidths=0.5, linestyles="dashed")
+    fig.colorbar(im, ax=ax, label="temperature (C)", shrink=0.9)
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+    if title:
+        ax.set_title(title)
+    with atomic_write(path) as fh:
+        fig.savefig(fh, format=fmt, bbox_inches="tight")
+    return path
+
+
+def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-8, max_iter: int = 500,
+                 error_bound: bool = False, allow_unconverged: bool = False,
+                 progress: Callable[[str], None] | None = None) -> HeatResult:
+    """Steady temperature: ``-div(k grad T) = q`` with the problem's boundary conditions.
+
+    Parameters
+    ----------
+    problem : HeatProblem
+    backend : {"cpu", "auto"}
+        Where the multigrid runs; gl and cuda raise
+        :class:`~clothgrid.errors.BackendUnavailableError` (see the module notes).
+    tol : float
+        Relative residual ``||b - A T|| / ||b||`` to reach.
+    max_iter : int
+        Most conjugate-gradient iterations.
+    error_bound : bool
+        Also compute a guaranteed bound on the largest temperature error
+        (kelvin; one more solve, to 1e-3).
+    allow_unconverged : bool
+        Return the result instead of raising :class:`~clothgrid.errors.NotConvergedError`.
+    progress : callable, optional
+        Receives one line when done.
+
+    Returns
+    -------
+    HeatResult
+    """
+    if not problem.fixed:
+        raise InputError("a steady problem needs a side with a fixed temperature or convection: with every side "
+                         "insulated or at a fixed flux the temperature is not determined")
+    tol = _check_tol(tol)
+    be = _backend(backend)
+    t0 = time.perf_counter()
+    weights, ring, rhs = problem.system()
+    transpose = _transpose_for(problem)
+    op = _Operator(weights, None, transpose, be)
+    b = op.orient(rhs) + _ring_load(op, ring)
+    x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
+    info = _info(problem, op, it, rel, tol, backend="cpu")
+    if error_bound:
+        info["error_bound"] = _error_bound(op, b, x, max_iter)
+    info["seconds"] = time.perf_counter() - t0
+    T = op.orient(x)
+    res = HeatResult(T, *problem.centres(), problem, info)
+    if progress:
+        progress(f"heat: steady, {problem.cells[0]} x {problem.cells[1]} cells, {it} CG iterations, "
+                 f"relative residual {rel:.2e} (tol {tol:.1e}), {info['seconds']:.3f} s")
+    if not info["converged"] and not allow_unconverged:
+        raise NotConvergedError(f"heat: the relative residual {rel:.2e} is above tol {tol:.1e} after {it} "
+                                "iterations", grid=res)
+    return res
+
+
+def _check_tol(tol: float) -> float:
+    t = _finite(tol, "tol")
+    if not 0 < t < 1:
+        raise InputError(f"tol must be between 0 and 1, not {tol!r}")
+    return t
+
+
+def _ring_load(op: _Operator, ring: np.ndarray) -> np.ndarray:
+    """What the ring nodes' temperatures put on the boundary cells: ``sum w * T_ring``."""
+    g = op.orient(ring)[..., None]
+    pad = g.copy()
+    pad[1:-1, 1:-1] = 0.0
+    return op.backend.residual(pad, op.wu, op.wv)[..., 0]
+
+
+def _info(problem: HeatProblem, op: _Operator, it: int, rel: float, tol: float, backend: str) -> dict[str, Any]:
+    return {"solver": "pcg-multigrid", "backend": backend, "iterations": int(it), "residual": float(rel),
+            "tol": float(tol), "converged": bool(rel <= tol), "levels": len(op.levels),
+            "transposed": bool(op.transpose), "cells": list(problem.cells), "size_m": list(problem.size),
+            "sides": {s: str(getattr(problem, s)) for s in SIDES}}
+
+
+def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any = 20.0,
+                    scheme: str = "crank-nicolson", save_every: int | None = None, backend: str = "cpu",
+                    tol: float = 1e-8, max_iter: int = 500, allow_unconverged: bool = False,
+                    progress: Callable[[str], None] | None = None, progress_every: int | None = None) -> HeatResult:
+    """Implicit time steps of ``rho c dT/dt = div(k grad T) + q``.
+
+    Parameters
+    ----------
+    problem : HeatProblem
+        With ``capacity`` (``rho c``).
+    dt : float
+        Time step, s.
+    steps : int
+        Number of steps.
+    initial : float or array_like
+        Initial temperature (C), a number or ``(nx, ny)``.
+    scheme : {"crank-nicolson", "backward-euler"}
+        Second-order Crank-Nicolson or first-order (L-stable) backward Euler.
+    save_every : int, optional
+        Keep the field every this many steps in ``history`` (and the initial one).
+    backend, tol, max_iter, allow_unconverged
+        As in :func:`solve_steady` (``tol`` per step).
+    progress : callable, optional
+        Receives a line per batch of ``progress_every`` steps (default: about 10 lines).
+
+    Returns
+    -------
+    HeatResult
+        The last field; ``times``/``history`` with ``save_every``.
+    """
+    if scheme not in SCHEMES:
+        raise InputError(f"unknown scheme {scheme!r}: use one of {', '.join(SCHEMES)}")
+    dt = _finite(dt, "dt")
+    if dt <= 0:
+        raise InputError(f"dt must be positive, not {dt!r}")
+    if int(steps) != steps or steps < 1:
+        raise InputError(f"steps must be an integer >= 1, not {steps!r}")
+    steps = int(steps)
+    tol = _check_tol(tol)
+    be = _backend(backend)
+    t0 = time.perf_counter()
+    T = np.broadcast_to(load_field(initial, name="initial temperature", shape=problem.cells, positive=False),
+                        problem.cells).astype(np.float64)
+    weights, ring, rhs = problem.system()
+    transpose = _transpose_for(problem)
+    m = problem.mass() / dt
+    half = scheme == "crank-nicolson"
+    op = _Operator(weights, m, transpose, be, scale=0.5 if half else 1.0)
+    steady = _Operator.__new__(_Operator)   # A alone, for the explicit half of Crank-Nicolson
+    steady.wu, steady.wv, steady.shift, steady.backend, steady.transpose = op.wu, op.wv, None, be, transpose
+    steady._pad = np.zeros_like(op._pad)
+    mo = op.orient(m)
+    load = op.orient(rhs) + _ring_load(op, ring) * (2.0 if half else 1.0)   # ring load of the unscaled A
+    x = op.orient(T).copy()
+    total, worst = 0, 0.0
+    times, history = ([0.0], [T.copy()]) if save_every else (None, None)
+    every = progress_every or max(1, steps // 10)
+    t_batch = time.perf_counter()
+    for n in range(1, steps + 1):
+        b = mo * x + load
+        if half:
+            b -= steady.apply(x)        # (M/dt - A/2) T_n + b with op = M/dt + A/2 (its A already halved)
+        x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
+        total += it
+        worst = max(worst, rel)
+        if rel > tol and not allow_unconverged:
+            raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
+                                    f"after {it} iterations")
+        if save_every and n % save_every == 0:
+            times.append(n * dt)
+            history.append(op.orient(x).copy())
+        if progress and (n % every == 0 or n == steps):
+            progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
+                     f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
+            t_batch = time.perf_counter()
+    info = _info(problem, op, total, worst, tol, backend="cpu")
+    info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
+    info["residual_note"] = "largest relative residual over the steps"
+    out = op.orient(x)
+    return HeatResult(out, *problem.centres(), problem, info,
+                      times=None if times is None else np.asarray(times),
+                      history=None if history is None else np.stack(history))

@@ -1,0 +1,295 @@
+"""clothgrid.heat against physics (exact layered wall, manufactured solution, analytic transient, energy
+balance), against an independent sparse direct solve on 10^4 conductivity jumps, against FiPy, and the
+``clothgrid heat`` command line."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from clothgrid.cli import main
+from clothgrid.errors import BackendUnavailableError, InputError
+from clothgrid.heat import HeatProblem, convection, flux, parse_side, solve_steady, solve_transient
+
+
+# --- physics ---------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_layered_wall_is_series_resistances_exactly(axis):
+    """Three layers (k = 1, 0.01, 5 W/(m K)) between 34 C and 20 C: the heat flux is dT / sum(d_i / k_i)
+    and the temperature is piecewise linear; finite volumes with harmonic-mean faces are exact."""
+    n = 60
+    kx = np.r_[np.full(20, 1.0), np.full(20, 0.01), np.full(20, 5.0)]
+    L, W = 0.03, 0.004
+    dx = L / n
+    if axis == "x":
+        p = HeatProblem(np.repeat(kx[:, None], 8, 1), (L, W), left=34, right=20)
+    else:
+        p = HeatProblem(np.repeat(kx[None, :], 8, 0), (W, L), bottom=34, top=20)
+    res = solve_steady(p, tol=1e-13)
+    q = 14.0 / np.sum(dx / kx)                                  # W/m^2
+    exact = 34.0 - q * (np.cumsum(dx / kx) - dx / (2 * kx))     # at cell centres
+    T = res.temperature if axis == "x" else res.temperature.T
+    assert np.abs(T - exact[:, None]).max() < 1e-9
+    flows = res.heat_flows()
+    inflow, outflow = ("left", "right") if axis == "x" else ("bottom", "top")
+    assert flows[inflow] == pytest.approx(q * W, rel=1e-8)
+    assert flows[outflow] == pytest.approx(-q * W, rel=1e-8)
+    assert res.info["converged"] and res.info["residual"] <= 1e-13
+
+
+def _manufactured(n):
+    """T = sin(pi x) sin(pi y) on [0, 1] x [0, 0.5] (T = 0 on the sides at x = 0, 1 and y = 0; the top
+    side y = 0.5 has the flux k dT/dy = 0: insulated), k = 1 + x^2 y, q = -div(k grad T)."""
+    p0 = HeatProblem(1.0, (1.0, 0.5), cells=(n, n // 2))
+    x, y = p0.centres()
+    k = 1.0 + x**2 * y
+    s = np.sin(np.pi * x) * np.sin(np.pi * y)
+    tx = np.pi * np.cos(np.pi * x) * np.sin(np.pi * y)
+    ty = np.pi * np.sin(np.pi * x) * np.cos(np.pi * y)
+    q = -(2 * x * y * tx + x**2 * ty - 2 * np.pi**2 * k * s)
+    p = HeatProblem(k, (1.0, 0.5), left=0, right=0, bottom=0, source=q)
+    return p, s
+
+
+def test_manufactured_solution_converges_at_second_order():
+    errors = []
+    for n in (16, 32, 64, 128):
+        p, exact = _manufactured(n)
+        res = solve_steady(p, tol=1e-12)
+        errors.append(np.abs(res.temperature - exact).max())
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(o > 1.85 for o in orders), (errors, orders)
+    assert errors[-1] < 2e-4
+
+
+def test_transient_slab_against_the_series_solution():
+    """A slab at 20 C whose faces jump to 34 C (insulated top and bottom): the Fourier series
+    T = 34 + (20 - 34) sum_{m odd} 4/(m pi) sin(m pi x / L) exp(-alpha (m pi / L)^2 t)."""
+    L, n, k, rc = 0.01, 100, 0.05, 1.5e5      # alpha = k / (rho c) = 3.3e-7 m^2/s
+    alpha = k / rc
+    t_end = 0.1 * L**2 / alpha                 # Fourier number 0.1: several modes still alive
+    p = HeatProblem(k, (L, 0.001), left=34, right=34, capacity=rc, cells=(n, 4))
+    x = p.centres()[0][:, 0]
+    m = np.arange(1, 400, 2)[:, None]
+    series = 34 - 14 * np.sum(4 / (m * np.pi) * np.sin(m * np.pi * x / L)
+                              * np.exp(-alpha * (m * np.pi / L) ** 2 * t_end), axis=0)
+    errs = {}
+    for steps in (40, 80):
+        res = solve_transient(p, dt=t_end / steps, steps=steps, initial=20.0, scheme="backward-euler", tol=1e-11)
+        errs[steps] = np.abs(res.temperature[:, 0] - series).max()
+        assert np.ptp(res.temperature, axis=1).max() < 1e-8      # uniform along y
+    assert errs[80] < 0.06 and errs[80] < 0.6 * errs[40]       # first order in time: about halves
+
+
+def test_crank_nicolson_is_second_order_in_time():
+    """A single Fourier mode of the discrete operator decays like exp(-lambda t): Crank-Nicolson's error
+    falls 4x per halved step, backward Euler's 2x."""
+    L, n, k, rc = 0.01, 64, 0.05, 1.5e5
+    p = HeatProblem(k, (L, 0.002), left=0, right=0, capacity=rc, cells=(n, 4))
+    x = p.centres()[0]
+    dx = L / n
+    lam = (k / rc) * (2 - 2 * np.cos(np.pi * dx / L)) / dx**2     # eigenvalue of the discrete mode
+    mode = np.sin(np.pi * x / L)
+    t_end = 1.0 / lam
+    err = {}
+    for scheme in ("crank-nicolson", "backward-euler"):
+        for steps in (10, 20):
+            res = solve_transient(p, dt=t_end / steps, steps=steps, initial=mode, scheme=scheme, tol=1e-12)
+            err[scheme, steps] = np.abs(res.temperature - mode * np.exp(-lam * t_end)).max()
+    assert err["crank-nicolson", 10] / err["crank-nicolson", 20] > 3.7
+    assert 1.7 < err["backward-euler", 10] / err["backward-euler", 20] < 2.3
+    assert err["crank-nicolson", 20] < 1e-3
+
+
+def test_energy_balance_at_steady_state(rng):
+    """Heat in through the sides plus the sources is zero to the solver's tolerance (every boundary kind)."""
+    k = 10.0 ** rng.uniform(-1.5, 0.5, size=(48, 40))
+    q = rng.uniform(0, 2e4, size=(48, 40))
+    p = HeatProblem(k, (0.02, 0.015), left=34, right=convection(12.0, 20.0), bottom=flux(150.0),
+                    top="h=5,T=15", source=q)
+    res = solve_steady(p, tol=1e-12)
+    flows = res.heat_flows()
+    scale = max(abs(v) for v in flows.values())
+    assert abs(sum(flows.values())) < 1e-9 * scale
+    assert flows["bottom"] == pytest.approx(150.0 * 0.02)
+
+
+def _direct(p: HeatProblem) -> np.ndarray:
+    """Independent assembly (SciPy sparse, the same finite volumes) and a direct solve."""
+    nx, ny = p.cells
+    dx, dy = p.spacing
+    k = p.k
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    rows, cols, vals = [], [], []
+    diag = np.zeros((nx, ny))
+    b = np.asarray(p.source, dtype=float) * dx * dy * np.ones((nx, ny))
+    for (a, c, g) in ((idx[:-1], idx[1:], dy / dx * 2 * k[:-1] * k[1:] / (k[:-1] + k[1:])),
+                      (idx[:, :-1], idx[:, 1:], dx / dy * 2 * k[:, :-1] * k[:, 1:] / (k[:, :-1] + k[:, 1:]))):
+        rows += [a.ravel(), c.ravel()]
+        cols += [c.ravel(), a.ravel()]
+        vals += [-g.ravel(), -g.ravel()]
+        np.add.at(diag, np.unravel_index(a.ravel(), (nx, ny)), g.ravel())
+        np.add.at(diag, np.unravel_index(c.ravel(), (nx, ny)), g.ravel())
+    for side, sl, h, face in (("left", np.s_[0, :], dx, dy), ("right", np.s_[-1, :], dx, dy),
+                              ("bottom", np.s_[:, 0], dy, dx), ("top", np.s_[:, -1], dy, dx)):
+        s = getattr(p, side)
+        if s.kind == "temperature":
+            g = 2 * k[sl] * face / h
+        elif s.kind == "convection":
+            g = face / (h / (2 * k[sl]) + 1 / s.h)
+        else:
+            b[sl] += s.value * face
+            continue
+        diag[sl] += g
+        b[sl] += g * s.value
+    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny,) * 2)
+    A = A + sp.diags(diag.ravel())
+    return spla.spsolve(A.tocsc(), b.ravel()).reshape(nx, ny)
+
+
+@pytest.mark.parametrize("case", ["blocks", "fabric", "inclusion-insulated-v"])
+def test_conductivity_jumps_of_1e4_converge(case, rng):
+    """Conductivity 0.025 (air) against 250 W/(m K): contrast 10^4, in random blocks, in layers and around an
+    inclusion, with the V-cycle alone stalling (0.9 per cycle); PCG meets 1e-11 and matches a direct solve."""
+    n = 128
+    if case == "blocks":
+        k = np.where(rng.random((n // 8, n // 8)) < 0.5, 0.025, 250.0).repeat(8, 0).repeat(8, 1)
+        sides = dict(left=34, right="h=10,T=20", bottom=30)
+    elif case == "fabric":
+        k = np.full((n, n), 0.025)
+        for a in range(8, n, 32):
+            k[:, a:a + 12] = 250.0
+        sides = dict(bottom=34, top="h=10,T=20")
+    else:
+        k = np.full((n, n), 0.025)
+        k[n // 3:n // 2, n // 4:3 * n // 4] = 250.0
+        sides = dict(left=34, right=20)     # insulated bottom and top
+    p = HeatProblem(k, (0.01, 0.01), **sides)
+    res = solve_steady(p, tol=1e-11, max_iter=300)
+    assert res.info["converged"] and res.info["residual"] <= 1e-11
+    assert res.info["iterations"] < 150      # the residual-to-error amplification is ~cond(A) ~ 1e8 here
+    ref = _direct(p)
+    assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
+
+
+def test_error_bound_holds():
+    p = HeatProblem(np.r_[np.full(16, 1.0), np.full(16, 1e-3)][:, None].repeat(24, 1), (0.01, 0.01),
+                    left=34, right="h=10,T=20", top=25)
+    res = solve_steady(p, tol=1e-6, error_bound=True)
+    err = np.abs(res.temperature - _direct(p)).max()
+    assert err <= res.info["error_bound"] < 1.0
+
+
+def test_inputs_are_checked(tmp_path):
+    with pytest.raises(InputError, match="needs a side"):
+        solve_steady(HeatProblem(1.0, (1, 1), cells=(4, 4), left="q=3"))
+    with pytest.raises(InputError, match="positive"):
+        HeatProblem(np.array([[1.0, 0.0]]), (1, 1))
+    with pytest.raises(InputError, match="shape"):
+        HeatProblem(np.ones((3, 3)), (1, 1), source=np.ones((2, 2)))
+    with pytest.raises(InputError, match="invalid side"):
+        parse_side("h=10")
+    with pytest.raises(InputError, match="heat capacity"):
+        solve_transient(HeatProblem(1.0, (1, 1), cells=(4, 4), left=1), dt=1, steps=1)
+    with pytest.raises(BackendUnavailableError, match="cpu backend only"):
+        solve_steady(HeatProblem(1.0, (1, 1), cells=(4, 4), left=1), backend="gl")
+    assert parse_side("h=10,T=20") == convection(10, 20) and parse_side("q=0") == flux(0)
+
+
+def test_image_conductivity(tmp_path):
+    import matplotlib.image as mpimg
+
+    img = np.zeros((4, 6))      # 4 rows (y), 6 columns (x); top row white
+    img[0] = 1.0
+    mpimg.imsave(tmp_path / "k.png", img, cmap="gray", vmin=0, vmax=1)
+    from clothgrid.heat import load_field
+
+    k = load_field(tmp_path / "k.png", name="k", value_range=(0.03, 0.3))
+    assert k.shape == (6, 4)
+    assert np.allclose(k[:, -1], 0.3) and np.allclose(k[:, :-1], 0.03)
+
+
+# --- against FiPy ----------------------------------------------------------------------------------------
+
+def test_agrees_with_fipy(rng):
+    """The same problem in FiPy (harmonic face conductivities, fixed values on two sides, a flux, sources):
+    both are second-order cell-centred finite volumes, so they agree far below the discretisation error."""
+    fipy = pytest.importorskip("fipy")
+    nx, ny, Lx, Ly = 40, 30, 0.01, 0.0075
+    k = np.where(rng.random((nx // 5, ny // 5)) < 0.5, 0.04, 0.4).repeat(5, 0).repeat(5, 1)
+    q = rng.uniform(0, 5e4, size=(nx, ny))
+    p = HeatProblem(k, (Lx, Ly), left=34, right=20, bottom="q=200", source=q)
+    ours = solve_steady(p, tol=1e-12).temperature
+
+    mesh = fipy.Grid2D(dx=Lx / nx, dy=Ly / ny, nx=nx, ny=ny)
+    T = fipy.CellVariable(mesh=mesh, value=20.0)
+    kc = fipy.CellVariable(mesh=mesh, value=k.T.ravel())           # FiPy: x fastest
+    T.constrain(34.0, mesh.facesLeft)
+    T.constrain(20.0, mesh.facesRight)
+    kf = kc.harmonicFaceValue
+    j = np.zeros((2, mesh.numberOfFaces))
+    j[1, np.asarray(mesh.facesBottom)] = 200.0                      # heat flux vector +y: 200 W/m2 in
+    inflow = fipy.FaceVariable(mesh=mesh, value=j, rank=1)
+    src = fipy.CellVariable(mesh=mesh, value=q.T.ravel())
+    eq = fipy.DiffusionTerm(coeff=kf) + src - inflow.divergence == 0
+    eq.solve(var=T, solver=fipy.LinearLUSolver())
+    theirs = np.asarray(T.value).reshape(ny, nx).T
+    assert np.abs(ours - theirs).max() < 1e-7 * np.ptp(ours)
+
+
+# --- command line ----------------------------------------------------------------------------------------
+
+def test_cli_writes_temperature_x_y(tmp_path, capsys):
+    k = np.full((50, 20), 0.04)
+    k[20:30] = 0.4
+    np.save(tmp_path / "k.npy", k)
+    out = tmp_path / "t.npz"
+    code = main(["heat", "--conductivity", str(tmp_path / "k.npy"), "--size", "0.01x0.004", "--left", "34",
+                 "--right", "20", "-o", str(out), "-o", str(tmp_path / "t.vts"), "-o", str(tmp_path / "t.png"),
+                 "-q"])
+    assert code == 0
+    with np.load(out) as f:
+        T, x, y = f["temperature"], f["x"], f["y"]
+    assert T.shape == x.shape == y.shape == (50, 20)
+    assert x[0, 0] == pytest.approx(0.0001) and y[0, -1] == pytest.approx(0.0039)
+    assert 20 < T.min() < T.max() < 34
+    assert (tmp_path / "t.vts").read_text().count("<DataArray") == 3
+    assert (tmp_path / "t.png").stat().st_size > 1000
+    assert "heat in" in capsys.readouterr().out
+
+
+def test_cli_transient(tmp_path):
+    out = tmp_path / "t.npz"
+    assert main(["heat", "--conductivity", "0.05", "--cells", "20x4", "--size", "0.01x0.002", "--left", "34",
+                 "--right", "h=10,T=20", "--capacity", "1.5e5", "--dt", "5", "--steps", "6", "--save-every", "2",
+                 "--scheme", "backward-euler", "-o", str(out), "-q"]) == 0
+    with np.load(out) as f:
+        assert f["history"].shape == (4, 20, 4) and np.allclose(f["times"], [0, 10, 20, 30])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--conductivity", "-1", "--cells", "4x4", "--left", "34"], "must be positive"),
+    (["--conductivity", "nofile.npy", "--left", "34"], "no such file"),
+    (["--conductivity", "1", "--cells", "4x4"], "needs a side"),
+    (["--conductivity", "1", "--cells", "4x4", "--left", "h=3"], "invalid side"),
+    (["--conductivity", "1", "--cells", "4x4", "--left", "34", "--backend", "gl"], "cpu backend only"),
+    (["--conductivity", "1", "--cells", "4x4", "--left", "34", "--dt", "1"], "both --dt and --steps"),
+])
+def test_cli_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys, args, message):
+    out = tmp_path / "t.npz"
+    code = main(["heat", "--size", "0.01x0.01", *args, "-o", str(out), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith("clothgrid: error:") and message in err[0]
+    assert not out.exists()
+
+
+def test_cli_unknown_output_format(tmp_path, capsys):
+    code = main(["heat", "--size", "1x1", "--conductivity", "1", "--cells", "4x4", "--left", "1",
+                 "-o", str(tmp_path / "t.obj")])
+    assert code == 2 and "unknown heat output format" in capsys.readouterr().err
