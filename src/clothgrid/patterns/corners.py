@@ -348,7 +348,8 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
 def grid_score(points: np.ndarray) -> float:
     """Higher is better: folds first, then the smallest and mean corner sines, then the edge spread.
 
-    The four grid-corner cells are left out (their angle is the outline's).
+    The four grid-corner cells count for folds (a corner on a concave point
+    folds its cell) but not for the angles (their angle is the outline's).
     """
     from ..foldfree_kernels import cell_min_sine
     from ..quality import sim_figures
@@ -360,7 +361,7 @@ def grid_score(points: np.ndarray) -> float:
     if not mask.any():
         mask[:] = True
     sv = s[mask]
-    folded = float(np.mean(sv <= 0))
+    folded = float(np.mean(s <= 0))       # a corner cell folds where its corner is concave
     if folded > 0:
         return -10.0 - folded
     spread = sim_figures(points)["edge_spread"]
@@ -580,31 +581,37 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
     s, perimeter = _closed_arc(outline, darts)
     tps = [c.index for c in cands if c.turn_point]
     geo = [c.index for c in cands]
-    k_desc = (f"{len(tps)} turn point{'s' if len(tps) != 1 else ''}" if tps
-              else f"{len(geo)} corner candidate{'s' if len(geo) != 1 else ''} "
-                   f"(turns of {min_turn:g}° or more)")
     inserted: list[int] = []
     pool = tps if len(tps) >= 4 else geo if len(geo) >= 4 else None
-    dart_note = ""
-    if pool is not None and mouths:
+    from_tps = pool is tps
+    notes: list[str] = []
+    if pool is not None and len(pool) > 4:
+        convex = [i for i in pool if turn[i] > 0]     # a grid corner on a concave point folds its cell
+        if 4 <= len(convex) < len(pool):
+            notes.append(f"concave points {_fmt_idx(i for i in pool if turn[i] <= 0)} are not corners")
+            pool = convex
+    if pool is not None and mouths and any(i in mouths for i in pool):
         rest = [i for i in pool if i not in mouths]
         if len(rest) >= 4:
             pool = rest
-            dart_note = (f"; dart mouths {_fmt_idx(mouths)} are not corners "
+            notes.append(f"dart mouths {_fmt_idx(mouths)} are not corners "
                          f"({len(darts)} dart{'s' if len(darts) != 1 else ''})")
         else:
             q = q.copy()
             q[mouths] *= 0.25
+    if pool is not None:
+        kind = ("turn point" if from_tps else "corner candidate")
+        what = f"{len(pool)} {kind}{'s' if len(pool) != 1 else ''}" + (
+            "" if from_tps else f" (turns of {min_turn:g}° or more"
+            + (f"; {len(tps)} turn points in the file)" if tps else ")"))
+    dart_note = "".join("; " + n for n in notes)
     if pool is not None and len(pool) == 4:
         chosen = sorted(pool)
-        method = "turn-points" if pool is tps else "candidates"
-        message = f"the {k_desc} are the corners"
+        method = "turn-points" if from_tps else "candidates"
+        message = f"the {what} are the corners"
     elif pool is not None:
         chosen, method = _best_four(pool, q, s, perimeter, outline), "scored"
         left = [i for i in pool if i not in chosen]
-        what = (k_desc if pool is tps
-                else f"{len(pool)} corner candidates (turns of {min_turn:g}° or more"
-                     + (f", {len(tps)} of them turn points)" if tps else ")"))
         message = (f"chose 4 of {what} by score (right-angled convex corners, opposite "
                    f"sides of similar length); left out outline indices {_fmt_idx(left)}")
     if pool is not None:
