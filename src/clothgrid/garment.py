@@ -187,7 +187,7 @@ def _bottom_first(pts: np.ndarray) -> int:
     return k_best
 
 
-def _choose_corners(lay: _Layout, given: Sequence[int] | None) -> None:
+def _choose_corners(lay: _Layout, given: Sequence[Any] | None) -> None:
     """Four corners on the counter-clockwise loop: panel vertices, or edge middles if too few."""
     from .patterns import choose_corners
     from .patterns.piece import piece_from_polygon
@@ -203,6 +203,19 @@ def _choose_corners(lay: _Layout, given: Sequence[int] | None) -> None:
         count += len(pts) - 1
     outline = np.concatenate(parts)
     start_vertex = [spec.edges[e].end if rev else spec.edges[e].start for e, rev in ccw]
+    if given is not None and any(isinstance(c, tuple) for c in given):
+        # (edge, fraction of that edge in its own direction): an SVG / DXF piece's corners
+        pos = {e: (k, rev) for k, (e, rev) in enumerate(ccw)}
+        at = []
+        for e, f in given:
+            k, rev = pos[e]
+            f = 1.0 - f if rev else f
+            at.append(((k + 1) % len(ccw), 0.0) if f >= 1.0 else (k, f))
+        order = sorted(at)
+        first = order.index(at[0])
+        lay.corners = order[first:] + order[:first]
+        lay.corner_method = "pattern"
+        return
     if given is not None:
         where = {v: k for k, v in enumerate(start_vertex)}
         bad = [v for v in given if v not in where]
@@ -268,13 +281,15 @@ def _parse_corners(corners: Any) -> dict[str, list[int]]:
 
 def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm", units: str | None = None,
             corners: Any = None, fixed: dict[tuple[str, int], int] | None = None,
+            stitches: str | Path | None = None,
             progress: Callable[[str], None] | None = None, **generate_options: Any) -> Garment:
-    """Grid, sew and place every panel of a GarmentCode specification.
+    """Grid, sew and place every panel of a GarmentCode specification (or a stitched SVG / DXF pattern).
 
     Parameters
     ----------
     spec : path or GarmentSpec
-        A GarmentCode / Garment-Pattern-Generator ``*_specification.json``.
+        A GarmentCode / Garment-Pattern-Generator ``*_specification.json``, or
+        an ``.svg`` / ``.dxf`` pattern with ``stitches``.
     edge_length : float or str
         Target grid edge length (mm, or text with a unit: ``"1cm"``).
     units : str, optional
@@ -286,6 +301,12 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         automatic corners make the node counts conflict.
     fixed : dict, optional
         ``(panel, edge) -> intervals``: fix the count of a spec edge (not split).
+    stitches : path, optional
+        The JSON stitches file of an SVG / DXF pattern
+        (:mod:`clothgrid.garment_stitches`): its seams, pieces and placement.
+        The pieces' grid corners are :func:`clothgrid.patterns.choose_corners`'
+        unless ``corners`` gives others (vertex indices of the garment panel:
+        the cuts of its outline, ``info["panels"][i]["corner_vertices"]``).
     progress : callable, optional
         Receives progress lines.
     **generate_options
@@ -303,9 +324,21 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
 
     say = progress or (lambda _m: None)
     t_start = time.perf_counter()
-    gs = spec if isinstance(spec, GarmentSpec) else read_garment_spec(spec, units=units)
     h = parse_length(edge_length, "mm", what="edge length")
-    given = _parse_corners(corners)
+    given: dict[str, Any] = {}
+    if isinstance(spec, GarmentSpec):
+        gs = spec
+    elif stitches is not None:
+        from .garment_stitches import read_stitched_pattern
+
+        sp = read_stitched_pattern(spec, stitches, edge_length=h, units=units)
+        gs, given = sp.spec, dict(sp.corners)
+    elif Path(spec).suffix.lower() in (".svg", ".dxf"):
+        raise InputError(f"{spec}: SVG and DXF patterns carry no stitches: give them in a JSON file "
+                         "(--stitches FILE, stitches=...; docs/garment.md)")
+    else:
+        gs = read_garment_spec(spec, units=units)
+    given.update(_parse_corners(corners))
     unknown = [n for n in given if n not in gs.panels]
     if unknown:
         raise InputError(f"corners given for unknown panel(s) {', '.join(map(repr, unknown))}; the panels "
