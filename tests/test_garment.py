@@ -374,3 +374,38 @@ def test_example_stitches_cathrin_corset(tmp_path, capsys):
     rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
     assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 1
     assert rep["euler"] == 1                                 # one sheet (a disk): the corset laid open
+
+
+def test_triangle_panel_flat_corner_and_its_triangles(tmp_path):
+    """A godet (a straight-sided triangle) sewn into a slit: its fourth grid corner sits on a straight
+    side (no fold-free single-block grid exists: four corners need four points where the boundary
+    turns), so exactly that one corner cell has a 180 degree angle; every other cell is unfolded, and
+    the triangles cut that cell through the flat corner (no triangle of zero area)."""
+    from clothgrid.garment import flat_corners, split_quads
+
+    godet = {"vertices": [[0, 0], [10, 0], [5, 15]],
+             "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]}, {"endpoints": [2, 0]}],
+             "translation": [0, 0, 0], "rotation": [0, 0, 0]}
+    panels = {"G": godet, "A": _square("A", 0, [20, 0, 0], size=16)}
+    path = _write(tmp_path, panels, [[{"panel": "G", "edge": 1}, {"panel": "A", "edge": 3}]])
+    g = garment(path, edge_length="1cm")
+    info = {p["name"]: p for p in g.info["panels"]}
+    assert len(info["G"]["flat_corners"]) == 1 and info["A"]["flat_corners"] == []
+    nu, nv = g.shapes[0]
+    P = g.grids[0].points.reshape(nu, nv, -1)[..., :2]
+    c = (P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:])
+
+    def cross(a, b):
+        return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+    J = np.min([cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k]) for k in range(4)], axis=0)
+    corner = [(0, 0), (-1, 0), (-1, -1), (0, -1)][info["G"]["flat_corners"][0]]
+    assert abs(J[corner]) <= 1e-9 * np.abs(J).max()          # the flat corner: J = 0 to rounding
+    J[corner] = np.inf
+    assert J.min() > 0                                       # every other cell unfolded
+    t = g.rest[split_quads(g.quads, g.rest)]
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    area = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / 2
+    assert area.min() > 1e-3 * area.max()
+    np.testing.assert_array_equal(g.triangles, split_quads(g.quads, g.rest))
+    assert flat_corners(g.grids[1].points.reshape(*g.shapes[1], -1)) == []

@@ -42,7 +42,7 @@ from .geometry import signed_area
 from .patterns.garmentcode import GarmentSpec, SpecPanel, read_garment_spec
 from .units import parse_length
 
-__all__ = ["Garment", "garment", "euler_xyz_to_R", "SEAM", "GARMENT_SPRING_KINDS", "write_garment"]
+__all__ = ["Garment", "garment", "euler_xyz_to_R", "split_quads", "flat_corners", "SEAM", "GARMENT_SPRING_KINDS", "write_garment"]
 
 #: the spring kind code of the zero-length seam springs (after structural 0, shear 1, bend 2)
 SEAM = 3
@@ -61,6 +61,46 @@ def euler_xyz_to_R(angles_deg: Sequence[float]) -> np.ndarray:
     ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
     rz = np.array([[math.cos(c), -math.sin(c), 0], [math.sin(c), math.cos(c), 0], [0, 0, 1]])
     return rz @ ry @ rx
+
+
+def split_quads(quads: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``(2F, 3)`` triangles of quads: along the first diagonal (corners 0-2), or along the other
+    one (1-3) where the first would make a triangle of no area.
+
+    A triangular panel's fourth grid corner sits on a straight side, so the grid cell there has a
+    180 degree angle; cut along the diagonal through that corner both triangles keep an area
+    (the other diagonal runs along the side). ``xy`` are the flat (rest) coordinates.
+    """
+    q = np.asarray(quads, dtype=np.int64)
+    p = np.asarray(xy, dtype=np.float64)[q]
+
+    def area(i: int, j: int, k: int) -> np.ndarray:
+        a, b = p[:, j] - p[:, i], p[:, k] - p[:, i]
+        return 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+
+    total = area(0, 1, 2) + area(0, 2, 3)
+    sign = np.where(total < 0, -1.0, 1.0)
+    tiny = 1e-9 * np.abs(total)
+    first = np.minimum(area(0, 1, 2) * sign, area(0, 2, 3) * sign)
+    other = np.minimum(area(0, 1, 3) * sign, area(1, 2, 3) * sign)
+    swap = (first <= tiny) & (other > first)
+    t = np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1)
+    t[swap] = np.stack([q[swap][:, [0, 1, 3]], q[swap][:, [1, 2, 3]]], axis=1)
+    return t.reshape(-1, 3)
+
+
+def flat_corners(grid_points: np.ndarray, max_deg: float = 179.0) -> list[int]:
+    """Grid corners (0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left) where the boundary
+    does not turn (its angle at least ``max_deg``): a triangle's fourth corner on a straight side."""
+    P = np.asarray(grid_points, dtype=np.float64)
+    out = []
+    for k, (c, a, b) in enumerate((((0, 0), (1, 0), (0, 1)), ((-1, 0), (-1, 1), (-2, 0)),
+                                   ((-1, -1), (-2, -1), (-1, -2)), ((0, -1), (0, -2), (1, -1)))):
+        u, v = P[a] - P[c], P[b] - P[c]
+        cos = float(u @ v / (np.linalg.norm(u) * np.linalg.norm(v)))
+        if cos <= math.cos(math.radians(max_deg)):
+            out.append(k)
+    return out
 
 
 @dataclass
@@ -120,9 +160,8 @@ class Garment:
 
     @property
     def triangles(self) -> np.ndarray:
-        """``(2F, 3)``: every quad cut along its first diagonal (same orientation)."""
-        q = self.quads
-        return np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+        """``(2F, 3)``: every quad cut in two triangles (same orientation), see :func:`split_quads`."""
+        return split_quads(self.quads, self.rest)
 
     def weld_map(self) -> np.ndarray:
         """``(N,)`` welded vertex of every grid node (stitched nodes merged)."""
@@ -502,9 +541,11 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         offsets.append(offsets[-1] + nu * nv)
         qual = quality(grid)
         figs = sim_figures(grid.points, h)
+        flat = flat_corners(grid.points)
         per_panel.append({"name": name, "nodes": [nu, nv], "corners": lay.corner_method,
                           "corner_vertices": _corner_names(lay), "flipped": lay.flipped,
                           "functional": grid.info.get("functional"), "folded": int(qual.folded),
+                          "flat_corners": flat,
                           "min_angle_deg": figs.get("min_angle_deg"), "edge_spread": figs.get("edge_spread"),
                           "boundary_drift": drift, "seconds": grid.info.get("seconds")})
         say(f"{name}: {nu} x {nv} nodes, corners {lay.corner_method}, {qual.folded} folded")
