@@ -409,3 +409,41 @@ def test_triangle_panel_flat_corner_and_its_triangles(tmp_path):
     assert area.min() > 1e-3 * area.max()
     np.testing.assert_array_equal(g.triangles, split_quads(g.quads, g.rest))
     assert flat_corners(g.grids[1].points.reshape(*g.shapes[1], -1)) == []
+
+
+# --------------------------------------------------------------------------- USD
+
+
+@pytest.mark.parametrize("suffix, seams", [(".usda", "keep"), (".usd", "weld")])
+def test_usd_output_reads_back(tmp_path, capsys, suffix, seams):
+    """One UsdGeom.Mesh: points, quads, face-varying st = the rest coordinates, a GeomSubset per panel."""
+    pytest.importorskip("pxr", reason="usd-core is not installed (optional extra clothgrid[usd]; 157 MB, "
+                                      "so not in the test extra)")
+    from pxr import Usd, UsdGeom
+
+    svg, st = _stitched(tmp_path)
+    out, npz = tmp_path / f"g{suffix}", tmp_path / "g.npz"
+    assert main(["garment", str(svg), "--stitches", str(st), "-o", str(out), "-o", str(npz),
+                 "--edge-length", "2cm", "--seams", seams, "-q"]) == 0, capsys.readouterr().err
+    with np.load(npz) as d:
+        r = {k: d[k] for k in d.files}
+    stage = Usd.Stage.Open(str(out))
+    assert UsdGeom.GetStageUpAxis(stage) == "Y" and UsdGeom.GetStageMetersPerUnit(stage) == 0.001
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Cloth"))
+    pts = np.asarray(mesh.GetPointsAttr().Get())
+    faces = np.asarray(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 4)
+    assert (np.asarray(mesh.GetFaceVertexCountsAttr().Get()) == 4).all()
+    if seams == "weld":
+        np.testing.assert_allclose(pts, r["welded_points"], atol=1e-3)
+        np.testing.assert_array_equal(faces, r["welded_quads"])
+    else:
+        np.testing.assert_allclose(pts, r["points"], atol=1e-3)
+        np.testing.assert_array_equal(faces, r["quads"])
+    pv = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    assert pv.GetInterpolation() == UsdGeom.Tokens.faceVarying
+    np.testing.assert_allclose(np.asarray(pv.Get()), r["rest"][r["quads"].reshape(-1)], atol=1e-3)
+    subsets = UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "panel")
+    assert [s.GetPrim().GetCustomDataByKey("clothgrid:panel") for s in subsets] == list(r["panel_names"])
+    for pi, s in enumerate(subsets):
+        np.testing.assert_array_equal(np.asarray(s.GetIndicesAttr().Get()), np.flatnonzero(r["face_panel"] == pi))
+    assert UsdGeom.Subset.ValidateSubsets(subsets, len(faces), UsdGeom.Tokens.partition)[0]

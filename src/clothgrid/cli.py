@@ -250,7 +250,8 @@ def _add_garment_parser(sub: Any) -> None:
     p.add_argument("input", metavar="SPEC", help="GarmentCode *_specification.json, or an .svg / .dxf pattern "
                                                 "with --stitches")
     p.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
-                   help="output file, .npz or .obj; repeatable")
+                   help="output file, .npz, .obj or USD (.usda, .usd: needs usd-core, the extra "
+                        "clothgrid[usd]); repeatable")
     p.add_argument("--edge-length", default="10mm", metavar="LEN",
                    help="target grid edge length, e.g. 1cm, 5mm (a plain number: mm; default 10mm)")
     p.add_argument("--seams", choices=("keep", "weld"), default="keep",
@@ -277,9 +278,13 @@ def _cmd_garment(args: argparse.Namespace) -> int:
 
     outs = [Path(o) for o in args.output]
     for o in outs:
-        if o.suffix.lower() not in (".npz", ".obj"):
+        if o.suffix.lower() not in (".npz", ".obj", ".usda", ".usd", ".usdc"):
             raise InputError(f"unknown garment output format {o.suffix or '(no extension)'!r} for "
-                             f"{str(o)!r}: use .npz or .obj")
+                             f"{str(o)!r}: use .npz, .obj, .usda or .usd")
+        if o.suffix.lower() in (".usda", ".usd", ".usdc"):
+            from .garment_usd import _pxr
+
+            _pxr()                      # usd-core missing: say so before gridding
         if not o.parent.is_dir():
             raise InputError(f"output folder {str(o.parent)!r} does not exist (for {str(o)!r})")
     t0 = time.perf_counter()

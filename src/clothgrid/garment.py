@@ -207,7 +207,7 @@ class Garment:
         return mesh_report(self.quads, len(self.points))
 
     def save(self, path: str | Path, *, seams: str = "keep", density: float | str | None = None) -> Path:
-        """Write ``.npz`` or ``.obj`` (atomic): see :func:`write_garment`."""
+        """Write ``.npz``, ``.obj`` or USD (atomic): see :func:`write_garment`."""
         return write_garment(self, path, seams=seams, density=density)
 
 
@@ -579,7 +579,7 @@ def _corner_names(lay: _Layout) -> str:
 
 def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
                   density: float | str | None = None) -> Path:
-    """Write a garment to ``.npz`` or ``.obj``, atomically.
+    """Write a garment to ``.npz``, ``.obj`` or USD (``.usda``, ``.usd``, ``.usdc``), atomically.
 
     ``.npz``: ``points`` (N, 3) placed, ``rest`` (N, 2), ``panel`` (N,), ``panel_names``,
     ``shapes``, ``quads``, ``triangles``, ``stitches`` (S, 2), ``stitch_id`` (S,),
@@ -588,6 +588,7 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
     also ``weld_map`` (N,), ``welded_points``, ``welded_quads``, ``welded_triangles``.
     ``.obj``: one group per panel, ``vt`` the rest coordinates (mm) of every grid node; with
     ``seams="weld"`` the welded vertices (faces still carry each panel's own ``vt``).
+    USD: :func:`clothgrid.garment_usd.write_garment_usd` (needs ``usd-core``).
     """
     from .writers import atomic_write, info_json
 
@@ -631,5 +632,9 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
         with atomic_write(path) as fh:
             fh.write("".join(lines).encode("utf-8"))
         return path
+    if suffix in (".usda", ".usd", ".usdc"):
+        from .garment_usd import write_garment_usd
+
+        return write_garment_usd(g, path, seams=seams)
     raise InputError(f"unknown garment output format {path.suffix or '(no extension)'!r} for {str(path)!r}: "
-                     "use .npz or .obj")
+                     "use .npz, .obj, .usda or .usd")
