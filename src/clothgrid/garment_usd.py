@@ -27,14 +27,11 @@ from __future__ import annotations
 import re
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from .errors import InputError
-
-if TYPE_CHECKING:
-    from .garment import Garment
 
 __all__ = ["write_garment_usd", "USD_SUFFIXES"]
 
@@ -64,8 +61,10 @@ def prim_name(name: str, taken: set[str]) -> str:
     return out
 
 
-def write_garment_usd(g: "Garment", path: str | Path, *, seams: str = "keep") -> Path:
-    """Write ``g`` as a USD stage (``.usda`` text, ``.usd`` / ``.usdc`` crate), atomically."""
+def write_garment_usd(g: Any, path: str | Path, *, seams: str = "keep") -> Path:
+    """Write a :class:`clothgrid.garment.Garment` as a USD stage (``.usda`` text, ``.usd`` /
+    ``.usdc`` crate), atomically. (``g`` is typed ``Any``: ``garment.py`` imports this module, and
+    imports run one way, ``tests/test_architecture.py``.)"""
     from .writers import atomic_write
 
     pxr = _pxr()
