@@ -40,11 +40,12 @@ USD_SUFFIXES = (".usda", ".usd", ".usdc")
 
 def _pxr() -> Any:
     try:
-        from pxr import Gf, Sdf, Usd, UsdGeom, Vt  # noqa: F401
+        import pxr.Sdf
+        import pxr.Usd
+        import pxr.UsdGeom
+        import pxr.Vt
     except ImportError:
         raise InputError("USD output needs usd-core: pip install 'clothgrid[usd]' (or pip install usd-core)") from None
-    import pxr
-
     return pxr
 
 
