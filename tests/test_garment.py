@@ -254,3 +254,196 @@ def test_bad_stitches_are_input_errors(tmp_path):
                      ([[{"panel": "A", "edge": 0}, {"panel": "A", "edge": 1}, "wrong"]], "right_wrong"):
         with pytest.raises(InputError, match=what):
             read_garment_spec(_write(tmp_path, panels, bad))
+
+
+# --------------------------------------------------------------------------- SVG / DXF with a stitches file
+
+EXAMPLES = Path(__file__).parents[1] / "examples"
+CATHRIN = SHARED / "fs_cathrin_layout.svg"
+
+SQUARES_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" viewBox="0 0 300 200">
+<path id="A" d="M 10 110 L 110 110 L 110 10 L 10 10 Z" fill="none" stroke="black"/>
+<path id="B" d="M 150 110 L 250 110 L 250 10 L 200 10 L 190 80 L 180 10 L 150 10 Z" fill="none" stroke="black"/>
+</svg>"""
+# A: (10, 90) (110, 90) (110, 190) (10, 190); B: (150, 90) (250, 90) (250, 190) (200, 190), dart tip (190, 120),
+# (180, 190) (150, 190): outline indices in that (counter-clockwise) order
+SQUARES_SEAMS = {"clothgrid_stitches": 1, "seams": [
+    {"a": {"piece": "A", "range": [1, 2]}, "b": {"piece": "B", "range": [6, 0]}, "label": "A's right ~ B's left"},
+    {"a": {"piece": "B", "range": [3, 4]}, "b": {"piece": "B", "range": [4, 5]}, "label": "B's dart"}]}
+
+
+def _stitched(tmp_path, seams=SQUARES_SEAMS):
+    svg = tmp_path / "squares.svg"
+    svg.write_text(SQUARES_SVG)
+    st = tmp_path / "stitches.json"
+    st.write_text(json.dumps(seams) if not isinstance(seams, str) else seams)
+    return svg, st
+
+
+def _check_seams_node_for_node(r, stitches_file, pattern):
+    """Every seam of the file: equal counts, its nodes at the range's ends, matching fractions."""
+    from clothgrid.readers import read_pieces
+
+    pieces = {p.name: p for p in read_pieces(pattern)}
+    names = list(r["panel_names"])
+    seams = json.loads(Path(stitches_file).read_text())["seams"]
+    assert set(np.unique(r["stitch_id"])) == set(range(len(seams)))
+    for k, seam in enumerate(seams):
+        pairs = r["stitches"][r["stitch_id"] == k]
+        fr = []
+        for col, side in enumerate((seam["a"], seam["b"])):
+            o = pieces[side["piece"]].outline
+            i, j = side["range"]
+            idx = np.arange(i, j + 1) if j > i else np.r_[np.arange(i, len(o)), np.arange(0, j + 1)]
+            pts = o[idx]
+            poly = (pts, np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))]))
+            nodes = pairs[:, col]
+            assert (r["panel"][nodes] == names.index(side["piece"])).all()
+            f, dist = fractions_of(poly, r["rest"][nodes])
+            assert dist.max() <= 1e-9 * pieces[side["piece"]].size
+            fr.append(f)
+        fa, fb = fr
+        assert fa[0] == pytest.approx(0, abs=1e-12) and fa[-1] == pytest.approx(1, abs=1e-12)
+        np.testing.assert_allclose(fb, fa if seam.get("right_wrong") else 1.0 - fa, atol=1e-9)
+    return pieces
+
+
+def test_stitches_file_sews_svg_pieces_and_a_dart(tmp_path, capsys):
+    svg, st = _stitched(tmp_path)
+    out = tmp_path / "g.npz"
+    assert main(["garment", str(svg), "--stitches", str(st), "-o", str(out), "--edge-length", "1cm",
+                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
+    with np.load(out) as d:
+        r = {k: d[k] for k in d.files}
+    _check_seams_node_for_node(r, st, svg)
+    # no placement: the pieces stay where the file draws them
+    np.testing.assert_array_equal(r["points"][:, :2], r["rest"])
+    assert (r["points"][:, 2] == 0).all()
+    # the seam joins A's right side to B's left side end to start: A (110, 90) ~ B's (150, 90)
+    pr = r["stitches"][r["stitch_id"] == 0]
+    np.testing.assert_allclose(r["rest"][pr[0]], [[110, 90], [150, 90]])
+    assert len(pr) == 11                                    # 100 mm at 1 cm
+    # the dart: its mouth (200, 190) ~ (180, 190), its tip paired with itself
+    dart = r["stitches"][r["stitch_id"] == 1]
+    np.testing.assert_allclose(r["rest"][dart[0]], [[200, 190], [180, 190]])
+    assert dart[-1, 0] == dart[-1, 1] and np.allclose(r["rest"][dart[-1, 0]], [190, 120])
+    assert json.loads(str(r["info"]))["panels"][1]["folded"] == 0
+    rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
+    assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 1
+
+
+@pytest.mark.parametrize("content, what", [
+    ("{not json", "invalid JSON"),
+    ({"seams": []}, "non-empty list"),
+    ({"seams": [{"a": {"piece": "Z", "range": [0, 1]}, "b": {"piece": "A", "range": [1, 2]}}]}, "no piece 'Z'"),
+    ({"seams": [{"a": {"piece": "A", "range": [0, 9]}, "b": {"piece": "B", "range": [6, 0]}}]}, "out of range"),
+    ({"seams": [{"a": {"piece": "A", "range": [1, 1]}, "b": {"piece": "B", "range": [6, 0]}}]}, "is empty"),
+    ({"seams": [{"a": {"piece": "A", "range": [0, 2]}, "b": {"piece": "A", "range": [1, 3]}}]}, "overlap"),
+    ({"seams": [{"a": {"piece": "A", "range": [1, 2]}, "b": {"piece": "B", "range": [6, 0]},
+                 "right_wrong": "yes"}]}, "right_wrong"),
+    ({"clothgrid_stitches": 7, "seams": [{"a": {}, "b": {}}]}, "version"),
+])
+def test_bad_stitches_file_is_one_error_line(tmp_path, capsys, content, what):
+    svg, st = _stitched(tmp_path, content)
+    out = tmp_path / "g.npz"
+    assert main(["garment", str(svg), "--stitches", str(st), "-o", str(out), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("clothgrid: error:") and what in err[0]
+    assert not out.exists()
+
+
+def test_svg_without_stitches_is_an_input_error(tmp_path, capsys):
+    svg, _ = _stitched(tmp_path)
+    assert main(["garment", str(svg), "-o", str(tmp_path / "g.npz"), "-q"]) == 2
+    assert "--stitches" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not CATHRIN.is_file(), reason=f"no {CATHRIN}")
+def test_example_stitches_cathrin_corset(tmp_path, capsys):
+    """examples/fs_cathrin_stitches.json: FreeSewing's Cathrin corset, 7 panels sewn side by side."""
+    st = EXAMPLES / "fs_cathrin_stitches.json"
+    out = tmp_path / "corset.npz"
+    assert main(["garment", str(CATHRIN), "--stitches", str(st), "-o", str(out), "--edge-length", "2cm",
+                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
+    with np.load(out) as d:
+        r = {k: d[k] for k in d.files}
+    _check_seams_node_for_node(r, st, CATHRIN)
+    assert list(r["panel_names"]) == ["2", "9", "16", "23", "30", "38", "45"]
+    info = json.loads(str(r["info"]))
+    assert sum(p["folded"] for p in info["panels"]) == 0
+    rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
+    assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 1
+    assert rep["euler"] == 1                                 # one sheet (a disk): the corset laid open
+
+
+def test_triangle_panel_flat_corner_and_its_triangles(tmp_path):
+    """A godet (a straight-sided triangle) sewn into a slit: its fourth grid corner sits on a straight
+    side (no fold-free single-block grid exists: four corners need four points where the boundary
+    turns), so exactly that one corner cell has a 180 degree angle; every other cell is unfolded, and
+    the triangles cut that cell through the flat corner (no triangle of zero area)."""
+    from clothgrid.garment import flat_corners, split_quads
+
+    godet = {"vertices": [[0, 0], [10, 0], [5, 15]],
+             "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]}, {"endpoints": [2, 0]}],
+             "translation": [0, 0, 0], "rotation": [0, 0, 0]}
+    panels = {"G": godet, "A": _square("A", 0, [20, 0, 0], size=16)}
+    path = _write(tmp_path, panels, [[{"panel": "G", "edge": 1}, {"panel": "A", "edge": 3}]])
+    g = garment(path, edge_length="1cm")
+    info = {p["name"]: p for p in g.info["panels"]}
+    assert len(info["G"]["flat_corners"]) == 1 and info["A"]["flat_corners"] == []
+    nu, nv = g.shapes[0]
+    P = g.grids[0].points.reshape(nu, nv, -1)[..., :2]
+    c = (P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:])
+
+    def cross(a, b):
+        return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+    J = np.min([cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k]) for k in range(4)], axis=0)
+    corner = [(0, 0), (-1, 0), (-1, -1), (0, -1)][info["G"]["flat_corners"][0]]
+    assert abs(J[corner]) <= 1e-9 * np.abs(J).max()          # the flat corner: J = 0 to rounding
+    J[corner] = np.inf
+    assert J.min() > 0                                       # every other cell unfolded
+    t = g.rest[split_quads(g.quads, g.rest)]
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    area = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / 2
+    assert area.min() > 1e-3 * area.max()
+    np.testing.assert_array_equal(g.triangles, split_quads(g.quads, g.rest))
+    assert flat_corners(g.grids[1].points.reshape(*g.shapes[1], -1)) == []
+
+
+# --------------------------------------------------------------------------- USD
+
+
+@pytest.mark.parametrize("suffix, seams", [(".usda", "keep"), (".usd", "weld")])
+def test_usd_output_reads_back(tmp_path, capsys, suffix, seams):
+    """One UsdGeom.Mesh: points, quads, face-varying st = the rest coordinates, a GeomSubset per panel."""
+    pytest.importorskip("pxr", reason="usd-core is not installed (optional extra clothgrid[usd]; 157 MB, "
+                                      "so not in the test extra)")
+    from pxr import Usd, UsdGeom
+
+    svg, st = _stitched(tmp_path)
+    out, npz = tmp_path / f"g{suffix}", tmp_path / "g.npz"
+    assert main(["garment", str(svg), "--stitches", str(st), "-o", str(out), "-o", str(npz),
+                 "--edge-length", "2cm", "--seams", seams, "-q"]) == 0, capsys.readouterr().err
+    with np.load(npz) as d:
+        r = {k: d[k] for k in d.files}
+    stage = Usd.Stage.Open(str(out))
+    assert UsdGeom.GetStageUpAxis(stage) == "Y" and UsdGeom.GetStageMetersPerUnit(stage) == 0.001
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Garment/Cloth"))
+    pts = np.asarray(mesh.GetPointsAttr().Get())
+    faces = np.asarray(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 4)
+    assert (np.asarray(mesh.GetFaceVertexCountsAttr().Get()) == 4).all()
+    if seams == "weld":
+        np.testing.assert_allclose(pts, r["welded_points"], atol=1e-3)
+        np.testing.assert_array_equal(faces, r["welded_quads"])
+    else:
+        np.testing.assert_allclose(pts, r["points"], atol=1e-3)
+        np.testing.assert_array_equal(faces, r["quads"])
+    pv = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    assert pv.GetInterpolation() == UsdGeom.Tokens.faceVarying
+    np.testing.assert_allclose(np.asarray(pv.Get()), r["rest"][r["quads"].reshape(-1)], atol=1e-3)
+    subsets = UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "panel")
+    assert [s.GetPrim().GetCustomDataByKey("clothgrid:panel") for s in subsets] == list(r["panel_names"])
+    for pi, s in enumerate(subsets):
+        np.testing.assert_array_equal(np.asarray(s.GetIndicesAttr().Get()), np.flatnonzero(r["face_panel"] == pi))
+    assert UsdGeom.Subset.ValidateSubsets(subsets, len(faces), UsdGeom.Tokens.partition)[0]

@@ -369,9 +369,11 @@ def _add_garment_parser(sub: Any) -> None:
                                    "specification so that both edges of every stitch get the same "
                                    "nodes, place the panels in 3D and write the sewn garment "
                                    "(docs/garment.md).")
-    p.add_argument("input", metavar="SPEC", help="GarmentCode *_specification.json")
+    p.add_argument("input", metavar="SPEC", help="GarmentCode *_specification.json, or an .svg / .dxf pattern "
+                                                "with --stitches")
     p.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
-                   help="output file, .npz or .obj; repeatable")
+                   help="output file, .npz, .obj or USD (.usda, .usd: needs usd-core, the extra "
+                        "clothgrid[usd]); repeatable")
     p.add_argument("--edge-length", default="10mm", metavar="LEN",
                    help="target grid edge length, e.g. 1cm, 5mm (a plain number: mm; default 10mm)")
     p.add_argument("--seams", choices=("keep", "weld"), default="keep",
@@ -381,7 +383,11 @@ def _add_garment_parser(sub: Any) -> None:
     p.add_argument("--density", type=parse_density, metavar="D",
                    help="areal density, e.g. 150gsm or 0.2kg/m2: adds node masses (kg) to .npz outputs")
     p.add_argument("--units", type=_length_unit, metavar="UNIT",
-                   help="the spec's length unit instead of its units_in_meter")
+                   help="the spec's length unit instead of its units_in_meter (an SVG / DXF pattern: its "
+                        "coordinates' unit instead of what the file says)")
+    p.add_argument("--stitches", metavar="FILE",
+                   help="the seams of an SVG or DXF pattern: a JSON file of piece outline ranges sewn "
+                        "together (docs/garment.md, examples/fs_cathrin_stitches.json)")
     p.add_argument("--corners", action="append", metavar="PANEL=I,J,K,L",
                    help="grid corners of a panel as its vertex indices (bottom-left, bottom-right, "
                         "top-right, top-left); repeatable; the way out of a node-count conflict")
@@ -394,14 +400,18 @@ def _cmd_garment(args: argparse.Namespace) -> int:
 
     outs = [Path(o) for o in args.output]
     for o in outs:
-        if o.suffix.lower() not in (".npz", ".obj"):
+        if o.suffix.lower() not in (".npz", ".obj", ".usda", ".usd", ".usdc"):
             raise InputError(f"unknown garment output format {o.suffix or '(no extension)'!r} for "
-                             f"{str(o)!r}: use .npz or .obj")
+                             f"{str(o)!r}: use .npz, .obj, .usda or .usd")
+        if o.suffix.lower() in (".usda", ".usd", ".usdc"):
+            from .garment_usd import _pxr
+
+            _pxr()                      # usd-core missing: say so before gridding
         if not o.parent.is_dir():
             raise InputError(f"output folder {str(o.parent)!r} does not exist (for {str(o)!r})")
     t0 = time.perf_counter()
     g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
-                progress=_progress(args.quiet))
+                stitches=args.stitches, progress=_progress(args.quiet))
     written: list[Path] = []
     try:
         for o in outs:

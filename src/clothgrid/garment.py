@@ -42,7 +42,7 @@ from .geometry import signed_area
 from .patterns.garmentcode import GarmentSpec, SpecPanel, read_garment_spec
 from .units import parse_length
 
-__all__ = ["Garment", "garment", "euler_xyz_to_R", "SEAM", "GARMENT_SPRING_KINDS", "write_garment"]
+__all__ = ["Garment", "garment", "euler_xyz_to_R", "split_quads", "flat_corners", "SEAM", "GARMENT_SPRING_KINDS", "write_garment"]
 
 #: the spring kind code of the zero-length seam springs (after structural 0, shear 1, bend 2)
 SEAM = 3
@@ -61,6 +61,46 @@ def euler_xyz_to_R(angles_deg: Sequence[float]) -> np.ndarray:
     ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
     rz = np.array([[math.cos(c), -math.sin(c), 0], [math.sin(c), math.cos(c), 0], [0, 0, 1]])
     return rz @ ry @ rx
+
+
+def split_quads(quads: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``(2F, 3)`` triangles of quads: along the first diagonal (corners 0-2), or along the other
+    one (1-3) where the first would make a triangle of no area.
+
+    A triangular panel's fourth grid corner sits on a straight side, so the grid cell there has a
+    180 degree angle; cut along the diagonal through that corner both triangles keep an area
+    (the other diagonal runs along the side). ``xy`` are the flat (rest) coordinates.
+    """
+    q = np.asarray(quads, dtype=np.int64)
+    p = np.asarray(xy, dtype=np.float64)[q]
+
+    def area(i: int, j: int, k: int) -> np.ndarray:
+        a, b = p[:, j] - p[:, i], p[:, k] - p[:, i]
+        return 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+
+    total = area(0, 1, 2) + area(0, 2, 3)
+    sign = np.where(total < 0, -1.0, 1.0)
+    tiny = 1e-9 * np.abs(total)
+    first = np.minimum(area(0, 1, 2) * sign, area(0, 2, 3) * sign)
+    other = np.minimum(area(0, 1, 3) * sign, area(1, 2, 3) * sign)
+    swap = (first <= tiny) & (other > first)
+    t = np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1)
+    t[swap] = np.stack([q[swap][:, [0, 1, 3]], q[swap][:, [1, 2, 3]]], axis=1)
+    return t.reshape(-1, 3)
+
+
+def flat_corners(grid_points: np.ndarray, max_deg: float = 179.0) -> list[int]:
+    """Grid corners (0 bottom-left, 1 bottom-right, 2 top-right, 3 top-left) where the boundary
+    does not turn (its angle at least ``max_deg``): a triangle's fourth corner on a straight side."""
+    P = np.asarray(grid_points, dtype=np.float64)
+    out = []
+    for k, (c, a, b) in enumerate((((0, 0), (1, 0), (0, 1)), ((-1, 0), (-1, 1), (-2, 0)),
+                                   ((-1, -1), (-2, -1), (-1, -2)), ((0, -1), (0, -2), (1, -1)))):
+        u, v = P[a] - P[c], P[b] - P[c]
+        cos = float(u @ v / (np.linalg.norm(u) * np.linalg.norm(v)))
+        if cos <= math.cos(math.radians(max_deg)):
+            out.append(k)
+    return out
 
 
 @dataclass
@@ -120,9 +160,8 @@ class Garment:
 
     @property
     def triangles(self) -> np.ndarray:
-        """``(2F, 3)``: every quad cut along its first diagonal (same orientation)."""
-        q = self.quads
-        return np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+        """``(2F, 3)``: every quad cut in two triangles (same orientation), see :func:`split_quads`."""
+        return split_quads(self.quads, self.rest)
 
     def weld_map(self) -> np.ndarray:
         """``(N,)`` welded vertex of every grid node (stitched nodes merged)."""
@@ -168,7 +207,7 @@ class Garment:
         return mesh_report(self.quads, len(self.points))
 
     def save(self, path: str | Path, *, seams: str = "keep", density: float | str | None = None) -> Path:
-        """Write ``.npz`` or ``.obj`` (atomic): see :func:`write_garment`."""
+        """Write ``.npz``, ``.obj`` or USD (atomic): see :func:`write_garment`."""
         return write_garment(self, path, seams=seams, density=density)
 
 
@@ -187,7 +226,7 @@ def _bottom_first(pts: np.ndarray) -> int:
     return k_best
 
 
-def _choose_corners(lay: _Layout, given: Sequence[int] | None) -> None:
+def _choose_corners(lay: _Layout, given: Sequence[Any] | None) -> None:
     """Four corners on the counter-clockwise loop: panel vertices, or edge middles if too few."""
     from .patterns import choose_corners
     from .patterns.piece import piece_from_polygon
@@ -203,6 +242,19 @@ def _choose_corners(lay: _Layout, given: Sequence[int] | None) -> None:
         count += len(pts) - 1
     outline = np.concatenate(parts)
     start_vertex = [spec.edges[e].end if rev else spec.edges[e].start for e, rev in ccw]
+    if given is not None and any(isinstance(c, tuple) for c in given):
+        # (edge, fraction of that edge in its own direction): an SVG / DXF piece's corners
+        pos = {e: (k, rev) for k, (e, rev) in enumerate(ccw)}
+        at = []
+        for e, f in given:
+            k, rev = pos[e]
+            f = 1.0 - f if rev else f
+            at.append(((k + 1) % len(ccw), 0.0) if f >= 1.0 else (k, f))
+        order = sorted(at)
+        first = order.index(at[0])
+        lay.corners = order[first:] + order[:first]
+        lay.corner_method = "pattern"
+        return
     if given is not None:
         where = {v: k for k, v in enumerate(start_vertex)}
         bad = [v for v in given if v not in where]
@@ -268,13 +320,15 @@ def _parse_corners(corners: Any) -> dict[str, list[int]]:
 
 def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm", units: str | None = None,
             corners: Any = None, fixed: dict[tuple[str, int], int] | None = None,
+            stitches: str | Path | None = None,
             progress: Callable[[str], None] | None = None, **generate_options: Any) -> Garment:
-    """Grid, sew and place every panel of a GarmentCode specification.
+    """Grid, sew and place every panel of a GarmentCode specification (or a stitched SVG / DXF pattern).
 
     Parameters
     ----------
     spec : path or GarmentSpec
-        A GarmentCode / Garment-Pattern-Generator ``*_specification.json``.
+        A GarmentCode / Garment-Pattern-Generator ``*_specification.json``, or
+        an ``.svg`` / ``.dxf`` pattern with ``stitches``.
     edge_length : float or str
         Target grid edge length (mm, or text with a unit: ``"1cm"``).
     units : str, optional
@@ -286,6 +340,12 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         automatic corners make the node counts conflict.
     fixed : dict, optional
         ``(panel, edge) -> intervals``: fix the count of a spec edge (not split).
+    stitches : path, optional
+        The JSON stitches file of an SVG / DXF pattern
+        (:mod:`clothgrid.garment_stitches`): its seams, pieces and placement.
+        The pieces' grid corners are :func:`clothgrid.patterns.choose_corners`'
+        unless ``corners`` gives others (vertex indices of the garment panel:
+        the cuts of its outline, ``info["panels"][i]["corner_vertices"]``).
     progress : callable, optional
         Receives progress lines.
     **generate_options
@@ -303,9 +363,21 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
 
     say = progress or (lambda _m: None)
     t_start = time.perf_counter()
-    gs = spec if isinstance(spec, GarmentSpec) else read_garment_spec(spec, units=units)
     h = parse_length(edge_length, "mm", what="edge length")
-    given = _parse_corners(corners)
+    given: dict[str, Any] = {}
+    if isinstance(spec, GarmentSpec):
+        gs = spec
+    elif stitches is not None:
+        from .garment_stitches import read_stitched_pattern
+
+        sp = read_stitched_pattern(spec, stitches, edge_length=h, units=units)
+        gs, given = sp.spec, dict(sp.corners)
+    elif Path(spec).suffix.lower() in (".svg", ".dxf"):
+        raise InputError(f"{spec}: SVG and DXF patterns carry no stitches: give them in a JSON file "
+                         "(--stitches FILE, stitches=...; docs/garment.md)")
+    else:
+        gs = read_garment_spec(spec, units=units)
+    given.update(_parse_corners(corners))
     unknown = [n for n in given if n not in gs.panels]
     if unknown:
         raise InputError(f"corners given for unknown panel(s) {', '.join(map(repr, unknown))}; the panels "
@@ -469,9 +541,11 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         offsets.append(offsets[-1] + nu * nv)
         qual = quality(grid)
         figs = sim_figures(grid.points, h)
+        flat = flat_corners(grid.points)
         per_panel.append({"name": name, "nodes": [nu, nv], "corners": lay.corner_method,
                           "corner_vertices": _corner_names(lay), "flipped": lay.flipped,
                           "functional": grid.info.get("functional"), "folded": int(qual.folded),
+                          "flat_corners": flat,
                           "min_angle_deg": figs.get("min_angle_deg"), "edge_spread": figs.get("edge_spread"),
                           "boundary_drift": drift, "seconds": grid.info.get("seconds")})
         say(f"{name}: {nu} x {nv} nodes, corners {lay.corner_method}, {qual.folded} folded")
@@ -505,7 +579,7 @@ def _corner_names(lay: _Layout) -> str:
 
 def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
                   density: float | str | None = None) -> Path:
-    """Write a garment to ``.npz`` or ``.obj``, atomically.
+    """Write a garment to ``.npz``, ``.obj`` or USD (``.usda``, ``.usd``, ``.usdc``), atomically.
 
     ``.npz``: ``points`` (N, 3) placed, ``rest`` (N, 2), ``panel`` (N,), ``panel_names``,
     ``shapes``, ``quads``, ``triangles``, ``stitches`` (S, 2), ``stitch_id`` (S,),
@@ -514,6 +588,7 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
     also ``weld_map`` (N,), ``welded_points``, ``welded_quads``, ``welded_triangles``.
     ``.obj``: one group per panel, ``vt`` the rest coordinates (mm) of every grid node; with
     ``seams="weld"`` the welded vertices (faces still carry each panel's own ``vt``).
+    USD: :func:`clothgrid.garment_usd.write_garment_usd` (needs ``usd-core``).
     """
     from .writers import atomic_write, info_json
 
@@ -557,5 +632,9 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
         with atomic_write(path) as fh:
             fh.write("".join(lines).encode("utf-8"))
         return path
+    if suffix in (".usda", ".usd", ".usdc"):
+        from .garment_usd import write_garment_usd
+
+        return write_garment_usd(g, path, seams=seams)
     raise InputError(f"unknown garment output format {path.suffix or '(no extension)'!r} for {str(path)!r}: "
-                     "use .npz or .obj")
+                     "use .npz, .obj, .usda or .usd")

@@ -16,19 +16,41 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Iterable, Sequence
 
 import numpy as np
 
 from .patterns.sampling import Bezier, Primitive, sample_bezier, sample_ellipse_arc
 
-__all__ = ["edge_polyline", "points_at", "fractions_of", "propagate_splits", "weld", "mesh_report"]
+__all__ = ["Polyline", "edge_polyline", "points_at", "fractions_of", "propagate_splits", "weld", "mesh_report"]
 
 
-def edge_polyline(curve: Primitive, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(points (k, 2), cumulative arc length (k,))`` of a curve, start to end, chords within ``tol``."""
-    pts = sample_bezier(curve, tol) if isinstance(curve, Bezier) else sample_ellipse_arc(curve, tol)
-    pts = np.vstack([pts, np.asarray(curve.end, dtype=np.float64)[None]])
+@dataclass(frozen=True, eq=False)
+class Polyline:
+    """A part of a piece's outline, start to end: ``points`` ``(k, 2)`` in mm (already on the curve)."""
+
+    points: np.ndarray
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.points[0]
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.points[-1]
+
+
+def edge_polyline(curve: "Primitive | Polyline", tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(points (k, 2), cumulative arc length (k,))`` of a curve, start to end, chords within ``tol``.
+
+    A :class:`Polyline` (a part of an SVG / DXF piece's outline, already sampled) is taken as it is.
+    """
+    if isinstance(curve, Polyline):
+        pts = np.asarray(curve.points, dtype=np.float64)
+    else:
+        pts = sample_bezier(curve, tol) if isinstance(curve, Bezier) else sample_ellipse_arc(curve, tol)
+        pts = np.vstack([pts, np.asarray(curve.end, dtype=np.float64)[None]])
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
     return pts, s
 

@@ -1,0 +1,259 @@
+"""Seams for SVG and DXF patterns: a small JSON stitches file read into a :class:`GarmentSpec`.
+
+SVG and DXF pattern files carry no stitches. ``clothgrid garment PATTERN
+--stitches FILE`` takes them from a JSON file (``docs/garment.md``)::
+
+    {"clothgrid_stitches": 1,
+     "seams": [
+       {"a": {"piece": "4", "range": [1336, 1906]},
+        "b": {"piece": "24", "range": [1040, 1623]},
+        "right_wrong": true, "label": "side seam"},
+       ...],
+     "pieces": ["4", "24"],
+     "placement": {"24": {"translation": [0, 0, -200], "rotation": [0, 180, 0]}}}
+
+A side ``{"piece": NAME, "range": [I, J]}`` is the part of the piece's outline
+from outline point ``I`` to outline point ``J``, counter-clockwise (the
+outline's own order, wrapping past the last point): the indices
+``clothgrid pieces FILE --candidates`` prints (same reading options). The two
+sides of a seam are joined as GarmentCode joins a stitch: ``a``'s end meets
+``b``'s start, or start meets start with ``"right_wrong": true``. Both ranges
+of one piece (a dart) may share an end (the dart's tip).
+
+Each piece becomes one :class:`~clothgrid.patterns.garmentcode.SpecPanel`
+whose edges are :class:`Polyline` parts of its outline, cut at the seams'
+ends, at the grid corners :func:`~clothgrid.patterns.choose_corners` picks for
+the piece (as ``clothgrid generate`` does) and at its sharp vertices (turns of
+30 degrees or more, not inside a seam and not closer than half the edge length
+to another cut); every seam is one edge, so a seam's nodes are sampled along
+it as in the GarmentCode path. A grid corner inside a seam is carried across to
+the other side (at the matching arc-length fraction). Without ``placement``
+the pieces stay where the file draws them (``points`` = ``rest`` with z = 0).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .garment_seams import Polyline
+from .patterns.garmentcode import GarmentSpec, SpecEdge, SpecPanel, SpecStitch
+
+__all__ = ["Polyline", "StitchedPattern", "read_stitched_pattern", "STITCHES_FORMAT"]
+
+#: the ``clothgrid_stitches`` version this reader understands
+STITCHES_FORMAT = 1
+#: outline vertices turning at least this much (degrees) stay grid nodes (``boundary.SHARP_TURN_DEG``)
+SHARP_TURN_DEG = 30.0
+
+
+@dataclass(frozen=True, eq=False)
+class StitchedPattern:
+    """An SVG / DXF pattern with its stitches file, as a garment spec.
+
+    Attributes
+    ----------
+    spec : GarmentSpec
+        Panels (one per piece named in the stitches file), their polyline edges
+        and the seams as stitches (``index`` = position in the file's ``seams``).
+    corners : dict
+        Panel name -> the four grid corners bottom-left, bottom-right, top-right,
+        top-left, each ``(edge index, fraction of that edge)``.
+    """
+
+    spec: GarmentSpec
+    corners: dict[str, list[tuple[int, float]]]
+
+
+def _load(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not a UTF-8 text file ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the stitches file ({exc.strerror or exc})") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    if not isinstance(data, dict) or not isinstance(data.get("seams"), list) or not data["seams"]:
+        raise InputError(f"{path}: a stitches file is an object with a non-empty list \"seams\" "
+                         "(docs/garment.md: \"Seams of SVG and DXF patterns\")")
+    version = data.get("clothgrid_stitches", STITCHES_FORMAT)
+    if version != STITCHES_FORMAT:
+        raise InputError(f"{path}: clothgrid_stitches {version!r} is not a version this clothgrid reads "
+                         f"({STITCHES_FORMAT})")
+    return data
+
+
+def _side(side: Any, pieces: dict[str, Any], what: str) -> tuple[str, int, int]:
+    if not isinstance(side, dict) or "piece" not in side or "range" not in side:
+        raise InputError(f"{what} must be {{\"piece\": NAME, \"range\": [START, END]}}, not {side!r}")
+    name, rng = str(side["piece"]), side["range"]
+    if name not in pieces:
+        raise InputError(f"{what}: the pattern has no piece {name!r} (its pieces: "
+                         f"{', '.join(map(repr, pieces))})")
+    n = len(pieces[name].outline)
+    if not (isinstance(rng, list) and len(rng) == 2
+            and all(isinstance(i, int) and not isinstance(i, bool) for i in rng)):
+        raise InputError(f"{what}: 'range' must be two outline point indices [START, END], not {rng!r}")
+    if not all(-n <= i < n for i in rng):
+        raise InputError(f"{what}: range {rng} is out of range: piece {name!r} has {n} outline points "
+                         f"(0..{n - 1}; clothgrid pieces FILE --candidates lists them)")
+    i, j = (x % n for x in rng)
+    if i == j:
+        raise InputError(f"{what}: range {rng} is empty (its start is its end)")
+    return name, i, j
+
+
+def _placement(data: dict, names: list[str], path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    raw = data.get("placement") or {}
+    if not isinstance(raw, dict):
+        raise InputError(f"{path}: 'placement' must be an object PIECE -> {{\"translation\", \"rotation\"}}")
+    out = {}
+    for name, p in raw.items():
+        if name not in names:
+            raise InputError(f"{path}: placement of {name!r}, which is not a piece of the garment "
+                             f"({', '.join(map(repr, names))})")
+        if not isinstance(p, dict):
+            raise InputError(f"{path}: placement of {name!r} must be an object")
+        vecs = []
+        for key in ("translation", "rotation"):
+            try:
+                v = np.asarray(p.get(key, [0.0, 0.0, 0.0]), dtype=np.float64)
+            except (TypeError, ValueError):
+                v = np.zeros(0)
+            if v.shape != (3,) or not np.isfinite(v).all():
+                raise InputError(f"{path}: placement of {name!r}: '{key}' must be three numbers")
+            vecs.append(v)
+        out[name] = (vecs[0], vecs[1])
+    return out
+
+
+def _inside(i: int, a: int, b: int, n: int) -> bool:
+    """Is outline index ``i`` strictly inside the counter-clockwise range ``a -> b``?"""
+    return 0 < (i - a) % n < (b - a) % n
+
+
+def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_length: float,
+                          units: str | None = None) -> StitchedPattern:
+    """Read an SVG / DXF pattern and its stitches file as a garment spec (mm).
+
+    Parameters
+    ----------
+    pattern : path
+        The ``.svg`` or ``.dxf`` pattern.
+    stitches : path
+        The JSON stitches file (module docstring; ``docs/garment.md``).
+    edge_length : float
+        Target grid edge length (mm): sharp vertices closer than half of it to
+        another cut are not kept as nodes.
+    units : str, optional
+        The pattern's coordinate units instead of what the file says.
+
+    Raises
+    ------
+    InputError
+        An unreadable or malformed stitches file, an unknown piece, a range out
+        of the outline, overlapping ranges on one piece, a bad placement.
+    """
+    from .patterns import choose_corners
+    from .patterns.corners import turn_angles
+    from .readers import read_pieces
+
+    pattern, stitches = Path(pattern), Path(stitches)
+    data = _load(stitches)
+    pieces = {p.name: p for p in read_pieces(pattern, units=units)}
+    seams = []
+    for k, s in enumerate(data["seams"]):
+        what = f"{stitches}: seam {k}"
+        if not isinstance(s, dict) or "a" not in s or "b" not in s:
+            raise InputError(f"{what} must be {{\"a\": SIDE, \"b\": SIDE, \"right_wrong\": false}}, not {s!r}")
+        rw = s.get("right_wrong", False)
+        if not isinstance(rw, bool):
+            raise InputError(f"{what}: 'right_wrong' must be true or false, not {rw!r}")
+        seams.append((_side(s["a"], pieces, f"{what}, side a"), _side(s["b"], pieces, f"{what}, side b"), rw))
+    extra = data.get("pieces", [])
+    if not isinstance(extra, list) or not all(isinstance(x, str) for x in extra):
+        raise InputError(f"{stitches}: 'pieces' must be a list of piece names")
+    for x in extra:
+        if x not in pieces:
+            raise InputError(f"{stitches}: the pattern has no piece {x!r} (its pieces: "
+                             f"{', '.join(map(repr, pieces))})")
+    names = [n for n in pieces if n in extra or any(n in (a[0], b[0]) for a, b, _ in seams)]
+    place = _placement(data, names, stitches)
+
+    # ranges per piece; no two may overlap
+    ranges: dict[str, list[tuple[int, int]]] = {n: [] for n in names}
+    for a, b, _ in seams:
+        for name, i, j in (a, b):
+            n = len(pieces[name].outline)
+            for (p, q) in ranges[name]:
+                if (p, q) == (i, j) or _inside(i, p, q, n) or _inside(p, i, j, n) or (
+                        _inside(j, p, q, n) and j != p) or (_inside(q, i, j, n) and q != i):
+                    raise InputError(f"{stitches}: piece {name!r}: the ranges [{i}, {j}] and [{p}, {q}] "
+                                     "overlap (a piece's seams may share an end, not a stretch)")
+            ranges[name].append((i, j))
+
+    panels: dict[str, SpecPanel] = {}
+    corners: dict[str, list[tuple[int, float]]] = {}
+    edge_of: dict[tuple[str, int, int], int] = {}      # (piece, range as in the file) -> edge
+    for name in names:
+        piece = pieces[name]
+        choice = choose_corners(piece)
+        outline = choice.outline
+        keep = np.setdiff1d(np.arange(len(outline)), np.asarray(choice.inserted, dtype=np.int64))
+        n = len(outline)
+        rs = [(int(keep[i]), int(keep[j])) for i, j in ranges[name]]
+
+        def stitched(i: int) -> bool:
+            return any(_inside(i, p, q, n) for p, q in rs)
+
+        cuts = {p for r in rs for p in r}
+        cuts |= {int(c) for c in choice.corners if not stitched(int(c))}
+        # sharp source vertices stay nodes (not inside a seam, not too close to another cut)
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(np.vstack([outline, outline[:1]]), axis=0).T))])
+        per = s[-1]
+        turn = np.degrees(np.abs(turn_angles(outline)))
+        for v in sorted(int(keep[i]) for i in piece.vertices):
+            if turn[v] >= SHARP_TURN_DEG and v not in cuts and not stitched(v):
+                gap = min(min(abs(s[v] - s[c]), per - abs(s[v] - s[c])) for c in cuts)
+                if gap >= 0.5 * edge_length:
+                    cuts.add(v)
+        cut = sorted(cuts)
+        if len(cut) < 2:
+            cut = sorted(cuts | {(cut[0] + n // 2) % n})
+        verts = outline[cut]
+        edges = []
+        for k, c in enumerate(cut):
+            d = cut[(k + 1) % len(cut)]
+            idx = np.arange(c, d + 1) if d > c else np.r_[np.arange(c, n), np.arange(0, d + 1)]
+            edges.append(SpecEdge(k, k, (k + 1) % len(cut), Polyline(outline[idx % n].copy())))
+        loop = tuple((k, False) for k in range(len(cut)))
+        t, r = place.get(name, (np.zeros(3), np.zeros(3)))
+        panels[name] = SpecPanel(name, verts, tuple(edges), loop, t, r)
+        # the grid corners as (edge, fraction): at a cut, or inside a seam's edge
+        cs = []
+        for c in choice.corners:
+            c = int(c)
+            if c in cuts:
+                cs.append((cut.index(c), 0.0))
+                continue
+            k = next(kk for kk, cc in enumerate(cut) if _inside(c, cc, cut[(kk + 1) % len(cut)], n))
+            pts = edges[k].curve.points
+            L = np.hypot(*np.diff(pts, axis=0).T)
+            m = (c - cut[k]) % n
+            cs.append((k, float(L[:m].sum() / L.sum())))
+        corners[name] = cs
+        # map the ranges to edge indices (in this piece's kept-point numbering)
+        for (i0, j0), (i, j) in zip(ranges[name], rs):
+            k = cut.index(i)
+            assert cut[(k + 1) % len(cut)] == j, "a seam's range is one edge"
+            edge_of[(name, i0, j0)] = k
+    st = tuple(SpecStitch(k, (a[0], edge_of[a]), (b[0], edge_of[b]), rw) for k, (a, b, rw) in enumerate(seams))
+    notes = (f"stitches: {stitches}",)
+    return StitchedPattern(GarmentSpec(pattern, panels, st, "mm", 1.0, notes), corners)
+
