@@ -221,27 +221,34 @@ def grid_file(task: FileTask) -> dict[str, Any]:
 _WARM: dict[str, Any] = {}
 
 
+#: a small pattern (a six-sided panel with a curved top, in mm) that :func:`warm_up` grids
+_WARM_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="400mm" viewBox="0 0 300 400">
+<path id="warm" d="M 0 0 L 150 0 L 300 0 L 280 300 Q 150 420 20 300 L 10 150 Z"/></svg>
+"""
+
+
 def warm_up(options: GridOptions = GridOptions()) -> float:
-    """Grid the bundled T-shirt front (33 x 33 nodes) once in this process with ``options``'
-    solver settings, so the Numba kernels are loaded before the first file; return the seconds
-    it took (0 when done before in this process)."""
+    """Grid a small six-sided SVG panel once in this process with ``options``, through the whole
+    pipeline (reader, corner ranking, grid, fold-free step, quality), and import the other pattern
+    readers, so that the Numba kernels and the readers are loaded before the first file; return
+    the seconds it took (0 when done before in this process)."""
     if "seconds" in _WARM:
         return 0.0
-    from importlib.resources import as_file, files
-
-    from .generate import generate
-    from .readers import load_boundary
+    import importlib
+    import tempfile
 
     t0 = time.perf_counter()
-    with as_file(files("clothgrid").joinpath("data", "tshirt_front.json")) as path:
-        b = load_boundary(path)
-    kwargs = options.generate_kwargs()
-    kwargs["allow_unconverged"] = True
-    try:
-        generate(b, (33, 33), **{**kwargs, "functional": "foldfree"})
-        generate(b, (33, 33), **kwargs)
-    except (InputError, NotConvergedError) as exc:     # the files will say it again, one by one
-        log.warning("clothgrid warm-up failed: %s", exc)
+    for module in ("svg", "dxf", "garmentcode"):
+        importlib.import_module(f"clothgrid.patterns.{module}")
+    warm = GridOptions(edge_length="20mm", **{k: v for k, v in asdict(options).items()
+                                            if k not in ("nodes", "edge_length")})
+    with tempfile.TemporaryDirectory(prefix="clothgrid-warm-") as tmp:
+        path = Path(tmp) / "warm.svg"
+        path.write_text(_WARM_SVG)
+        try:
+            run_jobs(read_jobs(path, [str(Path(tmp) / "{piece}.npz")], options=warm))
+        except (InputError, NotConvergedError) as exc:   # the files will say it again, one by one
+            log.warning("clothgrid warm-up failed: %s", exc)
     _WARM["seconds"] = time.perf_counter() - t0
     return _WARM["seconds"]
 
