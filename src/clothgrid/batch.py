@@ -600,7 +600,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
     summary = summarise(entries, skipped=len(skipped), seconds=seconds, done_now=len(done_now),
                         pieces_now=sum(len(e["pieces"]) for e in done_now), workers=n_workers)
     if tasks or not manifest.exists() or previous:
-        compact_manifest(manifest, summary)
+        compact_manifest(manifest, summary, order=stems)
     return BatchSummary(outdir, manifest, entries, summary, done_now)
 
 

@@ -174,13 +174,17 @@ class ManifestWriter:
         self.close()
 
 
-def compact_manifest(path: str | Path, summary: Mapping[str, Any] | None = None) -> list[dict[str, Any]]:
-    """Rewrite the manifest atomically: the latest line of each input, then the summary line.
+def compact_manifest(path: str | Path, summary: Mapping[str, Any] | None = None,
+                     order: Sequence[str] = ()) -> list[dict[str, Any]]:
+    """Rewrite the manifest atomically: the latest line of each input (the stems in ``order``
+    first, in that order, then the others as they were), then the summary line.
 
     Returns the input lines kept.
     """
     path = Path(path)
-    kept = list(latest_entries(read_manifest(path)).values())
+    latest = latest_entries(read_manifest(path))
+    first = [latest.pop(s) for s in order if s in latest]
+    kept = first + list(latest.values())
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
         with open(tmp, "w", encoding="utf-8") as fh:
