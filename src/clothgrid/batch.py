@@ -572,12 +572,15 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
     done_now: list[dict[str, Any]] = []
     t0 = time.perf_counter()
     n_workers: int | None = None
+    startup = 0.0
     if tasks:
         with contextlib.ExitStack() as stack:
             if client is None:
                 client = _client_for(scheduler, workers, retries, len(tasks), stack)
             _register(client, WarmUp(options))
             n_workers = len(client.scheduler_info().get("workers", {})) or None
+            startup = time.perf_counter() - t0
+            state.started = time.perf_counter()      # rate and time left: from here
             writer = stack.enter_context(ManifestWriter(manifest))
             for entry in _run(client, tasks, retries):
                 _remove_old_outputs(outdir, previous.get(entry["stem"]), entry)
@@ -597,8 +600,9 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
     now = {e["stem"]: e for e in done_now}
     by_stem = {e["stem"]: e for e in skipped} | now
     entries = [by_stem[s] for s in stems if s in by_stem]
-    summary = summarise(entries, skipped=len(skipped), seconds=seconds, done_now=len(done_now),
-                        pieces_now=sum(len(e["pieces"]) for e in done_now), workers=n_workers)
+    summary = summarise(entries, skipped=len(skipped), seconds=seconds - startup, startup=startup,
+                        done_now=len(done_now), pieces_now=sum(len(e["pieces"]) for e in done_now),
+                        workers=n_workers)
     if tasks or not manifest.exists() or previous:
         compact_manifest(manifest, summary, order=stems)
     return BatchSummary(outdir, manifest, entries, summary, done_now)

@@ -208,7 +208,7 @@ def _badness(piece: Mapping[str, Any]) -> tuple:
 
 
 def summarise(entries: Sequence[Mapping[str, Any]], *, skipped: int = 0, seconds: float = 0.0,
-              done_now: int = 0, pieces_now: int = 0, workers: int | None = None,
+              startup: float = 0.0, done_now: int = 0, pieces_now: int = 0, workers: int | None = None,
               top: int = 5) -> dict[str, Any]:
     """The summary of a run over the latest line of each of its inputs.
 
@@ -218,8 +218,10 @@ def summarise(entries: Sequence[Mapping[str, Any]], *, skipped: int = 0, seconds
         One manifest line per input of the run (done now or before).
     skipped : int
         Inputs found done by an earlier run (no work).
-    seconds, done_now, pieces_now, workers :
-        Wall time of this run, files and pieces gridded in it, workers used.
+    seconds, startup, done_now, pieces_now, workers :
+        Wall time of this run's gridding (from the cluster being ready to the last file), the time
+        before (starting or reaching the cluster, warming up the workers), files and pieces
+        gridded in this run, workers used.
     top : int
         How many worst pieces and slowest files to list.
     """
@@ -232,7 +234,8 @@ def summarise(entries: Sequence[Mapping[str, Any]], *, skipped: int = 0, seconds
     return {
         "inputs": len(entries), **counts, "skipped": skipped,
         "pieces": len(pieces), "pieces_failed": sum(len(e.get("failed_pieces", ())) for e in entries),
-        "done_now": done_now, "pieces_now": pieces_now, "seconds": seconds, "workers": workers,
+        "done_now": done_now, "pieces_now": pieces_now, "seconds": seconds, "startup_seconds": startup,
+        "workers": workers,
         "files_per_s": done_now / seconds if seconds > 0 else None,
         "pieces_per_s": pieces_now / seconds if seconds > 0 else None,
         "worst_pieces": [{"input": e.get("input"), "stem": e.get("stem"), "name": p.get("name"),
@@ -240,6 +243,6 @@ def summarise(entries: Sequence[Mapping[str, Any]], *, skipped: int = 0, seconds
                           "edge_spread": p.get("edge_spread"), "missed": p.get("missed")} for e, p in worst],
         "slowest_files": [{"input": e.get("input"), "stem": e.get("stem"), "seconds": e["timings"].get("total"),
                            "pieces": len(e.get("pieces", ()))} for e in slow],
-        "failed_inputs": [{"input": e.get("input"), "error": e.get("error")}
-                          for e in entries if e.get("status") == "failed"],
+        "failed_inputs": [{"input": e.get("input"), "error": e.get("error")}   # the first 100
+                          for e in entries if e.get("status") == "failed"][:100],
     }

@@ -627,8 +627,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
           f" ({s['skipped']} done before, {s['done_now']} gridded now); {s['pieces']} pieces written, "
           f"{s['pieces_failed']} failed")
     if s["done_now"]:
-        print(f"{s['pieces_now']} pieces in {s['seconds']:.1f} s on {s['workers'] or '?'} workers: "
-              f"{_fmt(s['pieces_per_s'], '.2f')} pieces/s, {_fmt(s['files_per_s'], '.2f')} files/s")
+        print(f"{s['pieces_now']} pieces in {s['seconds']:.1f} s on {s['workers'] or '?'} workers "
+              f"(after {s['startup_seconds']:.1f} s starting them): {_fmt(s['pieces_per_s'], '.2f')} pieces/s, "
+              f"{_fmt(s['files_per_s'], '.2f')} files/s")
     for w in s["worst_pieces"][:3]:
         if w.get("folded") or w.get("missed"):
             print(f"worst: {w['stem']}/{w['name']}: {w['folded']} folded, min angle "
