@@ -101,7 +101,7 @@ def test_batch_grids_good_files_and_records_broken_ones(tmp_path, client):
         for p in e["pieces"]:
             assert p["outputs"] == [f"{e['stem']}/{p['name']}.npz"]
             assert {"folded", "min_angle_deg", "edge_spread", "nodes", "seconds"} <= set(p)
-        assert set(e["timings"]) == {"read", "grid", "write", "total"}
+        assert set(e["timings"]) == {"read", "grid", "write", "total", "cpu"}
     # the same piece names as generate would grid
     assert [p["name"] for p in by_name["gpg_skirt_4_panels_specification.json"]["pieces"]] == \
         [j.name for j in read_jobs(SHARED / "gpg_skirt_4_panels_specification.json", ["x_{piece}.npz"], options=OPTS)]

@@ -179,7 +179,7 @@ def grid_file(task: FileTask) -> dict[str, Any]:
     with ``retry`` true (nothing of the file is left: the writers remove what
     they wrote). Anything else raises, for the scheduler to retry.
     """
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     folder = Path(task.outdir) / task.stem
     entry: dict[str, Any] = {"input": task.source, "stem": task.stem, "key": task.key, "sha256": task.sha256,
                              "status": "failed", "error": None, "error_type": None, "retry": False,
@@ -203,6 +203,7 @@ def grid_file(task: FileTask) -> dict[str, Any]:
         entry.update(error=str(exc), error_type=type(exc).__name__, retry=stage == "write",
                      failed_pieces=[f.as_dict() for f in getattr(exc, "failed", ())])
         timings["total"] = time.perf_counter() - t0
+        timings["cpu"] = time.process_time() - c0
         return entry
     outdir = Path(task.outdir)
     for r in results:
@@ -215,6 +216,7 @@ def grid_file(task: FileTask) -> dict[str, Any]:
     if failed:
         entry["error"] = "; ".join(f.message() for f in failed)
     timings["total"] = time.perf_counter() - t0
+    timings["cpu"] = time.process_time() - c0
     return entry
 
 
