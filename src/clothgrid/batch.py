@@ -35,6 +35,7 @@ import logging
 import os
 import sys
 import time
+import types
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping, Sequence
@@ -394,8 +395,9 @@ class BatchSummary:
 def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence[str], units: str | None,
                 line: str | None, min_turn: float | None) -> dict[str, Any]:
     """The options that change an input's outputs, as plain JSON values (``"2cm"`` and ``"20mm"`` alike)."""
-    from . import __version__
     from .units import parse_length
+
+    version = getattr(sys.modules.get(__package__ or "clothgrid"), "__version__", "unknown")
 
     grid = asdict(options)
     h = grid.get("edge_length")
@@ -408,7 +410,7 @@ def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence
         grid["nodes"] = list(grid["nodes"])
     grid["tol"] = float(grid["tol"])
     return {"grid": grid, "output": asdict(output), "templates": list(templates), "units": units,
-            "line": line or "sew", "min_turn": min_turn, "clothgrid": __version__}
+            "line": line or "sew", "min_turn": min_turn, "clothgrid": version}
 
 
 def _check_templates(templates: Sequence[str]) -> tuple[str, ...]:
@@ -640,3 +642,14 @@ def _run(client: Any, tasks: Sequence[FileTask], retries: int) -> Iterator[dict[
         if nxt is not None:
             ac.add(submit(nxt))
         yield entry
+
+
+class _CallableModule(types.ModuleType):
+    """``clothgrid.batch(...)`` calls :func:`batch`: the module is callable, so the package's
+    attribute ``batch`` (the module, once imported) and the function are one."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> BatchSummary:
+        return batch(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule
