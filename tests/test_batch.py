@@ -225,16 +225,17 @@ def test_a_killed_run_restarted_finishes_with_nothing_lost_or_duplicated(tmp_pat
             shutil.copy(SHARED / name, src / f"{k}_{name}")
     (src / "broken.svg").write_text("<svg><path d='M 0 0 L 1")
     out = tmp_path / "out"
-    args = [src, "-o", out, "--edge-length", "2cm", "--workers", "2"]
+    args = [src, "-o", out, "--edge-length", "2cm"]
     manifest = out / MANIFEST
+    one, two = ["--workers", "1"], ["--workers", "2"]      # the killed runs on one worker: less start-up
 
     # SIGKILL to the whole process group (the command, the nannies, the workers)
-    proc = _cli(args + ["-q"], start_new_session=True)
+    proc = _cli(args + one + ["-q"], start_new_session=True)
     n1 = _wait_for_lines(proc, manifest, 2)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.communicate(timeout=30)
     # SIGTERM to the command: it stops like Ctrl-C (exit 130), closing its cluster
-    proc = _cli(args)
+    proc = _cli(args + one)
     n2 = _wait_for_lines(proc, manifest, n1 + 2)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
@@ -244,7 +245,7 @@ def test_a_killed_run_restarted_finishes_with_nothing_lost_or_duplicated(tmp_pat
     for e in done:   # every line written is whole and its outputs are there
         assert all((out / o).is_file() for o in e["outputs"])
 
-    proc = _cli(args + ["-q"])
+    proc = _cli(args + two + ["-q"])
     stdout, err = proc.communicate(timeout=120)
     assert proc.returncode == 4, err
     errors = [x for x in err.splitlines() if x.startswith("clothgrid: error:")]
