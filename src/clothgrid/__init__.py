@@ -7,6 +7,7 @@ The public API::
     grid = clothgrid.generate(b, (256, 256))           # exact to tol=2**-12 of the piece's size
     print(clothgrid.quality(grid).table())
     grid.save("piece.obj")
+    clothgrid.batch(["patterns/"], "meshes", workers=4)   # many files on Dask (clothgrid[batch])
 """
 
 from __future__ import annotations
@@ -25,5 +26,14 @@ __version__ = "0.1.0"
 __all__ = [
     "Boundary", "Grid", "Quality", "Weights", "generate", "load_boundary", "make_weights", "quality",
     "ClothgridError", "InputError", "BoundaryError", "SizeError", "PiecesError", "BackendUnavailableError", "NotConvergedError",
-    "__version__",
+    "__version__", "batch",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """``clothgrid.batch``: imported on first use (it needs Dask only when it runs)."""
+    if name == "batch":
+        import importlib
+
+        return importlib.import_module(".batch", __name__)   # a callable module: clothgrid.batch(...)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

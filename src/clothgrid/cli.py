@@ -28,6 +28,8 @@ __all__ = ["main", "parse_nodes", "parse_tol", "EXIT_PARTIAL"]
 
 #: exit code: some pieces of a pattern file failed (each named on stderr), the others were written
 EXIT_PARTIAL = 4
+#: ``clothgrid batch``: error lines shown on stderr at most (the manifest has them all)
+BATCH_ERRORS_SHOWN = 50
 
 DEMO_PIECE = "tshirt_front.json"
 _NUM = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
@@ -167,60 +169,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="boundary JSON file, or a pattern file (.svg, .dxf, GarmentCode .json)")
     g.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
                    help="output file, format by extension (.npz .obj .ply .json .vts); repeatable")
-    g.add_argument("--nodes", type=parse_nodes, metavar="NUxNV",
-                   help="grid size, NUxNV or N (default: the input's point counts)")
-    g.add_argument("--init", choices=("zero", "average", "tfi"), default="tfi",
-                   help="initial grid (default: tfi)")
-    g.add_argument("--weights", choices=("paper", "uniform"), default="uniform",
-                   help="edge weights: uniform, or the paper's eq. 2 (default: uniform; on real "
-                        "patterns the paper's weights spread edge lengths more and fold more cells: "
-                        "docs/patterns.md)")
-    g.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
-                   help="the factor k of the v weights in eq. 2 (default: 1)")
-    g.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",
-                   help="solver (default: auto)")
-    g.add_argument("--backend", choices=BACKENDS, default="auto",
-                   help="where the solver runs: cpu; gl (OpenGL through headless EGL: the GPU's "
-                        "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi); or cuda "
-                        "(an NVIDIA GPU through CuPy, pip install 'clothgrid[cuda]'; solvers multigrid "
-                        "and fdm) (default: auto, cuda where it finds a GPU, else the CPU)")
-    g.add_argument("--tol", type=parse_tol, default=2.0**-12, metavar="T",
-                   help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
-                        "(default: 2**-12)")
-    g.add_argument("--stop", choices=("error", "paper"), default="error",
-                   help="stop rule of the iterative solvers (jacobi, multigrid): the true error bound, "
-                        "or the paper's last-step rule (default: error)")
-    g.add_argument("--max-iter", type=_positive_int, default=None, metavar="N",
-                   help="most iterations of an iterative solver (Jacobi sweeps or multigrid V-cycles)")
-    g.add_argument("--allow-unconverged", action="store_true",
-                   help="write the grid even if --max-iter is reached before --tol")
-    g.add_argument("--functional", choices=("length", "foldfree", "auto"), default="auto",
-                   help="length: the weighted length functional alone (the paper's; may fold cells on "
-                        "non-convex pieces); auto: then relax the folded and poorly shaped cells and the "
-                        "nodes near them (planar pieces); foldfree: relax every interior node "
-                        "(default: auto)")
+    _add_grid_arguments(g)
     g.add_argument("--report", metavar="FILE.json",
                    help="write a quality report: per piece folded cells, smallest and largest angle, "
                         "edge spread, shortest edge against the edge length asked, targets missed")
     g.add_argument("--strict", action="store_true",
                    help="fail (exit 3, no output) if the final grid has folded cells")
     g.add_argument("--plot", metavar="PNG", help="also draw the grid to this PNG file")
-    g.add_argument("--cloth", action="store_true",
-                   help="add the simulation arrays to .npz outputs: pattern coordinates, triangles, "
-                        "springs with rest lengths, node areas (and masses with --density)")
-    g.add_argument("--density", type=parse_density, metavar="D",
-                   help="areal density with a unit, e.g. 0.2kg/m2, 150g/m2 or 150gsm: adds node "
-                        "masses (kg) to .npz (implies --cloth) and .vts outputs")
-    g.add_argument("--units", type=_length_unit, metavar="UNIT",
-                   help="length unit of the input's coordinates: m, cm, mm, in, ft, yd, ... (default: "
-                        "the unit a pattern file states; m for a boundary JSON); used for --density "
-                        "masses and recorded in the outputs")
-    g.add_argument("--triangles", choices=("fixed", "alternate"),
-                   help="write triangle faces to .obj and .ply (quads are split along one diagonal, "
-                        "or alternating ones); also the diagonal of the --cloth .npz triangles")
-    g.add_argument("--uv", choices=("normalised", "pattern"),
-                   help="texture coordinates of .obj and .ply: normalised arc length in [0, 1] "
-                        "(default) or the flat pattern coordinates in length units")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
     _add_pattern_arguments(g)  # --edge-length and the pattern-file options
     g.set_defaults(func=_cmd_generate)
@@ -238,6 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_pieces_parser(sub)  # clothgrid pieces FILE
     _add_garment_parser(sub)  # clothgrid garment SPEC
     _add_heat_parser(sub)    # clothgrid heat
+    _add_batch_parser(sub)   # clothgrid batch INPUTS... -o OUTDIR
     return parser
 
 
@@ -436,13 +392,73 @@ def _cmd_garment(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_pattern_arguments(g: argparse.ArgumentParser) -> None:
-    """Add the pattern-file options (and ``--edge-length``) to the ``generate`` parser."""
+def _add_grid_arguments(p: argparse.ArgumentParser) -> None:
+    """The gridding and output options that ``generate`` and ``batch`` share (one parser for both)."""
+    p.add_argument("--nodes", type=parse_nodes, metavar="NUxNV",
+                   help="grid size, NUxNV or N (default: the input's point counts)")
+    p.add_argument("--init", choices=("zero", "average", "tfi"), default="tfi",
+                   help="initial grid (default: tfi)")
+    p.add_argument("--weights", choices=("paper", "uniform"), default="uniform",
+                   help="edge weights: uniform, or the paper's eq. 2 (default: uniform; on real "
+                        "patterns the paper's weights spread edge lengths more and fold more cells: "
+                        "docs/patterns.md)")
+    p.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
+                   help="the factor k of the v weights in eq. 2 (default: 1)")
+    p.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",
+                   help="solver (default: auto)")
+    p.add_argument("--backend", choices=BACKENDS, default="auto",
+                   help="where the solver runs: cpu; gl (OpenGL through headless EGL: the GPU's "
+                        "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi); or cuda "
+                        "(an NVIDIA GPU through CuPy, pip install 'clothgrid[cuda]'; solvers multigrid "
+                        "and fdm) (default: auto, cuda where it finds a GPU, else the CPU)")
+    p.add_argument("--tol", type=parse_tol, default=2.0**-12, metavar="T",
+                   help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
+                        "(default: 2**-12)")
+    p.add_argument("--stop", choices=("error", "paper"), default="error",
+                   help="stop rule of the iterative solvers (jacobi, multigrid): the true error bound, "
+                        "or the paper's last-step rule (default: error)")
+    p.add_argument("--max-iter", type=_positive_int, default=None, metavar="N",
+                   help="most iterations of an iterative solver (Jacobi sweeps or multigrid V-cycles)")
+    p.add_argument("--allow-unconverged", action="store_true",
+                   help="write the grid even if --max-iter is reached before --tol")
+    p.add_argument("--functional", choices=("length", "foldfree", "auto"), default="auto",
+                   help="length: the weighted length functional alone (the paper's; may fold cells on "
+                        "non-convex pieces); auto: then relax the folded and poorly shaped cells and the "
+                        "nodes near them (planar pieces); foldfree: relax every interior node "
+                        "(default: auto)")
+    p.add_argument("--cloth", action="store_true",
+                   help="add the simulation arrays to .npz outputs: pattern coordinates, triangles, "
+                        "springs with rest lengths, node areas (and masses with --density)")
+    p.add_argument("--density", type=parse_density, metavar="D",
+                   help="areal density with a unit, e.g. 0.2kg/m2, 150g/m2 or 150gsm: adds node "
+                        "masses (kg) to .npz (implies --cloth) and .vts outputs")
+    p.add_argument("--units", type=_length_unit, metavar="UNIT",
+                   help="length unit of the input's coordinates: m, cm, mm, in, ft, yd, ... (default: "
+                        "the unit a pattern file states; m for a boundary JSON); used for --density "
+                        "masses and recorded in the outputs")
+    p.add_argument("--triangles", choices=("fixed", "alternate"),
+                   help="write triangle faces to .obj and .ply (quads are split along one diagonal, "
+                        "or alternating ones); also the diagonal of the --cloth .npz triangles")
+    p.add_argument("--uv", choices=("normalised", "pattern"),
+                   help="texture coordinates of .obj and .ply: normalised arc length in [0, 1] "
+                        "(default) or the flat pattern coordinates in length units")
+
+
+def _add_pattern_arguments(g: argparse.ArgumentParser, one_file: bool = True) -> None:
+    """Add the pattern-file options (and ``--edge-length``) to the ``generate`` parser; with
+    ``one_file`` false (``batch``) only those that mean the same for every file (``--edge-length``,
+    ``--line``, ``--min-turn``), not the piece names and corners of one file."""
     p = g.add_argument_group("pattern files (.svg, .dxf, GarmentCode .json)")
     p.add_argument("--edge-length", metavar="LEN",
                    help="grid size from a target edge length along the sides, e.g. 5mm, 0.5cm, "
                         "0.25in (a plain number: mm for pattern files, the file's units for a "
                         "boundary JSON); instead of --nodes (pattern default: 10mm)")
+    p.add_argument("--min-turn", type=float, default=None, metavar="DEG",
+                   help="smallest turn (degrees) that makes a vertex a corner candidate "
+                        "(default: 20)")
+    if not one_file:
+        _add_line_argument(p)
+        return
     p.add_argument("--piece", action="append", metavar="NAME",
                    help="grid only this piece (repeatable; default: every piece); may name an "
                         "outline skipped as an annotation")
@@ -454,9 +470,6 @@ def _add_pattern_arguments(g: argparse.ArgumentParser) -> None:
     p.add_argument("--corners-near", type=_corner_points, metavar="X,Y;X,Y;X,Y;X,Y",
                    help="the grid corners as the outline points nearest to four points in mm "
                         "(same order as --corners); one piece only")
-    p.add_argument("--min-turn", type=float, default=None, metavar="DEG",
-                   help="smallest turn (degrees) that makes a vertex a corner candidate "
-                        "(default: 20)")
     # --units (the generate parser's own option) overrides the units a pattern file states
 
 
@@ -466,6 +479,11 @@ def _add_annotation_arguments(p: Any, verb: str) -> None:
                    help=f"also {verb} this closed outline, which was skipped as an annotation (text, "
                         "arrow, notch, drill hole, mark on a piece, seam-allowance outline; "
                         "'clothgrid pieces FILE' lists them with their names and reasons); repeatable")
+    _add_line_argument(p)
+
+
+def _add_line_argument(p: Any) -> None:
+    """``--line sew|cut`` (generate, batch and pieces)."""
     p.add_argument("--line", choices=("sew", "cut"), default=None,
                    help="of a piece drawn with both a sew line and a cut (seam-allowance) line "
                         "(AAMA/ASTM DXF layer 14 and 1; an SVG outline inside another of nearly "
@@ -493,6 +511,48 @@ def _add_pieces_parser(sub: Any) -> None:
                    help="smallest turn (degrees) for a corner candidate (default: 20)")
     p.add_argument("--json", action="store_true", help="print the listing as JSON")
     p.set_defaults(func=_cmd_pieces)
+
+
+def _add_batch_parser(sub: Any) -> None:
+    """Add ``clothgrid batch INPUTS... -o OUTDIR``: every piece of many files, on Dask."""
+    b = sub.add_parser("batch", help="grid every piece of many pattern files (Dask), with a manifest and resume",
+                       description="Grid every piece of every input file with the options of 'generate', "
+                                   "on a local Dask cluster or an existing one, into OUTDIR/<stem>/ "
+                                   "(one folder per input, named after its file stem) with "
+                                   "OUTDIR/manifest.jsonl (one line per input: status, errors, timings, "
+                                   "quality per piece, outputs). A rerun skips the inputs already done "
+                                   "with the same content and options. Exit code 4 when some files or "
+                                   "pieces failed (each named on stderr and in the manifest).")
+    b.add_argument("inputs", nargs="+", metavar="INPUT",
+                   help="pattern or boundary files, folders (searched recursively for .json, .svg, "
+                        ".dxf) or glob patterns such as 'data/**/*_specification.json'")
+    b.add_argument("-o", "--output-dir", required=True, metavar="OUTDIR",
+                   help="output folder, created if missing")
+    b.add_argument("-t", "--template", action="append", metavar="NAME",
+                   help="output name inside OUTDIR/<stem>/ with {piece}, format by extension "
+                        "(.npz .obj .ply .json .vts); repeatable (default: {piece}.npz)")
+    _add_grid_arguments(b)
+    _add_pattern_arguments(b, one_file=False)
+    c = b.add_argument_group("cluster")
+    where = c.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=_positive_int, metavar="N",
+                       help="worker processes of the local Dask cluster (default: the CPU cores, at "
+                            "most one per file)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="use the Dask scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786) instead of a "
+                            "local cluster; its workers need clothgrid installed and the same paths")
+    c.add_argument("--retries", type=int, default=2, metavar="N",
+                   help="how often a file is retried when its task fails or its worker dies (default: 2)")
+    c.add_argument("--redo-failed", action="store_true",
+                   help="also redo the files that failed because they are bad (by default a rerun "
+                        "redoes only changed files and those that failed for another reason)")
+    c.add_argument("--force", action="store_true", help="redo every file, done or not")
+    c.add_argument("--log-every", type=int, default=None, metavar="N",
+                   help="when stderr is not a terminal, a progress line every N files (0: none; "
+                        "default: every tenth of the run, at most every 100 files)")
+    b.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress on stderr (errors and the summary still shown)")
+    b.set_defaults(func=_cmd_batch)
 
 
 def _corner_indices(text: str) -> list[int]:
@@ -588,13 +648,27 @@ def _report(result: Any, pattern: bool) -> None:
     print(timing_line(grid.info, result.seconds), flush=True)
 
 
-def _cmd_generate(args: argparse.Namespace) -> int:
+def _grid_options(args: argparse.Namespace) -> Any:
+    """The :class:`~clothgrid.pipeline.GridOptions` of ``generate`` and ``batch`` (checked once)."""
     from . import pipeline
 
-    options = pipeline.GridOptions(
+    return pipeline.GridOptions(
         nodes=args.nodes, edge_length=args.edge_length, init=args.init, weights=args.weights, k=args.k,
         solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop, max_iter=args.max_iter,
         allow_unconverged=args.allow_unconverged, functional=args.functional)
+
+
+def _output_options(args: argparse.Namespace) -> Any:
+    """The :class:`~clothgrid.pipeline.OutputOptions` of ``generate`` and ``batch``."""
+    from . import pipeline
+
+    return pipeline.OutputOptions(triangles=args.triangles, uv=args.uv, density=args.density, cloth=args.cloth)
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    from . import pipeline
+
+    options = _grid_options(args)
     progress = _progress(args.quiet)
     jobs = pipeline.read_jobs(args.input, args.output, args.plot, options=options, pieces=args.piece,
                               corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
@@ -627,7 +701,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     report = None
     if args.report:   # first: a report that cannot be written leaves no grid behind
         report = pipeline.write_report(args.report, args.input, results, failed)
-    out = pipeline.OutputOptions(triangles=args.triangles, uv=args.uv, density=args.density, cloth=args.cloth)
+    out = _output_options(args)
     try:
         written = pipeline.write_results(results, out)
     except BaseException:
@@ -709,6 +783,60 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
     sys.stdout.flush()
     _say_failed(source, failed)
     return code
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    """``clothgrid batch INPUTS... -o OUTDIR``: grid many files on Dask, print the summary."""
+    import signal
+
+    from . import batch
+
+    options = _grid_options(args)
+    progress = None if args.quiet else batch.ProgressLine(sys.stderr, every=args.log_every)
+
+    def terminate(signum: int, frame: Any) -> None:   # SIGTERM: stop like Ctrl-C, closing the cluster
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, terminate)
+    try:
+        run = batch.batch(args.inputs, args.output_dir, options=options, output=_output_options(args),
+                          templates=args.template or (batch.DEFAULT_TEMPLATE,), units=args.units,
+                          line=args.line, min_turn=args.min_turn, workers=args.workers,
+                          scheduler=args.scheduler, retries=args.retries, redo_failed=args.redo_failed,
+                          force=args.force, progress=progress)
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    s = run.summary
+    shown = 0
+    for e in run.entries:       # one error line per failed file and per failed piece (capped)
+        if e["status"] == "failed":
+            error = str(e.get("error"))
+            lines = [error if str(e["input"]) in error else f"{e['input']}: {error}"]
+        else:
+            lines = [f"{e['input']}: piece {f['name']!r}: {f['reason']}" for f in e["failed_pieces"]]
+        for text in lines:
+            if shown < BATCH_ERRORS_SHOWN:
+                _say(f"error: {text}")
+            shown += 1
+    if shown > BATCH_ERRORS_SHOWN:
+        _say(f"... and {shown - BATCH_ERRORS_SHOWN} more errors: see {run.manifest}")
+    print(f"{s['inputs']} files: {s['ok']} ok, {s['partial']} partial, {s['failed']} failed"
+          f" ({s['skipped']} done before, {s['done_now']} gridded now); {s['pieces']} pieces written, "
+          f"{s['pieces_failed']} failed")
+    if s["done_now"]:
+        print(f"{s['pieces_now']} pieces in {s['seconds']:.1f} s on {s['workers'] or '?'} workers "
+              f"(after {s['startup_seconds']:.1f} s starting them): {_fmt(s['pieces_per_s'], '.2f')} pieces/s, "
+              f"{_fmt(s['files_per_s'], '.2f')} files/s")
+    for w in s["worst_pieces"][:3]:
+        if w.get("folded") or w.get("missed"):
+            print(f"worst: {w['stem']}/{w['name']}: {w['folded']} folded, min angle "
+                  f"{_fmt(w['min_angle_deg'], '.3g')} deg" + (f"; misses: {'; '.join(w['missed'])}" if w["missed"] else ""))
+    for f in s["slowest_files"][:3]:
+        print(f"slowest: {f['stem']}: {_fmt(f['seconds'], '.2f')} s, {f['pieces']} pieces")
+    print(f"manifest: {run.manifest}", flush=True)
+    if s["ok"] + s["partial"] == 0:     # nothing written: bad files (2), or lost workers / write errors (1)
+        return 2 if all(e.get("retry") is False for e in run.failed) else 1
+    return EXIT_PARTIAL if s["failed"] or s["pieces_failed"] else 0
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
