@@ -80,7 +80,11 @@ def test_report_json_and_a_report_that_cannot_be_written(tmp_path):
     for p in data["pieces"]:
         assert p["folded"] == 0 and p["missed"] == [] and p["min_angle_deg"] > 75   # measured 79.9 / 82.6
         assert p["edge_spread"] < 3.1 and p["corners"]["method"]
-    bad = tmp_path / "no" / "such" / "q.json"
+    nested = tmp_path / "reports" / "today" / "q.json"          # missing folders are made
+    assert main(["generate", str(SKIRT), "-o", str(out / "{piece}.npz"), "--report", str(nested), "-q"]) == 0
+    assert json.loads(nested.read_text())["pieces"]
+    (tmp_path / "plain").write_text("a file, not a folder")
+    bad = tmp_path / "plain" / "q.json"
     out2 = tmp_path / "m2"
     assert main(["generate", str(SKIRT), "-o", str(out2 / "{piece}.npz"), "--report", str(bad), "-q"]) == 2
     assert not out2.exists() or not any(out2.iterdir())

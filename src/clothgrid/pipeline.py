@@ -550,6 +550,8 @@ def write_report(path: str | Path, source: str | Path, results: Sequence[Result]
                  failed: Sequence[Any] = ()) -> Path:
     """Write the quality report of a run as JSON, atomically (temporary file, then rename).
 
+    Missing folders of ``path`` are created (and removed again if the write fails).
+
     Holds the targets (:mod:`clothgrid.quality`), one entry per piece
     (:func:`report_entry`) and the pieces that failed with their reasons.
     """
@@ -567,11 +569,16 @@ def write_report(path: str | Path, source: str | Path, results: Sequence[Result]
     }
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    made = _make_folders([path])           # like the outputs' folders
     try:
         tmp.write_text(json.dumps(data, indent=1, allow_nan=False, default=float) + "\n")
         os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:                     # e.g. a "folder" of the path is a file
+            pass
+        _remove_folders(made)
         raise InputError(f"cannot write the report {str(path)!r}: {exc.strerror or exc}") from exc
     return path
 
