@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["PLANAR_TOL", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
-           "spike_points", "SPIKE_TURN_DEG"]
+           "spike_points", "SPIKE_TURN_DEG", "untie_loops"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
 PLANAR_TOL = 1e-9
@@ -169,3 +169,64 @@ def spike_points(loop: np.ndarray, width: float) -> np.ndarray:
             nxt[left], prev[right] = right, left
             alive -= len(taken)
     return out
+
+
+def _first_crossing(p: np.ndarray) -> tuple[int, int, np.ndarray] | None:
+    """The first pair ``(i, j)``, ``i < j``, of non-adjacent crossing segments of a closed loop."""
+    n = len(p)
+    a, b = p, np.roll(p, -1, axis=0)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    for i in range(n - 2):
+        j = np.arange(i + 2, n if i > 0 else n - 1)
+        if j.size == 0:
+            continue
+        box = ((lo[j, 0] <= hi[i, 0]) & (hi[j, 0] >= lo[i, 0]) &
+               (lo[j, 1] <= hi[i, 1]) & (hi[j, 1] >= lo[i, 1]))
+        j = j[box]
+        if j.size == 0:
+            continue
+        r = b[i] - a[i]
+        s = b[j] - a[j]
+        den = r[0] * s[:, 1] - r[1] * s[:, 0]
+        q = a[j] - a[i]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (q[:, 0] * s[:, 1] - q[:, 1] * s[:, 0]) / den
+            u = (q[:, 0] * r[1] - q[:, 1] * r[0]) / den
+        hit = (den != 0) & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)
+        if hit.any():
+            k = int(np.flatnonzero(hit)[0])
+            return i, int(j[k]), a[i] + t[k] * r
+    return None
+
+
+def untie_loops(loop: np.ndarray, max_area: float, max_loops: int = 64) -> np.ndarray | None:
+    """A closed 2D outline with its small self-crossing loops cut off, or None.
+
+    Seam lines drawn by pattern CAD systems often run past a corner and cross
+    the next one, leaving a small loop; the corner is where they cross. Each
+    crossing of two segments splits the outline in two loops: the one of
+    smaller area is cut off and the crossing point put in its place, while the
+    loops cut off add up to at most ``max_area``. Returns the untied outline
+    (the input itself when nothing crosses), or None when a crossing cuts
+    off more than that (the outline really crosses itself).
+    """
+    p = np.asarray(loop, dtype=np.float64)[:, :2]
+    removed = 0.0
+    for _ in range(max_loops + 1):
+        found = _first_crossing(p)
+        if found is None:
+            return p
+        i, j, x = found
+        inner = p[i + 1:j + 1]                       # between the crossing segments
+        outer = np.vstack([p[j + 1:], p[:i + 1]])
+        a_in = abs(signed_area(np.vstack([x, inner])))
+        a_out = abs(signed_area(np.vstack([x, outer])))
+        if a_in <= a_out:
+            removed += a_in
+            p = np.vstack([p[:i + 1], x, p[j + 1:]])
+        else:
+            removed += a_out
+            p = np.vstack([x, inner])
+        if removed > max_area or len(p) < 3:
+            return None
+    return None

@@ -224,12 +224,13 @@ def rounded_corners(outline: np.ndarray, taken: Sequence[int], window: float,
     return sorted(found)
 
 
-def dart_mouths(outline: np.ndarray, cands: Sequence[int], turn: np.ndarray
-                ) -> list[tuple[int, int, int]]:
+def dart_mouths(outline: np.ndarray, cands: Sequence[int], turn: np.ndarray,
+                wturn: np.ndarray | None = None) -> list[tuple[int, int, int]]:
     """The darts of an outline: ``(mouth, tip, mouth)`` outline indices in outline order.
 
     A dart tip is a candidate that turns concave by :data:`DART_TIP_TURN_DEG`
-    or more; its mouths are the nearest convex candidates before and after it,
+    or more, at the point or over a window (``wturn``, :func:`windowed_turn`:
+    a tip drawn rounded, or where curved legs meet); its mouths are the nearest convex candidates before and after it,
     when the two legs are of similar length (within a factor 2) and the mouth
     is narrower than the shorter leg. A dart's mouths are where the dart meets
     the seam line, not corners a pattern maker would choose.
@@ -240,7 +241,8 @@ def dart_mouths(outline: np.ndarray, cands: Sequence[int], turn: np.ndarray
     s, perimeter = _arc(outline)
     darts = []
     for k, tip in enumerate(cs):
-        if turn[tip] > -math.radians(DART_TIP_TURN_DEG):
+        deepest = turn[tip] if wturn is None else min(turn[tip], wturn[tip])
+        if deepest > -math.radians(DART_TIP_TURN_DEG):
             continue
         a = next((cs[(k - j) % len(cs)] for j in range(1, len(cs)) if turn[cs[(k - j) % len(cs)]] > 0),
                  None)
@@ -576,7 +578,8 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
     for c in cands:                       # rounded corners count with their windowed turn
         turn[c.index] = math.radians(c.turn)
     q = _quality(turn)
-    darts = dart_mouths(outline, [c.index for c in cands], turn)
+    darts = dart_mouths(outline, [c.index for c in cands], turn,
+                        windowed_turn(outline, round_window(outline)))
     mouths = sorted({a for a, _, _ in darts} | {b for _, _, b in darts})
     s, perimeter = _closed_arc(outline, darts)
     tps = [c.index for c in cands if c.turn_point]

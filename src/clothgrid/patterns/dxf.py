@@ -368,6 +368,20 @@ def _max_gap(a: Piece, b: Piece) -> float:
     return float(_dist_to_polyline(_sub(a.outline), _sub(b.outline, 4000)).max())
 
 
+def _untie(piece: Piece) -> tuple[Piece | None, str | None]:
+    """The sew line as it is, or None and a note when it crosses itself in earnest.
+
+    Small loops where lines run past a corner are already cut off when the
+    piece is made (:func:`clothgrid.patterns.piece.piece_from_polygon`); what
+    still crosses is no outline, and the cut line is gridded instead.
+    """
+    from ..geometry import untie_loops
+
+    if len(piece.outline) > 20_000 or untie_loops(piece.outline, 0.0, max_loops=0) is not None:
+        return piece, None
+    return None, "its sew line (layer 14) crosses itself, so the cut line (layer 1) is gridded"
+
+
 def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str = "sew") -> Pieces:
     msp = doc.modelspace()
     blocks = {b.name: b for b in doc.blocks if _is_piece_block(b)}
@@ -437,7 +451,7 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
             cut = piece_from_primitives(pname, _scale(boundary, scale),
                                         notes=tuple(notes + ctx.notes), meta=dict(meta), **common)
             sew_loops, sew_open = _layer_loops(ents, "14", ctx)
-            sew = None
+            sew, crossed = None, None
             if sew_loops:
                 try:
                     sew = piece_from_primitives(pname, _scale(max(sew_loops, key=_loop_area), scale),
@@ -445,6 +459,8 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
                                                 **common)
                 except InputError:
                     sew = None                     # a sew line that is no outline: use the cut line
+                if sew is not None:
+                    sew, crossed = _untie(sew)
             if sew is not None:
                 gap = _max_gap(cut, sew)
                 sew.meta["cut_line_gap_mm"] = cut.meta["cut_line_gap_mm"] = gap
@@ -454,8 +470,8 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
                 line_used = "sew"
             elif line == "sew":
                 piece = cut
-                why = ("its sew line (layer 14) does not close" if sew_open and not sew_loops else
-                       "no sew line (layer 14) in this piece")
+                why = crossed or ("its sew line (layer 14) does not close" if sew_open and not sew_loops
+                                  else "no sew line (layer 14) in this piece")
                 extra = [f"line: cut (layer 1): {why}"]
                 line_used = "cut"
             else:

@@ -10,7 +10,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError, PiecesError
-from ..geometry import signed_area, spike_points
+from ..geometry import signed_area, spike_points, untie_loops
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
 __all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
@@ -248,6 +248,36 @@ def pattern_pieces(pieces: Sequence[Piece], failed: Sequence[PieceFailure], wher
                       + "; ".join(f.message() for f in failed), failed, where)
 
 
+#: Most area (fraction of the piece's) that the small self-crossing loops cut off an outline
+#: may add up to (:func:`clothgrid.geometry.untie_loops`); outlines of more points than
+#: :data:`UNTIE_MAX_POINTS` are not searched (the boundary check still finds a crossing).
+UNTIE_AREA = 0.01
+UNTIE_MAX_POINTS = 20_000
+
+
+def _untied(pts: np.ndarray, verts: np.ndarray, turns: np.ndarray, size: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """``pts`` with the small loops of lines running past a corner cut off, indices carried over.
+
+    The crossing points are new vertices (and turn points, where the piece has
+    any): they are the corners the lines meant. An outline that crosses itself
+    in earnest is returned as it is (the boundary check names the crossing).
+    """
+    out = untie_loops(pts, UNTIE_AREA * abs(signed_area(pts)))
+    if out is None or (len(out) == len(pts) and np.array_equal(out, pts)):
+        return pts, verts, turns, 0
+    at = {(float(x), float(y)): k for k, (x, y) in enumerate(out)}
+    old = {(float(x), float(y)) for x, y in pts}
+    crossings = {k for k, (x, y) in enumerate(out) if (float(x), float(y)) not in old}
+
+    def carry(idx: np.ndarray) -> np.ndarray:
+        moved = {at.get((float(pts[i, 0]), float(pts[i, 1]))) for i in idx}
+        return np.array(sorted((moved - {None}) | crossings), dtype=np.int64)
+
+    return (np.ascontiguousarray(out), carry(verts), carry(turns) if len(turns) else turns,
+            len(crossings))
+
+
 def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | None = None,
                        turn_points: np.ndarray | None = None, where: str = "",
                        **kwargs: Any) -> Piece:
@@ -284,8 +314,10 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     new_index = np.where(new_index < 0, int(keep.sum()) - 1, new_index)
     pts = pts[keep]
     # zero-width spikes (a slit or a notch mark drawn into the line) are not cloth
-    spikes = spike_points(pts, SPIKE_WIDTH * size)
-    if spikes.any() and (~spikes).sum() >= MIN_POINTS:
+    for _ in range(8):                        # taking a spike off may leave a step back: again
+        spikes = spike_points(pts, SPIKE_WIDTH * size)
+        if not spikes.any() or (~spikes).sum() < MIN_POINTS:
+            break
         at = pts[spikes].mean(axis=0)
         kept = ~spikes
         again = np.cumsum(kept) - 1
@@ -296,6 +328,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
             f"removed {int(spikes.sum())} outline point{'s' if spikes.sum() != 1 else ''} on "
             f"zero-width spikes (slits or notch marks in the line) near "
             f"({at[0]:.6g}, {at[1]:.6g})",)
+        # (a spike's points are consecutive duplicates no longer: nothing else to drop)
     n = len(pts)
     if n < MIN_POINTS:
         raise InputError(f"{label}: only {n} distinct point{'s' if n != 1 else ''}; a piece "
@@ -307,6 +340,13 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
         return np.unique(new_index[np.asarray(idx, dtype=np.int64) % n0])
 
     verts, turns = remap(vertices), remap(turn_points)
+    if n <= UNTIE_MAX_POINTS:
+        pts, verts, turns, crossings = _untied(pts, verts, turns, size)
+        n = len(pts)
+        if crossings:
+            kwargs["notes"] = tuple(kwargs.get("notes", ())) + (
+                f"{crossings} small loop{'s' if crossings != 1 else ''} where the line runs past a "
+                f"corner and crosses itself cut off at the crossing",)
     area = signed_area(pts)
     if not abs(area) > 1e-12 * size * size:
         raise InputError(f"{label}: encloses no area (its outline runs back over itself)")
