@@ -171,3 +171,18 @@ def test_added_corners_sit_where_the_outline_is_convex():
     assert on_inner == []
     grid = generate_piece(piece, edge_length=8.0)
     assert quality(grid).folded == 0
+
+
+def test_lines_running_past_a_corner_are_cut_back_to_where_they_cross():
+    from clothgrid.geometry import untie_loops
+    from clothgrid.patterns.piece import piece_from_polygon
+    # a 100 x 100 square whose bottom line runs 2 mm past the corner and the right line starts
+    # 2 mm below it: a small loop at the bottom-right corner
+    sq = np.array([[0, 0], [102, 0], [100, -2], [100, 100], [0, 100]], float)
+    np.testing.assert_allclose(untie_loops(sq, 10.0), [[0, 0], [100, 0], [100, 100], [0, 100]])
+    assert untie_loops(sq, 1.0) is None                     # the loop (2 mm2) is more than allowed
+    bowtie = np.array([[0, 0], [10, 10], [10, 0], [0, 10]], float)
+    assert untie_loops(bowtie, 1.0) is None                  # crosses in earnest
+    piece = piece_from_polygon("sq", sq, vertices=np.arange(5))
+    assert len(piece.outline) == 4 and any("crosses itself" in n for n in piece.notes)
+    assert quality(generate_piece(piece, edge_length=10.0)).folded == 0
