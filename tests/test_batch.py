@@ -390,3 +390,34 @@ def test_every_file_bad_exits_2_without_starting_a_cluster(tmp_path, capsys, mon
     cap = capsys.readouterr()
     assert cap.err.splitlines() == [f"clothgrid: error: {src / 'a.json'}: invalid JSON"]
     assert "1 files: 0 ok, 0 partial, 1 failed (1 done before, 0 gridded now)" in cap.out
+
+
+@needs_shared
+def test_garment_mode_sews_each_spec_and_resumes(tmp_path, client):
+    src = tmp_path / "specs"
+    src.mkdir()
+    for name in ("gpg_skirt_4_panels_specification.json", "gcn_rand_KEJUMAMSBX_specification.json"):
+        shutil.copy(SHARED / name, src / name)
+    (src / "broken_specification.json").write_text('{"pattern": {"panels": ')
+    out = tmp_path / "out"
+    opts = GridOptions(edge_length="3cm")
+    run = B.batch([src], out, options=opts, client=client, garment=True, seams="weld",
+                  templates=("garment.npz", "garment.obj"))
+    by = {e["stem"]: e for e in run.entries}
+    assert by["broken_specification"]["status"] == "failed" and by["broken_specification"]["error"]
+    for stem in ("gpg_skirt_4_panels_specification", "gcn_rand_KEJUMAMSBX_specification"):
+        e = by[stem]
+        assert e["status"] == "ok" and e["outputs"] == [f"{stem}/garment.npz", f"{stem}/garment.obj"]
+        with np.load(out / stem / "garment.npz") as z:
+            assert len(z["panel_names"]) == e["garment"]["panels"] == len(e["pieces"])
+            assert z["stitches"].shape[0] == e["garment"]["stitched_node_pairs"] > 0
+            assert "weld_map" in z.files
+        assert all(p["folded"] == 0 for p in e["pieces"])
+    again = B.batch([src], out, options=opts, client=client, garment=True, seams="weld",
+                    templates=("garment.npz", "garment.obj"))
+    assert again.done_now == []                                  # nothing to redo
+    keep = B.batch([src], out, options=opts, client=client, garment=True, seams="keep",
+                   templates=("garment.npz", "garment.obj"), force=False)
+    assert {e["stem"] for e in keep.done_now} == set(by)       # other options: every input again
+    with pytest.raises(InputError, match="garment is written as"):
+        B.batch([src], out, options=opts, client=client, garment=True, templates=("{piece}.ply",))

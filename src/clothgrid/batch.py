@@ -51,6 +51,9 @@ __all__ = ["batch", "BatchSummary", "FileTask", "find_inputs", "assign_stems", "
 
 #: outputs of one input, relative to its folder ``OUTDIR/<stem>/``
 DEFAULT_TEMPLATE = "{piece}.npz"
+#: the output of an input in garment mode, and the formats a garment is written as
+GARMENT_TEMPLATE = "garment.npz"
+GARMENT_FORMATS = (".npz", ".obj", ".usda", ".usd", ".usdc")
 #: how often the scheduler retries a task that raised or whose worker died
 DEFAULT_RETRIES = 2
 #: file extensions picked up from folders (glob patterns and files given by name may be any)
@@ -140,6 +143,9 @@ class FileTask:
         Pattern-file options of :func:`clothgrid.pipeline.read_jobs`.
     key, sha256 :
         The resume key and the content hash, copied into the manifest line.
+    garment, seams :
+        Make the input one sewn garment (:func:`clothgrid.garment.garment`) instead of a grid
+        per piece; ``seams`` is ``"keep"`` or ``"weld"`` for its outputs.
     """
 
     source: str
@@ -153,6 +159,8 @@ class FileTask:
     min_turn: float | None = None
     key: str = ""
     sha256: str = ""
+    garment: bool = False
+    seams: str = "keep"
 
 
 def _clean_stale(folder: Path) -> None:
@@ -188,6 +196,8 @@ def grid_file(task: FileTask) -> dict[str, Any]:
     timings: dict[str, float] = {}
     entry["timings"] = timings
     stage = "read"
+    if task.garment:
+        return _grid_garment(task, entry, timings, t0, c0)
     try:
         jobs = read_jobs(task.source, [str(folder / t) for t in task.templates], options=task.options,
                          units=task.units, line=task.line, min_turn=task.min_turn)
@@ -216,6 +226,45 @@ def grid_file(task: FileTask) -> dict[str, Any]:
     entry["status"] = "partial" if failed else "ok"
     if failed:
         entry["error"] = "; ".join(f.message() for f in failed)
+    timings["total"] = time.perf_counter() - t0
+    timings["cpu"] = time.process_time() - c0
+    return entry
+
+
+def _grid_garment(task: FileTask, entry: dict[str, Any], timings: dict[str, float],
+                  t0: float, c0: float) -> dict[str, Any]:
+    """:func:`grid_file` for ``task.garment``: one sewn garment per input, its panels as the pieces."""
+    from .garment import garment, write_garment
+
+    folder = Path(task.outdir) / task.stem
+    written: list[Path] = []
+    stage = "grid"
+    try:
+        g = garment(task.source, edge_length=task.options.edge_length or "10mm", units=task.units,
+                    weights=task.options.weights, functional=task.options.functional)
+        timings["grid"] = time.perf_counter() - t0
+        stage = "write"
+        t1 = time.perf_counter()
+        _clean_stale(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        for t in task.templates:
+            written.append(write_garment(g, folder / t.replace("{piece}", "garment"), seams=task.seams,
+                                         density=task.output.density))
+        timings["write"] = time.perf_counter() - t1
+    except (InputError, NotConvergedError) as exc:
+        for w in written:
+            w.unlink(missing_ok=True)
+        entry.update(error=str(exc), error_type=type(exc).__name__, retry=stage == "write")
+        timings["total"] = time.perf_counter() - t0
+        timings["cpu"] = time.process_time() - c0
+        return entry
+    outdir = Path(task.outdir)
+    entry["outputs"] = [w.relative_to(outdir).as_posix() for w in written]
+    entry["pieces"] = [{k: p.get(k) for k in ("name", "nodes", "folded", "min_angle_deg", "corners")}
+                       for p in g.info.get("panels", [])]
+    entry["garment"] = {"panels": len(g.panel_names), "stitches": len(g.spec.stitches),
+                        "stitched_node_pairs": int(len(g.stitches)), "nodes": int(len(g.points))}
+    entry["status"] = "ok"
     timings["total"] = time.perf_counter() - t0
     timings["cpu"] = time.process_time() - c0
     return entry
@@ -393,7 +442,8 @@ class BatchSummary:
 
 
 def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence[str], units: str | None,
-                line: str | None, min_turn: float | None) -> dict[str, Any]:
+                line: str | None, min_turn: float | None, garment: bool = False,
+                seams: str = "keep") -> dict[str, Any]:
     """The options that change an input's outputs, as plain JSON values (``"2cm"`` and ``"20mm"`` alike)."""
     from .units import parse_length
 
@@ -409,21 +459,29 @@ def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence
     if grid.get("nodes") is not None:
         grid["nodes"] = list(grid["nodes"])
     grid["tol"] = float(grid["tol"])
-    return {"grid": grid, "output": asdict(output), "templates": list(templates), "units": units,
-            "line": line or "sew", "min_turn": min_turn, "clothgrid": version}
+    out = {"grid": grid, "output": asdict(output), "templates": list(templates), "units": units,
+           "line": line or "sew", "min_turn": min_turn, "clothgrid": version}
+    if garment:                                  # pieces-mode keys stay as they were (resume)
+        out["garment"] = {"seams": seams}
+    return out
 
 
-def _check_templates(templates: Sequence[str]) -> tuple[str, ...]:
+def _check_templates(templates: Sequence[str], garment: bool = False) -> tuple[str, ...]:
     out = []
     for t in templates:
         p = Path(t)
         if p.is_absolute() or ".." in p.parts:
             raise InputError(f"--template {t!r}: give a name inside the input's folder, e.g. {DEFAULT_TEMPLATE}")
-        if "{piece}" not in t:
+        if garment:
+            if Path(t).suffix.lower() not in GARMENT_FORMATS:
+                raise InputError(f"--template {t!r}: a garment is written as "
+                                 f"{', '.join(GARMENT_FORMATS)}")
+        elif "{piece}" not in t:
             raise InputError(f"--template {t!r}: put {{piece}} in the name (a file holds several pieces)")
         if t not in out:
             out.append(t)
-    check_outputs([t.replace("{piece}", "x") for t in out], None)  # known formats, before any work
+    if not garment:
+        check_outputs([t.replace("{piece}", "x") for t in out], None)  # known formats, before any work
     return tuple(out)
 
 
@@ -488,7 +546,8 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
           workers: int | None = None, scheduler: str | None = None, client: Any = None,
           retries: int = DEFAULT_RETRIES, redo_failed: bool = False, force: bool = False,
           progress: Callable[[BatchProgress], None] | None = None,
-          on_entry: Callable[[dict[str, Any]], None] | None = None) -> BatchSummary:
+          on_entry: Callable[[dict[str, Any]], None] | None = None,
+          garment: bool = False, seams: str = "keep") -> BatchSummary:
     """Grid every piece of every input file on Dask; write ``OUTDIR/<stem>/...`` and the manifest.
 
     Parameters
@@ -522,6 +581,14 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         Called with a :class:`BatchProgress` after each file (e.g. a :class:`ProgressLine`).
     on_entry : callable, optional
         Called with each manifest line as soon as it is written.
+    garment : bool
+        Make each input one sewn garment (:func:`clothgrid.garment.garment`: GarmentCode
+        specifications) written as ``OUTDIR/<stem>/garment.npz`` (templates without
+        ``{piece}``, or with it standing for ``garment``; ``.npz``, ``.obj``, USD); its
+        panels are the manifest line's pieces. The grid options used: ``edge_length``,
+        ``weights`` and ``functional``.
+    seams : "keep" or "weld"
+        The garment outputs' seams (as ``clothgrid garment --seams``).
 
     Returns
     -------
@@ -541,7 +608,11 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         raise InputError(f"--workers {workers!r} must be 1 or more")
     if sum(x is not None for x in (workers, scheduler, client)) > 1:
         raise InputError("give --workers or --scheduler, not both")
-    templates = _check_templates(templates)
+    if seams not in ("keep", "weld"):
+        raise InputError(f"seams must be 'keep' or 'weld', not {seams!r}")
+    if garment and tuple(templates) == (DEFAULT_TEMPLATE,):
+        templates = (GARMENT_TEMPLATE,)
+    templates = _check_templates(templates, garment)
     paths = find_inputs(inputs)
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
@@ -554,7 +625,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         raise InputError(f"output folder {str(outdir)!r} is not writable")
     outdir = outdir.resolve()
     manifest = outdir / MANIFEST
-    norm = _normalised(options, output, templates, units, line, min_turn)
+    norm = _normalised(options, output, templates, units, line, min_turn, garment, seams)
     previous = latest_entries(read_manifest(manifest))
     stems = assign_stems(paths)
 
@@ -570,7 +641,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
             skipped.append(previous[stem])
             continue
         tasks.append(FileTask(str(path), stem, str(outdir), templates, options, output, units, line, min_turn,
-                              key, digest))
+                              key, digest, garment, seams))
 
     state = BatchProgress(total=len(tasks), skipped=len(skipped))
     done_now: list[dict[str, Any]] = []

@@ -533,6 +533,13 @@ def _add_batch_parser(sub: Any) -> None:
                         "(.npz .obj .ply .json .vts); repeatable (default: {piece}.npz)")
     _add_grid_arguments(b)
     _add_pattern_arguments(b, one_file=False)
+    gm = b.add_argument_group("garments")
+    gm.add_argument("--garment", action="store_true",
+                    help="make each input (a GarmentCode specification) one sewn garment, as "
+                         "'clothgrid garment' does, written to OUTDIR/<stem>/garment.npz (templates: "
+                         ".npz .obj .usda, {piece} optional); its panels are the manifest's pieces")
+    gm.add_argument("--seams", choices=("keep", "weld"), default="keep",
+                    help="with --garment: seams as node pairs (keep) or welded (default: keep)")
     c = b.add_argument_group("cluster")
     where = c.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_positive_int, metavar="N",
@@ -803,7 +810,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                           templates=args.template or (batch.DEFAULT_TEMPLATE,), units=args.units,
                           line=args.line, min_turn=args.min_turn, workers=args.workers,
                           scheduler=args.scheduler, retries=args.retries, redo_failed=args.redo_failed,
-                          force=args.force, progress=progress)
+                          force=args.force, progress=progress, garment=args.garment, seams=args.seams)
     finally:
         signal.signal(signal.SIGTERM, old)
     s = run.summary
