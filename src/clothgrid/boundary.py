@@ -56,7 +56,7 @@ def _as_points(data: Any, what: str) -> np.ndarray:
                         else "an integer too big for a float")
             raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z] of "
                                 f"numbers; a coordinate is {kind or raw.dtype.name}")
-        if isinstance(data, list) and raw.dtype.kind == "f" and any(
+        if isinstance(data, list) and raw.dtype.kind in "iuf" and any(
                 type(v) is bool for row in data if isinstance(row, (list, tuple)) for v in row):
             raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z] of "
                                 "numbers; a coordinate is a boolean")
@@ -307,6 +307,10 @@ def _candidate_pairs(lo: np.ndarray, hi: np.ndarray):
     against all others directly, in batches.
     """
     n = len(lo)
+    if n <= 128:                                 # small outlines: every pair at once
+        i, j = np.triu_indices(n, 1)
+        yield i, j
+        return
     ext = (hi - lo).max(axis=1)
     span = float((hi.max(axis=0) - lo.min(axis=0)).max())
     cell = max(2.0 * float(np.median(ext)), span / 2**20, np.finfo(np.float64).tiny)
