@@ -686,8 +686,9 @@ def _signals_as_interrupts():
 
     The ``except BaseException`` clean-ups of the writers and the pipeline then remove
     temporary and half-written files as they do for Ctrl-C. Signals after the first are
-    ignored, so that a second Ctrl-C or SIGTERM cannot cut the clean-up short. The previous
-    handlers are restored on the way out (``main`` may be called from a program).
+    ignored, so that a second Ctrl-C or SIGTERM cannot cut the clean-up short (and stay ignored
+    once one arrived: the run is ending). Otherwise the previous handlers are restored on the
+    way out (``main`` may be called from a program).
     """
     import signal
     import threading
@@ -715,7 +716,13 @@ def _signals_as_interrupts():
     try:
         yield
     finally:
+        # after a signal the run is ending: keep ignoring the next ones until the exit, so that
+        # a second Ctrl-C or SIGTERM cannot kill the interpreter half-way out
+        # (SIG_IGN, not a Python handler: the interpreter's finalisation puts Python handlers
+        # back to the default, which would let a late second signal kill it)
         for sig, old in previous.items():
+            if got:
+                old = signal.SIG_IGN
             try:
                 signal.signal(sig, old)
             except (OSError, ValueError, TypeError):

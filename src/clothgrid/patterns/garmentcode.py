@@ -60,6 +60,8 @@ def is_garmentcode(data: Any) -> bool:
 
 
 def _point(v: Any, what: str) -> np.ndarray:
+    if isinstance(v, (list, tuple)) and any(isinstance(x, (bool, str)) for x in v):
+        raise InputError(f"{what} must be a point [x, y] of numbers, not {v!r:.60}")
     try:
         p = np.asarray(v, dtype=np.float64)
     except (TypeError, ValueError):
