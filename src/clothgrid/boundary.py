@@ -20,6 +20,7 @@ import numpy as np
 
 from .errors import BoundaryError, InputError
 from .geometry import PLANAR_TOL, best_fit_plane, plane_axes
+from .limits import MAX_OUTLINE_POINTS, check_coordinates
 
 __all__ = ["Boundary", "resample_polyline"]
 
@@ -42,9 +43,27 @@ def _fmt(p: np.ndarray) -> str:
 
 def _as_points(data: Any, what: str) -> np.ndarray:
     """``data`` as an ``(n, 2)`` or ``(n, 3)`` finite float64 array, or BoundaryError."""
+    if isinstance(data, (list, tuple)) and len(data) > MAX_OUTLINE_POINTS:
+        raise BoundaryError(f"{what} has {len(data):,} points, more than the limit of "
+                            f"{MAX_OUTLINE_POINTS:,} points per outline")
     try:
-        pts = np.array(data, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
+        raw = np.asarray(data)
+        if raw.dtype.kind not in "iuf":    # booleans, strings, numbers too big for a float
+            kind = {"b": "a boolean", "U": "a string", "S": "a string"}.get(raw.dtype.kind)
+            if kind is None and raw.dtype.kind == "O":
+                flat = [v for v in _flat(data) if not isinstance(v, (int, float)) or isinstance(v, bool)]
+                kind = (f"{type(flat[0]).__name__} {flat[0]!r:.40}" if flat
+                        else "an integer too big for a float")
+            raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z] of "
+                                f"numbers; a coordinate is {kind or raw.dtype.name}")
+        if isinstance(data, list) and raw.dtype.kind in "iuf" and any(
+                type(v) is bool for row in data if isinstance(row, (list, tuple)) for v in row):
+            raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z] of "
+                                "numbers; a coordinate is a boolean")
+        pts = np.array(raw, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError) as exc:
+        if isinstance(exc, BoundaryError):
+            raise
         raise BoundaryError(f"{what} must be a list of 2D or 3D points [x, y] or [x, y, z] "
                             f"({exc})") from None
     if pts.size == 0:
@@ -57,7 +76,26 @@ def _as_points(data: Any, what: str) -> np.ndarray:
         raise BoundaryError(f"{what} has a non-finite coordinate (NaN or inf) at point "
                             f"{bad[0]}: {pts[bad[0]].tolist()}"
                             + (f" ({bad.size} such points)" if bad.size > 1 else ""))
+    if len(pts) > MAX_OUTLINE_POINTS:
+        raise BoundaryError(f"{what} has {len(pts):,} points, more than the limit of "
+                            f"{MAX_OUTLINE_POINTS:,} points per outline")
+    try:
+        check_coordinates(pts, what)
+    except InputError as exc:
+        raise BoundaryError(str(exc)) from None
     return pts
+
+
+def _flat(data: Any, limit: int = 10_000):
+    """The scalars of nested lists (at most ``limit`` of them), for messages."""
+    stack = [data]
+    while stack and limit > 0:
+        x = stack.pop()
+        if isinstance(x, (list, tuple)):
+            stack.extend(reversed(x))
+        else:
+            limit -= 1
+            yield x
 
 
 def _to3d(pts: np.ndarray) -> np.ndarray:
@@ -240,25 +278,78 @@ def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.nda
         k = int(np.flatnonzero(back)[0])
         return k, k, b[k]
     lo, hi = np.minimum(a, b) - tol, np.maximum(a, b) + tol
-    chunk = max(1, 2_000_000 // max(n, 1))
-    for start in range(0, n - 2, chunk):
-        rows = np.arange(start, min(start + chunk, n - 2))
-        cols = np.arange(start + 2, n)
-        boxes = ((lo[rows, None, 0] <= hi[None, cols, 0]) & (lo[None, cols, 0] <= hi[rows, None, 0])
-                 & (lo[rows, None, 1] <= hi[None, cols, 1])
-                 & (lo[None, cols, 1] <= hi[rows, None, 1]))
-        boxes &= cols[None, :] >= rows[:, None] + 2               # non-adjacent, each pair once
-        if start == 0:
-            boxes[0, -1] = False                                  # first and last are adjacent
-        i, j = np.nonzero(boxes)
+    best: tuple[int, int, np.ndarray] | None = None
+    for i, j in _candidate_pairs(lo, hi):
+        keep = (j >= i + 2) & ~((i == 0) & (j == n - 1))       # non-adjacent, each pair once
+        keep &= ((lo[i, 0] <= hi[j, 0]) & (lo[j, 0] <= hi[i, 0])
+                 & (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1]))
+        i, j = i[keep], j[keep]
         if i.size == 0:
             continue
-        i, j = rows[i], cols[j]
         hit, where = _segments_intersect(a[i], b[i], a[j], b[j], tol)
         if hit.any():
-            h = int(np.flatnonzero(hit)[0])
-            return int(i[h]), int(j[h]), where[h]
-    return None
+            h = np.flatnonzero(hit)
+            h = h[np.lexsort((j[h], i[h]))[0]]          # the first pair in outline order
+            if best is None or (int(i[h]), int(j[h])) < best[:2]:
+                best = (int(i[h]), int(j[h]), where[h])
+    return best
+
+
+#: candidate pairs handed to the exact segment test at a time
+_PAIR_BATCH = 2_000_000
+
+
+def _candidate_pairs(lo: np.ndarray, hi: np.ndarray):
+    """Yield ``(i, j)`` index arrays, ``i < j``, that include every pair of boxes that overlap.
+
+    Near-linear for outlines: the boxes are hashed into a uniform grid of cells about
+    twice the median box size; boxes spanning many cells (long segments) are tested
+    against all others directly, in batches.
+    """
+    n = len(lo)
+    if n <= 128:                                 # small outlines: every pair at once
+        i, j = np.triu_indices(n, 1)
+        yield i, j
+        return
+    ext = (hi - lo).max(axis=1)
+    span = float((hi.max(axis=0) - lo.min(axis=0)).max())
+    cell = max(2.0 * float(np.median(ext)), span / 2**20, np.finfo(np.float64).tiny)
+    c0 = np.floor((lo - lo.min(axis=0)) / cell).astype(np.int64)
+    c1 = np.floor((hi - lo.min(axis=0)) / cell).astype(np.int64)
+    cx, cy = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
+    big = (cx * cy) > 16
+    small = np.flatnonzero(~big)
+    # every (cell, box) of the small boxes
+    counts = (cx * cy)[small]
+    owner = np.repeat(small, counts)
+    start = np.repeat(np.cumsum(counts) - counts, counts)
+    k = np.arange(len(owner)) - start
+    w = cx[owner]
+    gx, gy = c0[owner, 0] + k % w, c0[owner, 1] + k // w
+    key = gx * (int(c1[:, 1].max()) + 2) + gy
+    order = np.argsort(key, kind="stable")
+    key, owner = key[order], owner[order]
+    bounds = np.flatnonzero(np.diff(key)) + 1
+    first = np.concatenate([[0], bounds])
+    size = np.diff(np.concatenate([first, [len(key)]]))
+    # pairs within each cell, by offset: element p with element p + off of its cell
+    group_end = np.repeat(first + size, size)
+    active = np.flatnonzero(np.repeat(size > 1, size))
+    off = 1
+    while active.size:
+        active = active[active + off < group_end[active]]
+        for s0 in range(0, active.size, _PAIR_BATCH):
+            p = active[s0:s0 + _PAIR_BATCH]
+            i, j = owner[p], owner[p + off]
+            yield np.minimum(i, j), np.maximum(i, j)
+        off += 1
+    # the big boxes against every box
+    everything = np.arange(n)
+    for b_ in np.flatnonzero(big):
+        for s0 in range(0, n, _PAIR_BATCH):
+            other = everything[s0:s0 + _PAIR_BATCH]
+            other = other[other != b_]
+            yield np.minimum(other, b_), np.maximum(other, b_)
 
 
 @dataclass(frozen=True, eq=False, repr=False)

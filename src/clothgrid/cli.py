@@ -4,24 +4,27 @@ Exit codes: 0 success, 2 bad input or options (including usage errors),
 3 an iterative solve did not converge within ``--max-iter`` or, with
 ``--strict``, the grid has folded cells, 4 (:data:`EXIT_PARTIAL`) some pieces
 of a pattern file failed and the others were written (``generate``) or listed
-(``pieces``), 130 interrupted.
+(``pieces``), 130 interrupted (SIGINT), 143 SIGTERM, 129 SIGHUP.
 Any output file of a failed run is removed, so a failure leaves no output.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import re
 import sys
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 from .backends import BACKENDS
 from .errors import ClothgridError, InputError, NotConvergedError, PiecesError
+from .limits import MAX_K, MAX_NESTING, MIN_K
 from .solvers import SOLVERS
 
 __all__ = ["main", "parse_nodes", "parse_tol", "EXIT_PARTIAL"]
@@ -92,6 +95,14 @@ def _positive_float(text: str) -> float:
         value = math.nan
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"invalid value {text!r}: expected a positive number")
+    return value
+
+
+def _k_factor(text: str) -> float:
+    value = _positive_float(text)
+    if not MIN_K <= value <= MAX_K:
+        raise argparse.ArgumentTypeError(f"invalid value {text!r}: k must be between {MIN_K:g} and "
+                                         f"{MAX_K:g} (beyond, the squared weights overflow)")
     return value
 
 
@@ -402,8 +413,8 @@ def _add_grid_arguments(p: argparse.ArgumentParser) -> None:
                    help="edge weights: uniform, or the paper's eq. 2 (default: uniform; on real "
                         "patterns the paper's weights spread edge lengths more and fold more cells: "
                         "docs/patterns.md)")
-    p.add_argument("--k", type=_positive_float, default=1.0, metavar="K",
-                   help="the factor k of the v weights in eq. 2 (default: 1)")
+    p.add_argument("--k", type=_k_factor, default=1.0, metavar="K",
+                   help=f"the factor k of the v weights in eq. 2, {MIN_K:g} to {MAX_K:g} (default: 1)")
     p.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",
                    help="solver (default: auto)")
     p.add_argument("--backend", choices=BACKENDS, default="auto",
@@ -903,9 +914,89 @@ def main(argv: Sequence[str] | None = None) -> int:
     int
         0 on success, 2 on bad input or usage, 3 when not converged, 4
         (:data:`EXIT_PARTIAL`) when some pieces of a pattern file failed and the
-        others were written or listed, 130 when
-        interrupted, 141 when the reader of the output closed the pipe. Unexpected exceptions propagate with their traceback.
+        others were written or listed, 130 when interrupted (SIGINT), 143 on
+        SIGTERM, 129 on SIGHUP (temporary files removed, no output left), 141 when
+        the reader of the output closed the pipe. Unexpected exceptions propagate
+        with their traceback.
     """
+    with _signals_as_interrupts():
+        try:
+            return _main(argv)
+        except Interrupted as exc:          # a signal while parsing or reporting
+            _say(str(exc))
+            return 128 + exc.signum
+        except KeyboardInterrupt:
+            _say("interrupted")
+            return 130
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP arrived: unwind (temporary files are removed on the way) and
+    exit with ``128 + signum`` (130, 143, 129)."""
+
+    def __init__(self, signum: int):
+        import signal
+
+        self.signum = int(signum)
+        name = signal.Signals(signum).name
+        super().__init__("interrupted" if name == "SIGINT" else f"terminated by {name}")
+
+
+#: the signals that end a run cleanly: SIGINT (Ctrl-C), SIGTERM (kill, a batch system), SIGHUP
+#: (the terminal closed)
+HANDLED_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
+@contextlib.contextmanager
+def _signals_as_interrupts():
+    """Turn the first of :data:`HANDLED_SIGNALS` into :class:`Interrupted` in the main thread.
+
+    The ``except BaseException`` clean-ups of the writers and the pipeline then remove
+    temporary and half-written files as they do for Ctrl-C. Signals after the first are
+    ignored, so that a second Ctrl-C or SIGTERM cannot cut the clean-up short (and stay ignored
+    once one arrived: the run is ending). Otherwise the previous handlers are restored on the
+    way out (``main`` may be called from a program).
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+
+    def handler(signum: int, frame: Any) -> None:
+        if got:                                 # already unwinding: let the clean-up finish
+            return
+        got.append(signum)
+        raise Interrupted(signum)
+
+    previous = {}
+    for name in HANDLED_SIGNALS:
+        sig = getattr(signal, name, None)
+        if sig is None:
+            continue
+        try:
+            previous[sig] = signal.signal(sig, handler)
+        except (OSError, ValueError):
+            pass
+    try:
+        yield
+    finally:
+        # after a signal the run is ending: keep ignoring the next ones until the exit, so that
+        # a second Ctrl-C or SIGTERM cannot kill the interpreter half-way out
+        # (SIG_IGN, not a Python handler: the interpreter's finalisation puts Python handlers
+        # back to the default, which would let a late second signal kill it)
+        for sig, old in previous.items():
+            if got:
+                old = signal.SIG_IGN
+            try:
+                signal.signal(sig, old)
+            except (OSError, ValueError, TypeError):
+                pass
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(None if argv is None else list(argv))
@@ -915,13 +1006,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            # NumPy's overflow / invalid-value warnings are no message for the user: a number
+            # that overflows is refused with an error of its own, and no non-finite
+            # coordinate reaches an output (generate checks the grid)
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return args.func(args)
     except BrokenPipeError:   # `clothgrid pieces FILE | head`: the reader has what it wanted
         _quiet_stdout()
         return 141
+    except Interrupted as exc:
+        _say(f"{exc}; no output written" if args.func is not _cmd_pieces else str(exc))
+        return 128 + exc.signum
     except KeyboardInterrupt:
         _say("interrupted")
         return 130
+    except RecursionError:
+        _say(f"error: {getattr(args, 'input', '')}: the input nests too deeply to be read "
+             f"(limit: {MAX_NESTING} levels)")
+        return 2
+    except MemoryError:
+        _say(f"error: {getattr(args, 'input', '')}: out of memory (the memory check did not foresee "
+             "this: use fewer nodes or a smaller input); no output written")
+        return 2
     except PiecesError as exc:
         if len(exc.failed) < 2 or exc.source is None:
             _say(f"error: {exc}")

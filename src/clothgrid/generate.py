@@ -10,7 +10,8 @@ import numpy as np
 
 from .backends import get_backend
 from .boundary import Boundary
-from .errors import InputError, NotConvergedError
+from .errors import InputError, NotConvergedError, SizeError
+from .limits import MAX_NODES_PER_SIDE
 from .grid import Grid
 from .initial import INITS, boundary_grid, initial_grid
 from .memory import check_memory, estimate_bytes, format_bytes
@@ -45,6 +46,9 @@ def parse_nodes(nodes) -> tuple[int, int]:
     nu, nv = (int(v) for v in vals)
     if nu < 2 or nv < 2:
         raise InputError(f"each node count must be an integer >= 2 (at least 2 nodes along each side), not {nu}x{nv}")
+    if max(nu, nv) > MAX_NODES_PER_SIDE:
+        raise SizeError(f"a {nu}x{nv} grid has more than {MAX_NODES_PER_SIDE:,} nodes along a side, the "
+                        "limit: use fewer nodes or a longer edge length")
     return nu, nv
 
 
@@ -181,17 +185,34 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     flip = boundary.dim == 2 and boundary.orientation < 0
     grid = Grid.from_points(res.points, info=info, dim=boundary.dim, flip=flip)
     say(f"{name}: {res.iterations} iterations, error bound {res.error_estimate:.3g} (tol {tol:.3g}), {seconds:.3f} s")
+    _check_finite(res.points, f"solver '{name}'")
     if not res.converged:
         rule = "last step < tol (the paper's rule)" if stop == "paper" and name == "jacobi" else f"error <= {tol:.3g}"
         msg = (f"solver '{name}' did not reach {rule} in {res.iterations} iterations: error bound "
                f"{res.error_estimate:.3g} of the piece's size; raise max_iter or use solver 'auto'")
+        if name in ("direct", "fdm"):
+            msg = (f"solver '{name}' solves exactly up to rounding, but its error bound "
+                   f"{res.error_estimate:.3g} of the piece's size is above tol {tol:.3g}: the "
+                   "tolerance is below what float64 rounding allows; use a larger tol")
         if not allow_unconverged:
             raise NotConvergedError(msg, grid)
         say("warning: " + msg)
     if functional == "length":
         grid.info["functional"] = "length"
         return grid
-    return _apply_functional(grid, functional, say, t0, flip)
+    grid = _apply_functional(grid, functional, say, t0, flip)
+    _check_finite(grid.points, "the fold-free step")
+    return grid
+
+
+def _check_finite(points: np.ndarray, who: str) -> None:
+    """No non-finite coordinate may reach an output: raise InputError if the grid has one."""
+    ok = np.isfinite(points)
+    if not ok.all():
+        i, j = (int(x) for x in np.argwhere(~ok.all(axis=-1))[0][:2])
+        raise InputError(f"{who} gave a grid with non-finite coordinates (NaN or inf; first at node "
+                         f"({i}, {j})): the boundary's coordinates or the weights are too extreme "
+                         "for float64; nothing written")
 
 
 def _plan(be, nu: int, nv: int, solver: str, weights, stop: str, dim: int, *, kept: int = 0,

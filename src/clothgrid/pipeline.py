@@ -189,8 +189,46 @@ class Result:
 
 def safe_name(name: str) -> str:
     """``name`` with every character other than letters, digits, ``.``, ``_``, ``-`` made ``_``."""
-    out = re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".")
+    out = re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".")[:MAX_SAFE_NAME]
     return out or "piece"
+
+
+#: piece names in output file names are cut to this many characters (file systems allow 255 bytes
+#: a name, and the temporary name adds some)
+MAX_SAFE_NAME = 120
+#: characters that the temporary file's name adds to an output's name (``.NAME.XXXXXXXX.tmp``)
+_TEMP_EXTRA = 16
+
+
+def _check_name_length(path: Path) -> None:
+    """InputError if a component of ``path`` (with the temporary name's extra) or the whole path is
+    longer than the file system allows."""
+    try:
+        name_max = os.pathconf(_existing_parent(path), "PC_NAME_MAX")
+        path_max = os.pathconf(_existing_parent(path), "PC_PATH_MAX")
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    for part in path.parts:
+        extra = _TEMP_EXTRA if part == path.name else 0
+        if len(os.fsencode(part)) + extra > name_max:
+            raise InputError(f"output name {part[:40]!r}... is {len(os.fsencode(part))} bytes long: the "
+                             f"file system allows {name_max} a name ({name_max - _TEMP_EXTRA} for an "
+                             "output file, whose temporary name is longer)")
+    if len(os.fsencode(str(path.absolute()))) + _TEMP_EXTRA > path_max:
+        raise InputError(f"output path {str(path)[:40]!r}... is longer than the file system's limit of "
+                         f"{path_max} bytes")
+
+
+def _existing_parent(path: Path) -> Path:
+    folder = path.absolute().parent
+    while folder != folder.parent:
+        try:
+            if folder.is_dir():
+                return folder
+        except OSError:
+            pass
+        folder = folder.parent
+    return folder
 
 
 def output_names(paths: Sequence[str], names: Sequence[str]) -> list[list[str]]:
@@ -224,6 +262,7 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
     paths: list[Path] = []
     for text in outputs:
         path = Path(text)
+        _check_name_length(path)
         if path.suffix.lower() not in known:
             raise InputError(f"unknown output format {path.suffix or '(no extension)'!r} for "
                              f"{str(text)!r}: use one of {', '.join(sorted(known))}")
@@ -232,6 +271,7 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
     plot_path = None
     if plot is not None:
         plot_path = Path(plot)
+        _check_name_length(plot_path)
         if plot_path.suffix.lower() not in PLOT_SUFFIXES:
             raise InputError(f"--plot {str(plot)!r}: the plot must be a {'/'.join(PLOT_SUFFIXES)} file")
         if plot_path in paths:

@@ -31,6 +31,7 @@ from typing import Any, Callable
 from .boundary import SIDES, Boundary
 from .errors import BoundaryError, InputError, PiecesError
 from .grid import Grid
+from .limits import check_input_file, load_json
 from .patterns import Piece, piece_boundary
 from .patterns.piece import Pieces, pattern_pieces
 from .patterns.sampling import DEFAULT_REL_TOL
@@ -51,11 +52,7 @@ def read_json(path: str | Path) -> Boundary:
         raise InputError(f"{path}: not a UTF-8 text file ({exc})") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: invalid JSON at line {exc.lineno}, column {exc.colno}: "
-                         f"{exc.msg}") from None
+    data = load_json(text, str(path))
     if not isinstance(data, dict):
         raise InputError(f"{path}: the JSON must be an object with keys bottom/right/top/left or "
                          f"outline/corners, not {type(data).__name__}")
@@ -132,8 +129,8 @@ def _is_garmentcode(path: Path) -> bool:
         text = path.read_text(encoding="utf-8")
         if '"pattern"' not in text:          # cheap: most boundary files never parse twice
             return False
-        data = json.loads(text)
-    except (OSError, ValueError):
+        data = load_json(text, str(path))
+    except (OSError, ValueError):            # (InputError is a ValueError: reported by the reader)
         return False
     return isinstance(data, dict) and "pattern" in data
 
@@ -158,10 +155,7 @@ def reader_for(path: Path, registry: dict | None = None, kind: str = "input"):
     directory, or an extension no reader is registered for.
     """
     registry = READERS if registry is None else registry
-    if not path.exists():
-        raise InputError(f"{path}: no such file")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a {kind} file")
+    check_input_file(path, kind)    # a regular file (not /dev/zero, a FIFO), not too big
     reader = registry.get(path.suffix.lower())
     if reader is None:
         raise InputError(f"{path}: unknown {kind} file type {path.suffix or '(no extension)'!r}; "

@@ -124,6 +124,11 @@ def make_weights(spec, nu: int, nv: int, k: float = 1.0) -> Weights:
         if spec == "paper":
             if not (np.isfinite(k) and k > 0):
                 raise InputError(f"k must be a positive finite number, not {k!r}")
+            from .limits import MAX_K, MIN_K
+
+            if not MIN_K <= k <= MAX_K:
+                raise InputError(f"k must be between {MIN_K:g} and {MAX_K:g}, not {k!r}: beyond, the "
+                                 "squared weights of eq. 2 overflow or lose the boundary's influence")
             lu, lv = paper_lengths(nu), paper_lengths(nv, k)
             return Weights.from_factors(np.ones(nu - 1), lv**2, lu**2, np.ones(nv - 1), "paper")
         if spec == "uniform":

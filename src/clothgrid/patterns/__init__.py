@@ -79,9 +79,18 @@ def nodes_for_edge_length(boundary: Boundary, edge_length: float) -> tuple[int, 
     if not (math.isfinite(h) and h > 0):
         raise InputError(f"the edge length must be positive and finite, not {edge_length!r}")
     b, r, t, l = boundary.side_lengths
-    nu = max(3, math.ceil(max(b, t) / h * (1 - 1e-12)) + 1)
-    nv = max(3, math.ceil(max(l, r) / h * (1 - 1e-12)) + 1)
-    return nu, nv
+    from ..errors import SizeError
+    from ..limits import MAX_NODES_PER_SIDE
+
+    counts = []
+    for side in (max(b, t), max(l, r)):
+        edges = side / h * (1 - 1e-12)
+        if not edges < MAX_NODES_PER_SIDE:          # also inf: an edge length of 1e-320
+            raise SizeError(f"an edge length of {edge_length!r} puts {edges:.3g} edges on a side "
+                            f"{side:.6g} long, more than the limit of {MAX_NODES_PER_SIDE:,} nodes "
+                            "along a side: use a longer edge length")
+        counts.append(max(3, math.ceil(edges) + 1))
+    return counts[0], counts[1]
 
 
 def piece_info(piece: Piece, choice: CornerChoice, edge_length: float | None) -> dict[str, Any]:

@@ -246,17 +246,32 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     # containment among the remaining outlines
     order = sorted(cand, key=lambda i: -items[i].piece.area)
     containers: dict[int, list[int]] = {i: [] for i in cand}
+    lo = np.array([items[i].lo for i in order]).reshape(-1, 2)
+    hi = np.array([items[i].hi for i in order]).reshape(-1, 2)
+    by_x = np.argsort(lo[:, 0], kind="stable")      # boxes by their left edge
     for a, i in enumerate(order):
-        for j in order[a + 1:]:
+        # only the later (smaller) outlines whose box lies in this one's (near-linear for
+        # outlines side by side: the left edges in [lo, hi] are found by bisection)
+        first = np.searchsorted(lo[by_x, 0], lo[a, 0], side="left")
+        last = np.searchsorted(lo[by_x, 0], hi[a, 0], side="right")
+        js = by_x[first:last]
+        js = np.sort(js[(js > a) & (hi[js, 0] <= hi[a, 0]) & (lo[js, 1] >= lo[a, 1])
+                        & (hi[js, 1] <= hi[a, 1])])
+        for b in js:
+            j = order[int(b)]
             if same_part(i, j) and _contains(items[i], items[j]):
                 containers[j].append(i)           # larger first
 
     # 2. seam allowance: a top-level outline around another of nearly the same shape
     paired: dict[int, int] = {}
+    innermost: dict[int, list[int]] = {}           # outline -> those it is the smallest container of
+    for j in order:
+        if containers[j]:
+            innermost.setdefault(containers[j][-1], []).append(j)
     for i in order:
         if containers[i] or i in paired.values():
             continue
-        inner = [j for j in order if containers[j] and containers[j][-1] == i]
+        inner = innermost.get(i, [])
         best = None
         for j in inner:                         # largest first
             if hints[j].get("hint") == "cut":
@@ -296,13 +311,22 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     # 3. small outlines across a piece's outline: notches
     partner = {**paired, **{v: k for k, v in paired.items()}}
     alive = [i for i in cand if items[i].kind is None or i in paired]
+    al = np.array(alive, dtype=np.int64)
+    a_area = np.array([items[i].piece.area for i in alive])
+    a_lo = np.array([items[i].lo for i in alive]).reshape(-1, 2)
+    a_hi = np.array([items[i].hi for i in alive]).reshape(-1, 2)
+    a_free = np.array([items[i].kind is None for i in alive], dtype=bool)
+    a_pos = {i: k for k, i in enumerate(alive)}
     for j in cand:
         it = items[j]
         if it.kind is not None or j in partner or is_piece_class[j]:
             continue
-        for i in alive:
-            if i == j or items[i].piece.area <= it.piece.area or items[i].kind is not None:
-                continue
+        # the hosts that can take it (vectorised: larger, at most 2 % of area, boxes overlap)
+        ok = (a_free & (al != j) & (a_area > it.piece.area) & (it.piece.area <= 0.02 * a_area)
+              & (a_lo[:, 0] <= it.hi[0]) & (a_lo[:, 1] <= it.hi[1])
+              & (a_hi[:, 0] >= it.lo[0]) & (a_hi[:, 1] >= it.lo[1]))
+        for i in al[ok]:
+            i = int(i)
             h = items[i]
             frac = it.piece.area / h.piece.area
             if frac > 0.02 or np.any(it.hi < h.lo) or np.any(it.lo > h.hi):
@@ -311,6 +335,8 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             if ins.any() and not ins.all():
                 it.kind, it.of = "notch", h.piece.name
                 it.reason = f"notch on the outline of piece {h.piece.name!r} ({_fmt_pct(frac)} of its area)"
+                if j in a_pos:
+                    a_free[a_pos[j]] = False
                 break
 
     # 4. outlines inside a piece: marks drawn on it

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..limits import MAX_ENTITIES
 from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 
@@ -59,6 +60,8 @@ def is_garmentcode(data: Any) -> bool:
 
 
 def _point(v: Any, what: str) -> np.ndarray:
+    if isinstance(v, (list, tuple)) and any(isinstance(x, (bool, str)) for x in v):
+        raise InputError(f"{what} must be a point [x, y] of numbers, not {v!r:.60}")
     try:
         p = np.asarray(v, dtype=np.float64)
     except (TypeError, ValueError):
@@ -142,22 +145,31 @@ def _loop(edges: list[Any], nverts: int, what: str) -> list[tuple[int, int, Any,
             raise InputError(f"{what}: edge {k} endpoints {ep} must be two different indices "
                              f"in 0..{nverts - 1}")
         items.append((ep[0], ep[1], e))
+    if len(items) > MAX_ENTITIES:
+        raise InputError(f"{what}: {len(items):,} edges, more than the limit of {MAX_ENTITIES:,}")
+    # the edges at each vertex, in file order: the walk takes the first unused one (linear time)
+    at: dict[int, list[int]] = {}
+    for k, (s, t, _) in enumerate(items):
+        at.setdefault(s, []).append(k)
+        at.setdefault(t, []).append(k)
+    pos = {v: 0 for v in at}
+    used = [False] * len(items)
+    used[0] = True
     loop = [(items[0][0], items[0][1], items[0][2], False)]
-    unused = list(range(1, len(items)))
-    while unused:
+    for _ in range(len(items) - 1):
         cur = loop[-1][1]
-        for pos, k in enumerate(unused):
-            s, t, e = items[k]
-            if s == cur:
-                loop.append((s, t, e, False))
-                break
-            if t == cur:
-                loop.append((t, s, e, True))
-                break
-        else:
+        ks = at.get(cur, [])
+        p = pos.get(cur, 0)
+        while p < len(ks) and used[ks[p]]:
+            p += 1
+        pos[cur] = p
+        if p == len(ks):
             raise InputError(f"{what}: the edges do not form one closed loop (no edge continues "
                              f"from vertex {cur})")
-        unused.pop(pos)
+        k = ks[p]
+        used[k] = True
+        s, t, e = items[k]
+        loop.append((s, t, e, False) if s == cur else (t, s, e, True))
     if loop[-1][1] != loop[0][0]:
         raise InputError(f"{what}: the edges do not close: the loop ends at vertex "
                          f"{loop[-1][1]}, not at its start {loop[0][0]}")
@@ -165,7 +177,17 @@ def _loop(edges: list[Any], nverts: int, what: str) -> list[tuple[int, int, Any,
 
 
 def _reverse_curvature(curv: Any) -> Any:
-    """The curvature of the same edge run from end to start (relative coordinates)."""
+    """The curvature of the same edge run from end to start (relative coordinates).
+
+    Malformed curvature (strings, nulls) is returned as it is, for :func:`_edge` to report.
+    """
+    try:
+        return _reversed_curvature(curv)
+    except (TypeError, ValueError, IndexError, KeyError):
+        return curv
+
+
+def _reversed_curvature(curv: Any) -> Any:
     if curv is None:
         return None
     if isinstance(curv, list):
@@ -208,15 +230,16 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
     path = Path(path)
     where = str(path)
     if data is None:
+        from ..limits import check_input_file, load_json
+
+        check_input_file(path)
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            text = path.read_text(encoding="utf-8")
         except UnicodeDecodeError as exc:
             raise InputError(f"{where}: not a UTF-8 text file ({exc})") from None
         except OSError as exc:
             raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{where}: invalid JSON at line {exc.lineno}, column {exc.colno}: "
-                             f"{exc.msg}") from None
+        data = load_json(text, where)
     if not is_garmentcode(data):
         raise InputError(f"{where}: not a GarmentCode pattern (expected {{\"pattern\": "
                          "{\"panels\": {...}}}})")
@@ -248,7 +271,7 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
     if not isinstance(panels, dict) or not panels:
         raise InputError(f"{where}: the pattern has no panels")
     order = data["pattern"].get("panel_order")
-    names = [n for n in order if n in panels] if isinstance(order, list) else []
+    names = [n for n in order if isinstance(n, str) and n in panels] if isinstance(order, list) else []
     names += [n for n in panels if n not in names]
     pieces: list[Piece] = []
     failed: list[PieceFailure] = []
@@ -425,14 +448,16 @@ def read_garment_spec(path: str | Path, *, units: str | None = None) -> GarmentS
 
     path = Path(path)
     where = str(path)
+    from ..limits import check_input_file, load_json
+
+    check_input_file(path)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(f"{where}: not a UTF-8 text file ({exc})") from None
     except OSError as exc:
         raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{where}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    data = load_json(text, where)
     if not is_garmentcode(data):
         raise InputError(f"{where}: not a GarmentCode specification (expected {{\"pattern\": "
                          "{\"panels\": {...}, \"stitches\": [...]}}})")

@@ -5,12 +5,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Sequence
 
 import numpy as np
 
 from ..errors import InputError, PiecesError
 from ..geometry import signed_area, spike_points, untie_loops
+from ..limits import MAX_COORDINATE, MAX_OUTLINE_POINTS
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
 __all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
@@ -80,13 +82,13 @@ class Piece:
         w, h = self.outline.max(axis=0) - self.outline.min(axis=0)
         return float(w), float(h)
 
-    @property
+    @cached_property
     def perimeter(self) -> float:
         """Length of the closed outline (mm)."""
         d = np.diff(np.vstack([self.outline, self.outline[:1]]), axis=0)
         return float(np.hypot(d[:, 0], d[:, 1]).sum())
 
-    @property
+    @cached_property
     def area(self) -> float:
         """Enclosed area (mm², positive: the outline is counter-clockwise)."""
         return signed_area(self.outline)
@@ -263,6 +265,11 @@ def _untied(pts: np.ndarray, verts: np.ndarray, turns: np.ndarray, size: float
     any): they are the corners the lines meant. An outline that crosses itself
     in earnest is returned as it is (the boundary check names the crossing).
     """
+    from ..boundary import CORNER_TOL, _find_self_intersection
+
+    tol = max(CORNER_TOL * size, np.finfo(np.float64).tiny)
+    if _find_self_intersection(pts, tol) is None:     # near-linear; the search below is not
+        return pts, verts, turns, 0
     out = untie_loops(pts, UNTIE_AREA * abs(signed_area(pts)))
     if out is None or (len(out) == len(pts) and np.array_equal(out, pts)):
         return pts, verts, turns, 0
@@ -276,6 +283,46 @@ def _untied(pts: np.ndarray, verts: np.ndarray, turns: np.ndarray, size: float
 
     return (np.ascontiguousarray(out), carry(verts), carry(turns) if len(turns) else turns,
             len(crossings))
+
+
+def _check_primitives(prims: list[Primitive], label: str) -> None:
+    """InputError unless every control point is finite and within :data:`MAX_COORDINATE`."""
+    from .sampling import Bezier
+
+    if len(prims) > MAX_OUTLINE_POINTS:
+        raise InputError(f"{label}: {len(prims):,} curves, more than the limit of {MAX_OUTLINE_POINTS:,} "
+                         "points per outline")
+    pts = [p.ctrl if isinstance(p, Bezier) else
+           np.array([p.center, p.center + p.a, p.center + p.b]) for p in prims]
+    allp = np.concatenate(pts)
+    if not np.isfinite(allp).all():
+        raise InputError(f"{label}: a non-finite coordinate (NaN or inf)")
+    if np.abs(allp).max() > MAX_COORDINATE:
+        raise InputError(f"{label}: a coordinate of {np.abs(allp).max():.3g} mm, beyond the limit of "
+                         f"{MAX_COORDINATE:.0e} in size")
+
+
+def _check_simple(pts: np.ndarray, label: str) -> None:
+    """InputError if the closed outline crosses or touches itself (which segments, where)."""
+    from ..boundary import CORNER_TOL, _find_self_intersection
+
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    tol = max(CORNER_TOL * size, np.finfo(np.float64).tiny)
+    keep = np.flatnonzero(np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > tol)
+    if len(keep) < 3:
+        return
+    found = _find_self_intersection(pts[keep], tol)
+    if found is None:
+        return
+    k, m, where = found
+    n = len(keep)
+    place = f"({where[0]:.6g}, {where[1]:.6g}) mm"
+    if k == m:
+        raise InputError(f"{label}: the outline folds back onto itself at outline point "
+                         f"{int(keep[(k + 1) % n])}, near {place}")
+    raise InputError(f"{label}: the outline crosses or touches itself near {place} (its segments "
+                     f"from point {int(keep[k])} and from point {int(keep[m])}); a self-intersecting "
+                     "outline (a bow-tie, a figure eight) cannot be gridded")
 
 
 def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | None = None,
@@ -299,6 +346,12 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2 or not np.isfinite(pts).all():
         raise InputError(f"{label}: a non-finite or malformed coordinate")
+    if len(pts) > MAX_OUTLINE_POINTS:
+        raise InputError(f"{label}: {len(pts):,} outline points, more than the limit of "
+                         f"{MAX_OUTLINE_POINTS:,} points per outline")
+    if len(pts) and np.abs(pts).max() > MAX_COORDINATE:
+        raise InputError(f"{label}: a coordinate of {np.abs(pts).max():.3g} mm, beyond the limit of "
+                         f"{MAX_COORDINATE:.0e} in size")
     n0 = len(pts)
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) if n0 else 0.0
     eps = 1e-12 * size
@@ -353,6 +406,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     if area < 0:                              # make it counter-clockwise, keeping point 0
         pts = np.roll(pts[::-1], 1, axis=0)
         verts, turns = np.unique((n - verts) % n), np.unique((n - turns) % n)
+    _check_simple(pts, label)                 # (point numbers as 'clothgrid pieces' lists them)
     return Piece(name=name, outline=np.ascontiguousarray(pts), vertices=verts,
                  turn_points=turns, **kwargs)
 
@@ -378,6 +432,7 @@ def piece_from_primitives(name: str, prims: list[Primitive], *, rel_tol: float =
     """
     if not prims:
         raise InputError(f"{where}piece {name!r}: no curves")
+    _check_primitives(prims, f"{where}piece {name!r}")
     size = loop_extent(prims)
     if not size > 0:
         raise InputError(f"{where}piece {name!r}: zero size")
@@ -386,10 +441,12 @@ def piece_from_primitives(name: str, prims: list[Primitive], *, rel_tol: float =
     turns = None
     notes = list(kwargs.pop("notes", ()))
     if turn_points:
+        from scipy.spatial import cKDTree
+
         tp = np.asarray(turn_points, dtype=np.float64).reshape(-1, 2)
-        d = np.linalg.norm(outline[None, :, :] - tp[:, None, :], axis=2)
-        nearest = d.argmin(axis=1)
-        ok = d[np.arange(len(tp)), nearest] <= 1e-6 * size
+        dist, nearest = cKDTree(outline).query(tp)      # not all pairs: 30,000 panel vertices
+        nearest = np.asarray(nearest, dtype=np.int64)
+        ok = dist <= 1e-6 * size
         if not ok.all():
             notes.append(f"{int((~ok).sum())} turn point(s) not on the outline were ignored")
         turns = nearest[ok]

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, structure_hint
 from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
@@ -276,6 +277,18 @@ def _look(el: ET.Element) -> str:
     return ";".join([el.get("class") or ""] + [style.get(k) or el.get(k) or "" for k in keys])
 
 
+def _tree_size(root: ET.Element) -> tuple[int, int]:
+    """(deepest nesting, number of elements) of the tree, without recursion."""
+    deepest, count = 0, 0
+    stack = [(root, 1)]
+    while stack:
+        el, d = stack.pop()
+        count += 1
+        deepest = max(deepest, d)
+        stack.extend((c, d + 1) for c in el)
+    return deepest, count
+
+
 def read_svg(path: str | Path, *, units: str | None = None,
              rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
     """Read the closed paths of an SVG file: the pieces (mm), and the annotations skipped.
@@ -312,6 +325,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     """
     path = Path(path)
     where = str(path)
+    check_input_file(path)
     try:
         tree = ET.parse(path)
     except ET.ParseError as exc:
@@ -337,6 +351,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
             return name
         names[name] += 1
         return unique(f"{name}-{names[name]}")
+
+    depth, count = _tree_size(root)
+    if depth > MAX_NESTING:
+        raise InputError(f"{where}: elements nested {depth} deep, more than the limit of {MAX_NESTING}")
+    if count > MAX_ENTITIES:
+        raise InputError(f"{where}: {count:,} elements, more than the limit of {MAX_ENTITIES:,}")
 
     def visit(el: ET.Element, m: np.ndarray, around: tuple[str, ...] = (), text: bool = False,
               group: str = "") -> None:

@@ -1,0 +1,418 @@
+"""Hostile input and interruptions (issue 15): a clear error every time, nothing lost or left behind.
+
+One regression per class of the issue's corpus (``benchmarks/hostile_corpus.py`` runs the full
+corpus through the command line): tracebacks, hangs, silently wrong results, partial files,
+bad inputs accepted, warnings above errors. Most run ``clothgrid.cli.main`` in-process; the
+signal cases run a subprocess with a timeout.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clothgrid.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _square(n: int = 8) -> list[list[float]]:
+    per = n // 4
+    pts = []
+    for k in range(4):
+        for i in range(per):
+            t = i / per
+            pts.append(list([(t, 0.0), (1.0, t), (1.0 - t, 1.0), (0.0, 1.0 - t)][k]))
+    return pts
+
+
+def _boundary(outline, corners=None) -> dict:
+    n = len(outline)
+    return {"outline": outline, "corners": corners or [0, n // 4, n // 2, 3 * n // 4]}
+
+
+def _run(capsys, args: list[str]) -> tuple[int, str]:
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, err
+
+
+def _clean_error(code: int, err: str, out_dir: Path, *, codes=(2,), needle: str = "") -> None:
+    """One or more ``clothgrid: error:`` lines, no traceback or warning, no file left."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code in codes, err
+    assert "Traceback" not in err and "Warning" not in err, err
+    assert any(ln.startswith("clothgrid: error:") for ln in lines), err
+    assert all(ln.startswith(("clothgrid:", "usage:", " ")) for ln in lines), err
+    assert list(out_dir.iterdir()) == [], list(out_dir.iterdir())
+    if needle:
+        assert needle in err, err
+
+
+@pytest.fixture
+def out(tmp_path: Path) -> Path:
+    d = tmp_path / "out"
+    d.mkdir()
+    return d
+
+
+def _gen(src: Path, out: Path, *extra: str, name: str = "g.obj") -> list[str]:
+    return ["generate", str(src), "-o", str(out / name), "-q", *extra]
+
+
+# --------------------------------------------------------------------------- tracebacks
+
+
+@pytest.mark.parametrize("text,needle", [
+    ('{"outline": ' + "[" * 100_000 + "]" * 100_000 + ', "corners": [0,1,2,3]}', "nests"),
+    ('{"name": ' + '{"a":' * 100_000 + "1" + "}" * 100_000 + "}", "nests"),
+    ('{"outline": [[1' + "0" * 400 + ', 0], [1, 0], [1, 1], [0, 1]], "corners": [0,1,2,3]}', "digits"),
+])
+def test_json_nesting_and_huge_integers_are_limits(capsys, tmp_path, out, text, needle):
+    src = tmp_path / "a.json"
+    src.write_text(text)
+    code, err = _run(capsys, _gen(src, out))
+    _clean_error(code, err, out, needle=needle)
+    assert str(src) in err
+
+
+def test_garmentcode_deep_nesting_and_unhashable_order(capsys, tmp_path, out):
+    src = tmp_path / "g.json"
+    src.write_text('{"pattern": {"panels": ' + "[" * 50_000 + "]" * 50_000 + "}}")
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="nests")
+    sq = [[0, 0], [50, 0], [50, 60], [0, 60]]
+    spec = {"pattern": {"panels": {"a": {"vertices": sq, "edges": [{"endpoints": [i, (i + 1) % 4]}
+                                                                   for i in range(4)]}},
+                        "panel_order": [[1], {"x": 2}, "a"]}}
+    src.write_text(json.dumps(spec))
+    code, err = _run(capsys, ["pieces", str(src)])
+    assert code == 0 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("curv", [
+    {"type": "cubic", "params": [["a", 1], [0.5, None]]},
+    {"type": "quadratic", "params": None},
+    [None, "a"],
+    {"type": "circle", "params": ["r", None, "x"]},
+])
+def test_garmentcode_malformed_curvature_on_a_reversed_edge(capsys, tmp_path, out, curv):
+    sq = [[0, 0], [50, 0], [50, 60], [0, 60]]
+    edges = [{"endpoints": [1, 0], "curvature": curv}, {"endpoints": [1, 2]}, {"endpoints": [2, 3]},
+             {"endpoints": [3, 0]}]
+    src = tmp_path / "g.json"
+    src.write_text(json.dumps({"pattern": {"panels": {"front": {"vertices": sq, "edges": edges}}}}))
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="piece 'front'")
+
+
+def _dxf(tmp_path: Path, points, bulges=None) -> Path:
+    ezdxf = pytest.importorskip("ezdxf")
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 4
+    bulges = bulges or [0.0] * len(points)
+    doc.modelspace().add_lwpolyline([(x, y, b) for (x, y), b in zip(points, bulges)], format="xyb",
+                                    close=True)
+    p = tmp_path / "a.dxf"
+    doc.saveas(p)
+    return p
+
+
+def test_dxf_binary_garbage_bulge_and_huge_coordinates(capsys, tmp_path, out):
+    src = tmp_path / "b.dxf"
+    src.write_bytes(b"AutoCAD Binary DXF\r\n\x1a\x00" + bytes(random.Random(2).randrange(256)
+                                                              for _ in range(4000)))
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="not a valid DXF")
+    sq = [(0, 0), (50, 0), (50, 60), (0, 60)]
+    code, err = _run(capsys, ["pieces", str(_dxf(tmp_path, sq, [1e308, 0, 0, 0]))])
+    _clean_error(code, err, out, needle="bulge")
+    code, err = _run(capsys, ["pieces", str(_dxf(tmp_path, [(0, 0), (1e15, 0), (1e15, 1e15), (0, 1e15)]))])
+    _clean_error(code, err, out, needle="limit")
+
+
+@pytest.mark.parametrize("edge", ["1e-12", "1e-320"])
+def test_tiny_edge_length_is_refused(capsys, tmp_path, out, edge):
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    code, err = _run(capsys, _gen(src, out, "--edge-length", edge))
+    _clean_error(code, err, out, needle="edge length")
+
+
+def test_output_names_over_the_file_system_limit(capsys, tmp_path, out):
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    code, err = _run(capsys, _gen(src, out, name="x" * 300 + ".obj"))
+    _clean_error(code, err, out, needle="bytes long")
+    svg = tmp_path / "p.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" viewBox="0 0 200 200">'
+                   f'<rect id="{"y" * 300}" x="10" y="10" width="50" height="60"/></svg>')
+    code, err = _run(capsys, _gen(svg, out, "--nodes", "9", name="{piece}.npz"))
+    assert code == 0, err
+    (written,) = list(out.iterdir())
+    assert len(written.name) < 200
+
+
+def test_devices_fifos_and_oversized_files_are_not_read(capsys, tmp_path, out):
+    (tmp_path / "z.json").symlink_to("/dev/zero")
+    code, err = _run(capsys, _gen(tmp_path / "z.json", out))
+    _clean_error(code, err, out, needle="device")
+    os.mkfifo(tmp_path / "f.svg")
+    code, err = _run(capsys, ["pieces", str(tmp_path / "f.svg")])
+    _clean_error(code, err, out, needle="FIFO")
+    from clothgrid import limits
+
+    big = tmp_path / "big.json"
+    with open(big, "wb") as fh:
+        fh.seek(limits.MAX_FILE_BYTES + 1)
+        fh.write(b" ")
+    code, err = _run(capsys, _gen(big, out))
+    _clean_error(code, err, out, needle="limit")
+
+
+def test_huge_request_is_refused_before_allocating(capsys, tmp_path, out):
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    code, err = _run(capsys, _gen(src, out, "--nodes", "1000000000x1000000000"))
+    _clean_error(code, err, out, needle="along a side")
+
+
+def test_svg_deep_groups(capsys, tmp_path, out):
+    svg = tmp_path / "a.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg">' + "<g>" * 20_000
+                   + '<rect x="1" y="1" width="5" height="5"/>' + "</g>" * 20_000 + "</svg>")
+    code, err = _run(capsys, ["pieces", str(svg)])
+    _clean_error(code, err, out, needle="nested")
+
+
+# --------------------------------------------------------------------------- silently wrong
+
+
+def test_extreme_k_is_refused(capsys, tmp_path, out):
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    for k in ("1e300", "1e-300"):
+        code, err = _run(capsys, _gen(src, out, "--weights", "paper", "--k", k))
+        _clean_error(code, err, out, needle="k must be between")
+
+
+def test_direct_solver_converged_only_when_the_bound_meets_tol():
+    import clothgrid
+
+    t = np.linspace(0, 1, 17)
+    b = clothgrid.Boundary.from_sides(np.c_[t, 0 * t], np.c_[1 + 0 * t, t], np.c_[t, 1 + 0.3 * np.sin(np.pi * t)],
+                                      np.c_[0 * t, t])
+    g = clothgrid.generate(b, solver="direct", tol=1e-6)
+    assert g.info["converged"] and g.info["error_estimate"] <= 1e-6
+    with pytest.raises(clothgrid.NotConvergedError, match="below what float64"):
+        clothgrid.generate(b, solver="direct", tol=1e-30)
+    g = clothgrid.generate(b, solver="direct", tol=1e-30, allow_unconverged=True)
+    assert not g.info["converged"] and g.info["error_estimate"] > 1e-30
+
+
+def test_non_finite_grid_never_returned(monkeypatch):
+    import importlib
+
+    import clothgrid
+
+    gen_mod = importlib.import_module("clothgrid.generate")
+
+    t = np.linspace(0, 1, 9)
+    b = clothgrid.Boundary.from_sides(np.c_[t, 0 * t], np.c_[1 + 0 * t, t], np.c_[t, 1 + 0 * t], np.c_[0 * t, t])
+    real = gen_mod.solve
+
+    def poisoned(problem, name, **kw):
+        name, res = real(problem, name, **kw)
+        res.points[3, 3, 0] = np.nan
+        return name, res
+
+    monkeypatch.setattr(gen_mod, "solve", poisoned)
+    with pytest.raises(clothgrid.InputError, match="non-finite"):
+        clothgrid.generate(b, solver="direct")
+
+
+# --------------------------------------------------------------------------- bad inputs accepted
+
+
+@pytest.mark.parametrize("outline", [
+    [[False, False], [True, False], [True, True], [False, True]],
+    [["0", "0"], ["1", "0"], ["1", "1"], ["0", "1"]],
+    [[0.0, 0.0], [True, 0.0], [1.0, 1.0], [0.0, 1.0]],
+])
+def test_booleans_and_strings_are_not_coordinates(capsys, tmp_path, out, outline):
+    src = tmp_path / "a.json"
+    src.write_text(json.dumps(_boundary(outline, [0, 1, 2, 3])))
+    code, err = _run(capsys, _gen(src, out, "--nodes", "9"))
+    _clean_error(code, err, out, needle="a coordinate is a")
+
+
+def test_booleans_in_sides_and_garmentcode_vertices(capsys, tmp_path, out):
+    src = tmp_path / "a.json"
+    src.write_text(json.dumps({"bottom": [[0, 0], [True, 0]], "right": [[1, 0], [1, 1]],
+                               "top": [[0, 1], [1, 1]], "left": [[0, 0], [0, 1]]}))
+    code, err = _run(capsys, _gen(src, out, "--nodes", "9"))
+    _clean_error(code, err, out, needle="boolean")
+    verts = [[False, False], [True, False], [True, True], [False, True]]
+    spec = {"pattern": {"panels": {"a": {"vertices": verts, "edges": [{"endpoints": [i, (i + 1) % 4]}
+                                                                      for i in range(4)]}}}}
+    src = tmp_path / "g.json"
+    src.write_text(json.dumps(spec))
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="piece 'a'")
+
+
+def _svg(tmp_path: Path, body: str) -> Path:
+    p = tmp_path / "s.svg"
+    p.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
+                 f'viewBox="0 0 200 200">{body}</svg>')
+    return p
+
+
+@pytest.mark.parametrize("points", [
+    "0,0 100,0 100,100 50,0 0,100",                 # self-touching: a vertex on the bottom side
+    "0,0 100,0 100,100 60,100 60,-20 40,-20 40,100 0,100",   # crosses itself, area left
+])
+def test_self_intersecting_outlines_are_failures_in_pieces_and_generate(capsys, tmp_path, out, points):
+    svg = _svg(tmp_path, f'<polygon id="front" points="{points}"/><rect id="back" x="150" y="10" '
+                         'width="40" height="50"/>')
+    code, err = _run(capsys, ["pieces", str(svg)])
+    assert code == 4, err
+    assert "piece 'front'" in err and "crosses or touches itself" in err
+    code, err = _run(capsys, _gen(svg, out, "--nodes", "9", name="{piece}.npz"))
+    assert code == 4 and "piece 'front'" in err and "crosses or touches itself" in err
+    assert sorted(p.name for p in out.iterdir()) == ["back.npz"]
+
+
+def test_self_intersection_search_agrees_with_all_pairs():
+    from clothgrid.boundary import _find_self_intersection, _segments_intersect
+
+    def brute(p, tol):                 # every pair at once, the first in outline order
+        n = len(p)
+        a, b = p, np.roll(p, -1, axis=0)
+        i, j = np.triu_indices(n, 2)
+        keep = ~((i == 0) & (j == n - 1))
+        i, j = i[keep], j[keep]
+        hit = _segments_intersect(a[i], b[i], a[j], b[j], tol)[0]
+        return (int(i[hit][0]), int(j[hit][0])) if hit.any() else None
+
+    rng = np.random.default_rng(5)
+    for t in range(60):
+        n = int(rng.integers(130, 200)) if t % 3 == 0 else int(rng.integers(4, 40))
+        th = np.sort(rng.random(n)) * 2 * np.pi
+        p = np.c_[np.cos(th), np.sin(th)] * (1 + (0.05 if t % 2 else 0.6) * rng.random(n))[:, None]
+        got = _find_self_intersection(p, 1e-12)
+        want = brute(p, 1e-12)
+        assert (got and got[:2]) == want
+
+
+# --------------------------------------------------------------------------- big but valid
+
+
+def test_big_inputs_take_near_linear_time(tmp_path):
+    from clothgrid.boundary import _find_self_intersection
+    from clothgrid.patterns.dxf import _chain
+    from clothgrid.patterns.garmentcode import _loop
+    from clothgrid.patterns.sampling import Bezier
+
+    n = 200_000
+    th = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    p = np.c_[np.cos(th), np.sin(th)]
+    t0 = time.perf_counter()
+    assert _find_self_intersection(p, 1e-9) is None
+    assert time.perf_counter() - t0 < 10
+    m = 20_000
+    q = p[:: n // m] * 100
+    segs = [[Bezier(np.array([q[i], q[(i + 1) % m]]))] for i in range(m)]
+    random.Random(3).shuffle(segs)
+    t0 = time.perf_counter()
+    loops, left = _chain(segs, 1e-4)
+    assert len(loops) == 1 and left == 0 and len(loops[0]) == m
+    assert time.perf_counter() - t0 < 10
+    edges = [{"endpoints": [i, (i + 1) % 30_000]} for i in range(30_000)]
+    random.Random(4).shuffle(edges)
+    t0 = time.perf_counter()
+    loop = _loop(edges, 30_000, "panel")
+    assert len(loop) == 30_000 and loop[-1][1] == loop[0][0]
+    assert time.perf_counter() - t0 < 5
+
+
+# --------------------------------------------------------------------------- signals
+
+
+SIGNAL_SCRIPT = r"""
+import os, sys, signal, threading
+from clothgrid import writers
+from clothgrid.cli import main
+real = writers._write_rows
+def slow(fh, fmt, rows):
+    fh.flush()
+    print("WRITING", flush=True)
+    threading.Event().wait(30)                 # a large .obj: the signal arrives here
+    real(fh, fmt, rows)
+writers._write_rows = slow
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+def test_signal_during_a_write_leaves_nothing_behind(tmp_path, out, sig):
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    keep = out / "old.obj"
+    keep.write_text("finished earlier\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.Popen([sys.executable, "-c", SIGNAL_SCRIPT, "generate", str(src), "-o", str(out / "g.obj"),
+                             "-o", str(out / "g.ply"), "--nodes", "9", "-q"], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        line = ""
+        while time.monotonic() < deadline and "WRITING" not in line:
+            line = proc.stdout.readline()
+            if not line and proc.poll() is not None:
+                break
+        assert "WRITING" in line, proc.stderr.read()
+        assert any(p.name.endswith(".tmp") for p in out.iterdir())
+        proc.send_signal(sig)
+        time.sleep(0.2)
+        proc.send_signal(sig)                 # a second signal during the clean-up
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 128 + sig, err
+    assert "Traceback" not in err and err.strip().startswith("clothgrid:"), err
+    assert [p.name for p in out.iterdir()] == ["old.obj"] and keep.read_text() == "finished earlier\n"
+
+
+# --------------------------------------------------------------------------- noise
+
+
+def test_no_runtime_warning_above_an_error(capsys, tmp_path, out):
+    svg = _svg(tmp_path, '<rect x="0" y="0" width="1e308" height="1e308"/>'
+                         '<g transform="scale(1e300)"><rect x="0" y="0" width="10" height="10"/></g>')
+    code, err = _run(capsys, ["pieces", str(svg)])
+    _clean_error(code, err, out, needle="limit")
+
+
+def test_limits_are_documented():
+    from clothgrid import limits
+
+    readme = (ROOT / "README.md").read_text()
+    assert "## Limits" in readme
+    for name in ("MAX_FILE_BYTES", "MAX_NESTING", "MAX_INT_DIGITS", "MAX_COORDINATE", "MAX_OUTLINE_POINTS",
+                 "MAX_ENTITIES", "MAX_NODES_PER_SIDE"):
+        assert name in readme, name
+        assert getattr(limits, name) > 0
+    for code in ("| 129", "| 143", "| 130"):
+        assert code in readme
