@@ -494,3 +494,19 @@ def test_a_failed_write_still_removes_every_output_when_a_piece_failed(capsys, t
     code, _, err = run(capsys, "generate", path, "-o", tmp_path / "o" / "{piece}.obj", "-q")
     assert code == 2 and "cannot write" in err and "second.obj" in err
     assert not (tmp_path / "o").exists()            # good.obj and the folder made for it are gone
+
+
+def test_verbose_prints_where_the_time_goes(tmp_path, capsys):
+    src = _write(tmp_path / "square.json", _square_sides(9))
+    assert main(["generate", str(src), "-o", str(tmp_path / "g.npz"), "-v", "--functional", "auto"]) == 0
+    err = capsys.readouterr().err
+    for stage in ("time: start-up", "imports for generate", "time: read", "time: generate", "(solve ",
+                  "fold-free ", "quality ", "time: write", "time: whole command"):
+        assert stage in err, stage
+    assert main(["generate", str(src), "-o", str(tmp_path / "h.npz"), "-q"]) == 0
+    assert "time:" not in capsys.readouterr().err
+
+
+def test_timing_lines_without_proc():
+    lines = cli.timing_lines(None, 0.01, 0.02, [], 0.03, None)
+    assert lines[0].startswith("time: start-up") and "n/a" in lines[0] and lines[-1] == "time: whole command n/a s"

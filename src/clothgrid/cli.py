@@ -188,6 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fail (exit 3, no output) if the final grid has folded cells")
     g.add_argument("--plot", metavar="PNG", help="also draw the grid to this PNG file")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
+    g.add_argument("-v", "--verbose", action="store_true",
+                   help="timing lines on stderr: where the time goes (start-up and imports, read, solve, "
+                        "fold-free, quality, write)")
     _add_pattern_arguments(g)  # --edge-length and the pattern-file options
     g.set_defaults(func=_cmd_generate)
 
@@ -683,9 +686,42 @@ def _output_options(args: argparse.Namespace) -> Any:
     return pipeline.OutputOptions(triangles=args.triangles, uv=args.uv, density=args.density, cloth=args.cloth)
 
 
+def process_seconds() -> float | None:
+    """Seconds since this process started (Linux: /proc; None elsewhere), interpreter start-up included."""
+    try:
+        with open("/proc/self/stat") as fh:
+            start = int(fh.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as fh:
+            up = float(fh.read().split()[0])
+        return max(0.0, up - start / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+
+
+def timing_lines(startup: float | None, imports: float, read: float, results: Sequence[Any], write: float,
+                 total: float | None) -> list[str]:
+    """``-v``: one line a stage, in seconds (``solve`` is the solver alone, ``generate`` all of it)."""
+    lines = [f"time: start-up (interpreter and imports before the command) "
+             f"{_fmt(startup, '.3f')} s, imports for generate {imports:.3f} s",
+             f"time: read {read:.3f} s"]
+    for r in results:
+        info = r.grid.info
+        ff = info.get("foldfree") or info.get("relax") or {}
+        name = f"piece {r.job.name}: " if len(results) > 1 else ""
+        lines.append(f"time: {name}generate {r.seconds:.3f} s (solve {_fmt(info.get('solve_seconds'), '.3f')} s, "
+                     f"fold-free {_fmt(ff.get('seconds', 0.0), '.3f')} s), quality {r.quality_seconds:.3f} s")
+    lines.append(f"time: write {write:.3f} s")
+    lines.append(f"time: whole command {_fmt(total, '.3f')} s")
+    return lines
+
+
 def _cmd_generate(args: argparse.Namespace) -> int:
+    startup = process_seconds() if args.verbose else None
+    t_imp = time.perf_counter()
     from . import pipeline
 
+    t_read = time.perf_counter()
+    imports = t_read - t_imp
     options = _grid_options(args)
     progress = _progress(args.quiet)
     jobs = pipeline.read_jobs(args.input, args.output, args.plot, options=options, pieces=args.piece,
@@ -703,6 +739,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                  f"(error estimate {_fmt(result.grid.info.get('error_estimate'), '.2e')} > tol "
                  f"{_fmt(args.tol, '.2e')}) because of --allow-unconverged")
 
+    read = time.perf_counter() - t_read
     results, failed = pipeline.run_jobs(jobs, progress, done)
     folded = [r for r in results if r.quality.folded]
     hint = "try --functional auto" if args.functional == "length" else ""
@@ -728,6 +765,9 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         raise
     if progress:
         progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
+    if args.verbose:
+        for line in timing_lines(startup, imports, read, results, time.perf_counter() - t0, process_seconds()):
+            _say(line)
     if failed:
         _say_failed(args.input, failed)
         n = len(results) + len(failed)

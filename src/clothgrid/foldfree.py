@@ -28,7 +28,6 @@ import time
 from typing import Any, Callable
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .errors import InputError
 from .geometry import PLANAR_TOL, boundary_loop, plane_axes, signed_area, vector_area
@@ -163,6 +162,8 @@ class _Energy:
 
 
 def _minimise(energy: _Energy, x: np.ndarray, max_iter: int, gtol: float) -> tuple[np.ndarray, int]:
+    from scipy.optimize import minimize   # on first use: untangle only (relax runs Numba kernels)
+
     res = minimize(energy, x, jac=True, method="L-BFGS-B",
                    options={"maxiter": int(max_iter), "gtol": gtol, "ftol": 1e-13, "maxcor": 10})
     return res.x, int(res.nit)
@@ -302,6 +303,8 @@ MARGIN = 4
 RELAX_ROUNDS = 30
 #: Most Gauss-Seidel sweeps per round.
 RELAX_SWEEPS = 60
+#: An untangling round checks for folded corners after this many sweeps and ends when none is left.
+CHECK_SWEEPS = 4
 
 
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
@@ -346,8 +349,14 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
     while bad and rounds > 0 and len(nodes):
         rounds -= 1
         stats["rounds"] += 1
-        done, _ = sweep_nodes(Xs, nodes, EPS * (EPS - min(jmin, 0.0)), RELAX_SWEEPS, 1e-3)
-        stats["sweeps"] += int(done)
+        delta2 = EPS * (EPS - min(jmin, 0.0))
+        left = RELAX_SWEEPS
+        while left > 0:   # in chunks: a round ends once no corner is folded (the smoothing stage follows)
+            done, last = sweep_nodes(Xs, nodes, delta2, min(CHECK_SWEEPS, left), 1e-3)
+            stats["sweeps"] += int(done)
+            left -= int(done)
+            if last < 1e-3 or corner_min(Xs, True)[1] == 0:
+                break
         before = bad
         jmin, bad = corner_min(Xs, True)
         stalled = stalled + 1 if bad >= before else 0

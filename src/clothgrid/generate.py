@@ -290,6 +290,7 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
     q_after = quality(new)
+    new._quality = q_after   # measured once: pipeline.run_job reads it instead of measuring again
     new.info.update(functional="foldfree", folded=q_after.folded, foldfree=ff,
                     quality_before=q.as_dict(), seconds=time.perf_counter() - t0)
     say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s")

@@ -12,9 +12,12 @@ one matrix for x, y and z.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 from ..weights import Weights, interior_diagonal
 
@@ -72,6 +75,8 @@ class Problem:
                 rows.append(p.ravel())
                 cols.append(q.ravel())
                 vals.append(-w.ravel())
+        import scipy.sparse as sp   # on first use (direct solves, the barrier bound)
+
         return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m * n, m * n))
 
     def interior_rhs(self) -> np.ndarray:

@@ -1,0 +1,130 @@
+"""Issue 16: how close the CPU path runs to its floor, everything measured in this one run.
+
+    python benchmarks/bench_speed.py                 # 1024^2 (and the CLI at 1024^2)
+    python benchmarks/bench_speed.py --sizes 256     # a quick run
+    python benchmarks/bench_speed.py --sizes 256 1024 --repeat 3 --no-direct
+
+For each size (the bundled T-shirt front, resampled to ``n x n``, ``tol = 2^-12``) it prints:
+
+- **floor**: one fused Numba Jacobi sweep over x, y, z (``backends/_cpu_kernels._sweep``), the
+  least a solver can do per pass over the grid (best of ``--sweeps`` runs);
+- the multigrid solve (``info["solve_seconds"]``) to the true bound, paper and uniform weights;
+- SciPy's sparse direct solve of the same grid (the baseline the issue's ratios use);
+- the whole ``generate`` with ``functional="auto"`` and ``"foldfree"`` against the length solve
+  (``foldfree`` only up to ``--foldfree-max``: it relaxes every interior node);
+- the whole command ``clothgrid generate BOUNDARY.json --nodes NxN -o grid.npz -q`` as a
+  subprocess (interpreter start included), default functional (auto) and ``--functional length``.
+
+Each row: seconds (best of ``--repeat``), ``x floor`` (seconds / floor) and a ratio to its
+baseline (the direct solve, or the length solve for the fold-free rows).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import clothgrid
+from clothgrid.weights import make_weights
+
+PIECE = Path(__file__).resolve().parents[1] / "src" / "clothgrid" / "data" / "tshirt_front.json"
+TOL = 2.0**-12
+
+
+def best(fn, repeat: int):
+    out, t_best = None, np.inf
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        t_best = min(t_best, time.perf_counter() - t)
+    return out, t_best
+
+
+def sweep_floor(b, n: int, sweeps: int) -> float:
+    from clothgrid.backends._cpu_kernels import _sweep
+    from clothgrid.initial import initial_grid
+
+    w = make_weights("paper", n, n)
+    wu, wv = np.ascontiguousarray(w.wu), np.ascontiguousarray(w.wv)
+    r = initial_grid(b, "tfi")
+    out = r.copy()
+    _sweep(r, out, wu, wv)   # compile / load
+    return best(lambda: _sweep(r, out, wu, wv), sweeps)[1]
+
+
+def cli_time(piece: Path, n: int, repeat: int, extra: list[str]) -> float:
+    exe = Path(sys.executable).with_name("clothgrid")
+    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "clothgrid"]
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = head + ["generate", str(piece), "--nodes", f"{n}x{n}", "-q", "-o", str(Path(tmp) / "g.npz"), *extra]
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)   # warm the disk cache and Numba's cache
+        return best(lambda: subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL), repeat)[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--piece", type=Path, default=PIECE)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1024])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--sweeps", type=int, default=20)
+    ap.add_argument("--foldfree-max", type=int, default=256)
+    ap.add_argument("--no-direct", action="store_true", help="skip SciPy's direct solve (ratios then n/a)")
+    ap.add_argument("--no-cli", action="store_true")
+    args = ap.parse_args()
+    print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}, numpy {np.__version__}, "
+          f"clothgrid {clothgrid.__version__}, load {os.getloadavg()[0]:.2f}; piece {args.piece.name}\n")
+    base = clothgrid.load_boundary(args.piece)
+    clothgrid.generate(base.resampled(33, 33), solver="multigrid")          # load the kernels
+    clothgrid.generate(base.resampled(33, 33), functional="auto")
+    print("| nodes | what | seconds | x floor | ratio |")
+    print("|---|---|---|---|---|")
+    for n in args.sizes:
+        b = base.resampled(n, n)
+        floor = sweep_floor(b, n, args.sweeps)
+
+        def row(what: str, sec: float, ratio: str = "") -> None:
+            print(f"| {n}^2 | {what} | {sec:.4g} | {sec / floor:.1f} | {ratio} |", flush=True)
+
+        row("floor: one fused Jacobi sweep (x, y, z, Numba)", floor, "1 (floor)")
+        direct = None
+        if not args.no_direct:
+            ref = clothgrid.generate(b, solver="direct")
+            direct = ref.info["solve_seconds"]
+            row("SciPy sparse direct solve", direct, "1 (baseline)")
+        for weights in ("paper", "uniform"):
+            g, _ = best(lambda: clothgrid.generate(b, solver="multigrid", weights=weights), args.repeat)
+            times = [clothgrid.generate(b, solver="multigrid", weights=weights).info["solve_seconds"]
+                     for _ in range(args.repeat)]
+            sec = min(times + [g.info["solve_seconds"]])
+            ok = "" if g.info["error_estimate"] <= TOL else " NOT CONVERGED"
+            row(f"multigrid solve, {weights} weights (bound {g.info['error_estimate']:.2g}{ok}, "
+                f"{g.info['iterations']} V-cycles)", sec, f"direct / this {direct / sec:.0f}x" if direct else "")
+        # the fold-free rows use the command line's default weights (uniform): with the paper's, the
+        # T-shirt front folds 6864 cells at 1024^2 and relax falls back to every interior node
+        length, t_len = best(lambda: clothgrid.generate(b, weights="uniform"), args.repeat)
+        row(f"generate, uniform weights, functional length (solver {length.info['solver']})", t_len, "1 (fold-free baseline)")
+        for fun in ("auto", "foldfree"):
+            if fun == "foldfree" and n > args.foldfree_max:
+                continue
+            g, t = best(lambda: clothgrid.generate(b, weights="uniform", functional=fun),
+                        1 if n > 512 else args.repeat)
+            ff = g.info.get("foldfree") or g.info.get("relax") or {}
+            row(f"generate, uniform weights, functional {fun} ({g.info.get('folded_before')} -> {g.info.get('folded')} folded, "
+                f"{ff.get('moved', 0)} nodes moved, {ff.get('sweeps', 0)} sweeps)", t, f"{t / t_len:.1f}x length")
+        if not args.no_cli:
+            for extra, what in (([], "default (functional auto)"), (["--functional", "length"], "functional length")):
+                sec = cli_time(args.piece, n, args.repeat if n <= 512 or extra else 1, extra)
+                row(f"`clothgrid generate ... -o g.npz`, {what}, subprocess", sec,
+                    f"direct / this {direct / sec:.1f}x" if direct else "")
+    print(f"\nload at the end: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
