@@ -293,3 +293,23 @@ def test_numpy_without_row_stack_is_given_the_alias(monkeypatch):
     assert np.row_stack is np.vstack
     _compat.patch_numpy()   # idempotent
     assert np.row_stack is np.vstack
+
+
+def test_no_driver_files_means_no_cupy_import(monkeypatch, fresh_probe):
+    """On Linux without NVIDIA driver files the probe answers without importing CuPy (~0.5 s)."""
+    import importlib.util
+
+    monkeypatch.delitem(sys.modules, "cupy", raising=False)
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: importlib.machinery.ModuleSpec("cupy", None) if name == "cupy"
+                        else real(name, *a))
+    monkeypatch.setattr(_device, "_driver_present", lambda: False)
+    with pytest.raises(clothgrid.BackendUnavailableError, match="no NVIDIA driver on this machine"):
+        get_backend("cuda")
+    assert "cupy" not in sys.modules
+    # an already imported CuPy is asked instead (it costs nothing and says more)
+    monkeypatch.setattr(_device, "_PROBE", None)
+    monkeypatch.setitem(sys.modules, "cupy", fake_cupy(0))
+    with pytest.raises(clothgrid.BackendUnavailableError, match="CuPy 13.9.9 is installed"):
+        get_backend("cuda")

@@ -92,7 +92,9 @@ def _gpu() -> Device | str:
     """The first CUDA GPU, or the first thing missing: CuPy, a GPU CuPy can use, numba.cuda, libNVVM."""
     if importlib.util.find_spec("cupy") is None:
         return f"backend 'cuda' needs CuPy and an NVIDIA GPU: CuPy is not installed ({_INSTALL})"
-    if not _driver_present():   # CuPy's import alone costs ~0.5 s: not where no NVIDIA driver is installed
+    # CuPy's import alone costs ~0.5 s: not where no NVIDIA driver is installed (an already
+    # imported CuPy costs nothing to ask, and says more)
+    if sys.modules.get("cupy") is None and not _driver_present():
         return ("backend 'cuda' finds no usable GPU: no NVIDIA driver on this machine "
                 "(no /dev/nvidiactl, /dev/nvidia0, /dev/dxg or /proc/driver/nvidia)")
     try:
