@@ -33,7 +33,6 @@ the pieces stay where the file draws them (``points`` = ``rest`` with z = 0).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -71,14 +70,9 @@ class StitchedPattern:
 
 
 def _load(path: Path) -> dict:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not a UTF-8 text file ({exc})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the stitches file ({exc.strerror or exc})") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    from .limits import read_json_file
+
+    data = read_json_file(path, "stitches")
     if not isinstance(data, dict) or not isinstance(data.get("seams"), list) or not data["seams"]:
         raise InputError(f"{path}: a stitches file is an object with a non-empty list \"seams\" "
                          "(docs/garment.md: \"Seams of SVG and DXF patterns\")")

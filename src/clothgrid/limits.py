@@ -121,3 +121,20 @@ def check_coordinates(pts: Any, what: str) -> None:
             k = int(np.flatnonzero(big.reshape(len(a), -1).any(axis=1))[0]) if a.ndim > 1 else 0
             raise InputError(f"{what}: a coordinate of {float(np.abs(a).max()):.3g} (point {k}) is beyond "
                              f"the limit of {MAX_COORDINATE:.0e} in size")
+
+
+def read_json_file(path: str | Path, kind: str = "input", check_file: bool = True) -> Any:
+    """A JSON file's data, with the limits: a regular file of a sane size (:func:`check_input_file`,
+    unless ``check_file`` is false), UTF-8, :func:`load_json`; every failure an :class:`InputError`
+    naming the file."""
+    path = Path(path)
+    if check_file:
+        check_input_file(path, kind)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not a UTF-8 text file ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {kind} file ({exc.strerror or exc})") from None
+    return load_json(text, str(path))
+

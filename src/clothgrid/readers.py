@@ -31,7 +31,7 @@ from typing import Any, Callable
 from .boundary import SIDES, Boundary
 from .errors import BoundaryError, InputError, PiecesError
 from .grid import Grid
-from .limits import check_input_file, load_json
+from .limits import check_input_file, load_json, read_json_file
 from .patterns import Piece, piece_boundary
 from .patterns.piece import Pieces, pattern_pieces
 from .patterns.sampling import DEFAULT_REL_TOL
@@ -46,13 +46,7 @@ Reader = Callable[..., "Boundary | list[Piece]"]
 def read_json(path: str | Path) -> Boundary:
     """Read a boundary from a JSON file (sides, or outline and corners)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not a UTF-8 text file ({exc})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
-    data = load_json(text, str(path))
+    data = read_json_file(path)
     if not isinstance(data, dict):
         raise InputError(f"{path}: the JSON must be an object with keys bottom/right/top/left or "
                          f"outline/corners, not {type(data).__name__}")

@@ -36,7 +36,6 @@ when missing). The 2D panel outline is read in the panel's own frame;
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from dataclasses import dataclass, field
@@ -230,16 +229,9 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
     path = Path(path)
     where = str(path)
     if data is None:
-        from ..limits import check_input_file, load_json
+        from ..limits import read_json_file
 
-        check_input_file(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except UnicodeDecodeError as exc:
-            raise InputError(f"{where}: not a UTF-8 text file ({exc})") from None
-        except OSError as exc:
-            raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-        data = load_json(text, where)
+        data = read_json_file(path)
     if not is_garmentcode(data):
         raise InputError(f"{where}: not a GarmentCode pattern (expected {{\"pattern\": "
                          "{\"panels\": {...}}}})")
@@ -448,16 +440,9 @@ def read_garment_spec(path: str | Path, *, units: str | None = None) -> GarmentS
 
     path = Path(path)
     where = str(path)
-    from ..limits import check_input_file, load_json
+    from ..limits import read_json_file
 
-    check_input_file(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{where}: not a UTF-8 text file ({exc})") from None
-    except OSError as exc:
-        raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-    data = load_json(text, where)
+    data = read_json_file(path)
     if not is_garmentcode(data):
         raise InputError(f"{where}: not a GarmentCode specification (expected {{\"pattern\": "
                          "{\"panels\": {...}, \"stitches\": [...]}}})")
