@@ -132,10 +132,10 @@ def corner_candidates(piece: Piece, min_turn: float = MIN_TURN_DEG) -> list[Corn
     v = np.asarray(piece.vertices, dtype=np.int64)
     sharp = set(int(i) for i in v[np.abs(turn[v]) >= math.radians(min_turn)]) if v.size else set()
     window = round_window(piece.outline)
-    rounded = set(rounded_corners(piece.outline, sorted(tp | sharp), window))
+    wt = windowed_turn(piece.outline, window)
+    rounded = set(rounded_corners(piece.outline, sorted(tp | sharp), window, wt=wt))
     turn = turn.copy()
     if rounded:
-        wt = windowed_turn(piece.outline, window)
         idx = np.array(sorted(rounded))
         turn[idx] = wt[idx]
     q = _quality(turn)
@@ -201,13 +201,15 @@ def windowed_turn(outline: np.ndarray, window: float) -> np.ndarray:
 
 
 def rounded_corners(outline: np.ndarray, taken: Sequence[int], window: float,
-                    min_turn: float = ROUND_MIN_TURN_DEG) -> list[int]:
+                    min_turn: float = ROUND_MIN_TURN_DEG, wt: np.ndarray | None = None) -> list[int]:
     """Outline points at the middle of rounded corners: a convex windowed turn of ``min_turn`` or more.
 
-    Local maxima of :func:`windowed_turn`, at least a window apart from each
-    other and from the points in ``taken`` (the sharp candidates).
+    Local maxima of :func:`windowed_turn` (``wt``, computed here unless given),
+    at least a window apart from each other and from the points in ``taken``
+    (the sharp candidates).
     """
-    wt = windowed_turn(outline, window)
+    if wt is None:
+        wt = windowed_turn(outline, window)
     s, perimeter = _arc(outline)
     order = np.argsort(-wt, kind="stable")
     found: list[int] = []

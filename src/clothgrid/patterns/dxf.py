@@ -449,18 +449,11 @@ def _max_gap(a: Piece, b: Piece) -> float:
     return float(_dist_to_polyline(_sub(a.outline), _sub(b.outline, 4000)).max())
 
 
-def _untie(piece: Piece) -> tuple[Piece | None, str | None]:
-    """The sew line as it is, or None and a note when it crosses itself in earnest.
-
-    Small loops where lines run past a corner are already cut off when the
-    piece is made (:func:`clothgrid.patterns.piece.piece_from_polygon`); what
-    still crosses is no outline, and the cut line is gridded instead.
-    """
-    from ..geometry import untie_loops
-
-    if len(piece.outline) > 20_000 or untie_loops(piece.outline, 0.0, max_loops=0) is not None:
-        return piece, None
-    return None, "its sew line (layer 14) crosses itself, so the cut line (layer 1) is gridded"
+def _reason(exc: InputError, name: str) -> str:
+    """An error's text without the file and piece prefix (``FILE: piece 'NAME': ``)."""
+    text = str(exc)
+    marker = f"piece {name!r}: "
+    return text.split(marker, 1)[1] if marker in text else text
 
 
 def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str = "sew") -> Pieces:
@@ -532,16 +525,16 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
             cut = piece_from_primitives(pname, _scale(boundary, scale),
                                         notes=tuple(notes + ctx.notes), meta=dict(meta), **common)
             sew_loops, sew_open = _layer_loops(ents, "14", ctx)
-            sew, crossed = None, None
+            sew, sew_failed = None, None
             if sew_loops:
                 try:
                     sew = piece_from_primitives(pname, _scale(max(sew_loops, key=_loop_area), scale),
                                                 notes=tuple(notes + ctx.notes), meta=dict(meta),
                                                 **common)
-                except InputError:
-                    sew = None                     # a sew line that is no outline: use the cut line
-                if sew is not None:
-                    sew, crossed = _untie(sew)
+                except InputError as exc:          # a sew line that is no outline (one that
+                    sew = None                     # crosses itself, ...): use the cut line
+                    sew_failed = (f"its sew line (layer 14) cannot be gridded ({_reason(exc, pname)}), "
+                               "so the cut line (layer 1) is gridded")
             if sew is not None:
                 gap = _max_gap(cut, sew)
                 sew.meta["cut_line_gap_mm"] = cut.meta["cut_line_gap_mm"] = gap
@@ -551,7 +544,7 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
                 line_used = "sew"
             elif line == "sew":
                 piece = cut
-                why = crossed or ("its sew line (layer 14) does not close" if sew_open and not sew_loops
+                why = sew_failed or ("its sew line (layer 14) does not close" if sew_open and not sew_loops
                                   else "no sew line (layer 14) in this piece")
                 extra = [f"line: cut (layer 1): {why}"]
                 line_used = "cut"

@@ -257,19 +257,15 @@ UNTIE_AREA = 0.01
 UNTIE_MAX_POINTS = 20_000
 
 
-def _untied(pts: np.ndarray, verts: np.ndarray, turns: np.ndarray, size: float
+def _untied(pts: np.ndarray, verts: np.ndarray, turns: np.ndarray
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """``pts`` with the small loops of lines running past a corner cut off, indices carried over.
 
+    Called only for an outline that :func:`_self_crossing` found crossing itself.
     The crossing points are new vertices (and turn points, where the piece has
     any): they are the corners the lines meant. An outline that crosses itself
-    in earnest is returned as it is (the boundary check names the crossing).
+    in earnest is returned as it is (:func:`_check_simple` names the crossing).
     """
-    from ..boundary import CORNER_TOL, _find_self_intersection
-
-    tol = max(CORNER_TOL * size, np.finfo(np.float64).tiny)
-    if _find_self_intersection(pts, tol) is None:     # near-linear; the search below is not
-        return pts, verts, turns, 0
     out = untie_loops(pts, UNTIE_AREA * abs(signed_area(pts)))
     if out is None or (len(out) == len(pts) and np.array_equal(out, pts)):
         return pts, verts, turns, 0
@@ -302,19 +298,29 @@ def _check_primitives(prims: list[Primitive], label: str) -> None:
                          f"{MAX_COORDINATE:.0e} in size")
 
 
-def _check_simple(pts: np.ndarray, label: str) -> None:
-    """InputError if the closed outline crosses or touches itself (which segments, where)."""
+def _self_crossing(pts: np.ndarray) -> tuple[np.ndarray, tuple[int, int, np.ndarray]] | None:
+    """Where the closed outline crosses or touches itself: ``(kept points, (k, m, where))``, or None.
+
+    ``kept`` are the indices of the points left after near-duplicates (zero-length
+    segments) are dropped; ``k``, ``m`` index the kept segments that meet.
+    """
     from ..boundary import CORNER_TOL, _find_self_intersection
 
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     tol = max(CORNER_TOL * size, np.finfo(np.float64).tiny)
     keep = np.flatnonzero(np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > tol)
     if len(keep) < 3:
-        return
+        return None
     found = _find_self_intersection(pts[keep], tol)
-    if found is None:
+    return None if found is None else (keep, found)
+
+
+def _check_simple(pts: np.ndarray, label: str) -> None:
+    """InputError if the closed outline crosses or touches itself (which segments, where)."""
+    crossing = _self_crossing(pts)
+    if crossing is None:
         return
-    k, m, where = found
+    keep, (k, m, where) = crossing
     n = len(keep)
     place = f"({where[0]:.6g}, {where[1]:.6g}) mm"
     if k == m:
@@ -393,20 +399,23 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
         return np.unique(new_index[np.asarray(idx, dtype=np.int64) % n0])
 
     verts, turns = remap(vertices), remap(turn_points)
-    if n <= UNTIE_MAX_POINTS:
-        pts, verts, turns, crossings = _untied(pts, verts, turns, size)
+    crossing = _self_crossing(pts)            # one near-linear search on the common path
+    if crossing is not None and n <= UNTIE_MAX_POINTS:
+        pts, verts, turns, crossings = _untied(pts, verts, turns)
         n = len(pts)
         if crossings:
             kwargs["notes"] = tuple(kwargs.get("notes", ())) + (
                 f"{crossings} small loop{'s' if crossings != 1 else ''} where the line runs past a "
                 f"corner and crosses itself cut off at the crossing",)
+            crossing = _self_crossing(pts)
     area = signed_area(pts)
     if not abs(area) > 1e-12 * size * size:
         raise InputError(f"{label}: encloses no area (its outline runs back over itself)")
     if area < 0:                              # make it counter-clockwise, keeping point 0
         pts = np.roll(pts[::-1], 1, axis=0)
         verts, turns = np.unique((n - verts) % n), np.unique((n - turns) % n)
-    _check_simple(pts, label)                 # (point numbers as 'clothgrid pieces' lists them)
+    if crossing is not None:                  # named in the final numbering ('clothgrid pieces')
+        _check_simple(pts, label)
     return Piece(name=name, outline=np.ascontiguousarray(pts), vertices=verts,
                  turn_points=turns, **kwargs)
 
