@@ -195,7 +195,7 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
             X = np.ascontiguousarray(np.moveaxis(block, -1, 0))   # (3, rows, nv), component first
         else:                                                 # planar: lengths and angles are in-plane
             X = (basis @ block.reshape(-1, 3).T).reshape(2, hi + 1 - lo, nv)
-        parts.append(_measure(X, a - lo, b - lo, local))
+        parts.append(_measure(X, a - lo, b - lo, local, first=a == 0, last=b == nu - 1))
     cells = np.concatenate([np.argwhere(p[0]) + [a, 0] for p, a in zip(parts, range(0, nu - 1, step))])
     with np.errstate(invalid="ignore", divide="ignore"):
         spread_u = np.float64(max(p[4] for p in parts)) / np.float64(min(p[5] for p in parts))
@@ -211,13 +211,23 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
     )
 
 
-def _measure(X: np.ndarray, a: int, b: int, local: float | None):
+#: A grid corner's own angle counts as a fold when its sine is below minus this
+#: (about 180.00000006 degrees): a corner on a straight side is a straight angle.
+STRAIGHT_CORNER_SINE = 1e-9
+
+
+def _measure(X: np.ndarray, a: int, b: int, local: float | None, *,
+             first: bool = False, last: bool = False):
     """The measures of cell rows ``a .. b-1`` of the points block ``X`` (``(d, rows, nv)``).
 
     ``d = 2``: coordinates in the piece's plane. ``d = 3`` with ``local`` (+1 or
     -1): a curved piece, whose cells are checked against local normals. Returns
     the folded mask of those rows, min scaled Jacobian, max aspect ratio, max
-    angle deviation, and the longest and shortest u- and v-edges.
+    angle deviation, and the longest and shortest u- and v-edges. ``first`` and
+    ``last`` say that the rows hold the grid's first or last row of cells: the
+    angle at a grid corner (the outline's own angle there) counts as folded
+    only when it is reflex beyond :data:`STRAIGHT_CORNER_SINE`, so that a corner
+    on a straight side (a three-cornered piece) is a straight angle, not a fold.
     """
     raw_u, raw_v = X[:, 1:] - X[:, :-1], X[:, :, 1:] - X[:, :, :-1]
     eu, len_u = _unit(raw_u)                                  # (d, rows-1, nv) u-edges
@@ -235,13 +245,20 @@ def _measure(X: np.ndarray, a: int, b: int, local: float | None):
     folded = np.zeros(shape, dtype=bool)
     # Corner k of the quad, edge pair (R[k+1]-R[k], R[k-1]-R[k]) in terms of the cell's sides:
     # 0: (b, l)  1: (r, -b)  2: (-t, -r)  3: (-l, t), whose crosses are b x l, b x r, t x r, t x l.
-    for first, second in ("bl", "br", "tr", "tl"):
-        pa, pc = unit[first], unit[second]
+    # the grid corners among these cells: corner type -> (row, column) of its cell
+    at = {"bl": (0, 0) if first else None, "tl": (0, -1) if first else None,
+          "br": (-1, 0) if last else None, "tr": (-1, -1) if last else None}
+    for one, two in ("bl", "br", "tr", "tl"):
+        pa, pc = unit[one], unit[two]
         if n is None:
             sj = pa[0] * pc[1] - pa[1] * pc[0]
         else:
             sj = np.einsum("k...,k...->...", _cross(pa, pc), n)
-        folded |= ~(sj > 0)
+        bad = ~(sj > 0)
+        cell = at[one + two]
+        if cell is not None and bad.size:
+            bad[cell] = not sj[cell] > -STRAIGHT_CORNER_SINE
+        folded |= bad
         np.minimum(min_sj, sj, out=min_sj)
         cos = np.einsum("k...,k...->...", pa, pc)            # |angle - 90| = asin|cos|
         np.maximum(max_cos, np.abs(cos), out=max_cos)
@@ -261,6 +278,15 @@ def _measure(X: np.ndarray, a: int, b: int, local: float | None):
 TARGET_MIN_ANGLE_DEG = 10.0
 FLOOR_MIN_ANGLE_DEG = 3.0
 TARGET_EDGE_SPREAD = 4.0
+
+
+def line_lengths(points: np.ndarray) -> tuple[float, float]:
+    """Geometric mean lengths of a grid's u-lines (``points[:, j]``) and v-lines (``points[i, :]``)."""
+    P = np.asarray(points, dtype=np.float64)
+    lu = np.linalg.norm(np.diff(P, axis=0), axis=-1).sum(axis=0)
+    lv = np.linalg.norm(np.diff(P, axis=1), axis=-1).sum(axis=1)
+    with np.errstate(divide="ignore"):
+        return float(np.exp(np.log(lu).mean())), float(np.exp(np.log(lv).mean()))
 
 
 def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[str, Any]:

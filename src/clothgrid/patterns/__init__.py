@@ -35,7 +35,7 @@ from ..units import UNITS, parse_length
 
 __all__ = [
     "Piece", "CornerCandidate", "CornerChoice", "choose_corners", "corner_candidates", "turn_angles",
-    "piece_boundary", "piece_info", "nodes_for_edge_length",
+    "piece_boundary", "piece_info", "nodes_for_edge_length", "grid_line_lengths",
     "parse_length", "UNITS", "DEFAULT_EDGE_LENGTH_MM", "DEFAULT_REL_TOL", "MIN_TURN_DEG",
 ]
 
@@ -69,25 +69,45 @@ def piece_boundary(piece: Piece, corners: Sequence[int] | None = None, near: Any
         raise BoundaryError(f"piece {piece.name!r}: {exc}") from None
 
 
-def nodes_for_edge_length(boundary: Boundary, edge_length: float) -> tuple[int, int]:
-    """``(nu, nv)`` so that grid edges along the sides are at most ``edge_length`` long.
+def grid_line_lengths(boundary: Boundary, samples: int = 33) -> tuple[float, float]:
+    """Typical lengths of the grid's u- and v-lines, from a coarse transfinite grid.
 
-    ``nu - 1`` edges on the longer of bottom and top, ``nv - 1`` on the longer
-    of left and right, each at least 2 (3 nodes).
+    The sides are resampled to ``samples`` points each and the interior filled
+    by eq. (4); the answer is the geometric mean of the lengths of the
+    ``samples`` u-lines (bottom side, top side and the lines between) and of
+    the v-lines. Interior lines count: a piece that is longer inside than
+    along its sides (a sleeve cap between two corners) gets its length from them.
+    """
+    from ..initial import boundary_grid, transfinite
+    from ..quality import line_lengths
+
+    return line_lengths(transfinite(boundary_grid(boundary.resampled(samples, samples))))
+
+
+def nodes_for_edge_length(boundary: Boundary, edge_length: float) -> tuple[int, int]:
+    """``(nu, nv)`` so that grid edges are about ``edge_length`` long.
+
+    ``nu - 1`` edges on the typical length of a u-line, ``nv - 1`` on that of
+    a v-line (:func:`grid_line_lengths`: geometric means over a coarse
+    transfinite grid), rounded up, each at least 2 (3 nodes). Balancing the
+    two directions on their typical lines rather than on their longest side
+    keeps the spread of edge lengths (longest over shortest) small: a piece
+    whose bottom side is 2.5 times its top no longer gets u-edges half as long
+    as its v-edges. Edges on a side longer than the typical line are longer
+    than ``edge_length``; ``quality`` reports the shortest and longest.
     """
     h = float(edge_length)
     if not (math.isfinite(h) and h > 0):
         raise InputError(f"the edge length must be positive and finite, not {edge_length!r}")
-    b, r, t, l = boundary.side_lengths
     from ..errors import SizeError
     from ..limits import MAX_NODES_PER_SIDE
 
     counts = []
-    for side in (max(b, t), max(l, r)):
-        edges = side / h * (1 - 1e-12)
+    for line in grid_line_lengths(boundary):
+        edges = line / h * (1 - 1e-12)
         if not edges < MAX_NODES_PER_SIDE:          # also inf: an edge length of 1e-320
-            raise SizeError(f"an edge length of {edge_length!r} puts {edges:.3g} edges on a side "
-                            f"{side:.6g} long, more than the limit of {MAX_NODES_PER_SIDE:,} nodes "
+            raise SizeError(f"an edge length of {edge_length!r} puts {edges:.3g} edges along grid lines "
+                            f"{line:.6g} long, more than the limit of {MAX_NODES_PER_SIDE:,} nodes "
                             "along a side: use a longer edge length")
         counts.append(max(3, math.ceil(edges) + 1))
     return counts[0], counts[1]

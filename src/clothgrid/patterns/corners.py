@@ -319,6 +319,17 @@ def _side_points(outline: np.ndarray, a: int, b: int) -> np.ndarray:
     return outline[np.arange(a, b + 1) % n]
 
 
+def _sides_grid(sides: Sequence[np.ndarray], nu: int, nv: int) -> np.ndarray:
+    """A ``(nu, nv, 3)`` transfinite grid (eq. 4) of four sides (outline order), sampled by arc length."""
+    from ..boundary import resample_polyline
+    from ..initial import transfinite
+
+    r = np.zeros((nu, nv, 3))
+    r[:, 0], r[-1, :] = resample_polyline(sides[0], nu), resample_polyline(sides[1], nv)
+    r[:, -1], r[0, :] = resample_polyline(sides[2], nu)[::-1], resample_polyline(sides[3], nv)[::-1]
+    return transfinite(r)
+
+
 def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE_CELLS
                 ) -> np.ndarray:
     """A coarse fold-free ``(nu, nv, 3)`` grid of ``outline`` with these 4 corners (outline order).
@@ -327,24 +338,20 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
     equal size, the interior by transfinite interpolation (eq. 4), then
     relaxed by :func:`clothgrid.foldfree.relax` over the whole grid.
     """
-    from ..boundary import resample_polyline
     from ..foldfree import relax
     from ..geometry import signed_area
-    from ..initial import transfinite
+    from ..quality import line_lengths
 
     c = list(corners)
     sides = [_side_points(outline, c[k], c[(k + 1) % 4]) for k in range(4)]
     lens = [float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides]
     area = abs(signed_area(outline))
     h = math.sqrt(area / cells) if area > 0 else max(lens) / 8
-    nu = int(min(64, max(3, round(max(lens[0], lens[2]) / h) + 1)))
-    nv = int(min(64, max(3, round(max(lens[1], lens[3]) / h) + 1)))
-    r = np.zeros((nu, nv, 3))
-    r[:, 0] = resample_polyline(sides[0], nu)
-    r[-1, :] = resample_polyline(sides[1], nv)
-    r[:, -1] = resample_polyline(sides[2], nu)[::-1]
-    r[0, :] = resample_polyline(sides[3], nv)[::-1]
-    transfinite(r)
+    # node counts on the typical u- and v-line (as for the full grid: nodes_for_edge_length)
+    lu, lv = line_lengths(_sides_grid(sides, 33, 33))
+    nu = int(min(64, max(3, round(lu / h) + 1)))
+    nv = int(min(64, max(3, round(lv / h) + 1)))
+    r = _sides_grid(sides, nu, nv)
     out, _ = relax(r, dim=2, whole=True, quick=True)
     return out
 
