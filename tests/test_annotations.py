@@ -30,9 +30,9 @@ REAL_SVG = {
     "fs_bruce_draft-sample.svg": (["2", "14", "29", "49"], {"3": SA}),
     "fs_cathrin_layout.svg": (["2", "9", "16", "23", "30", "38", "45"],
                               {n: SA for n in ["3", "10", "17", "24", "31", "39", "46"]}),
-    # '55' and '56' (2-point closed paths of class "fabric", the closing lines of brimPlastic) would
-    # be pieces and cannot be made: failed, not skipped (see test_patterns)
-    "fs_florent_layout.svg": (["2", "31", "42"], {"3": SA, "32": SA, "43": SA}),
+    # 'side' (a half piece on the fold: open paths '14' and '15') and 'brimPlastic' (open curves '53',
+    # '54' and the 2-point closed paths '55', '56') are joined from open paths (see test_patterns)
+    "fs_florent_layout.svg": (["2", "31", "42", "side", "brimPlastic"], {"3": SA, "32": SA, "43": SA}),
     "fs_shin_layout.svg": (["2", "13", "26"], {}),
     "fs_wahid_layout.svg": (["4", "24", "33", "41", "50", "61", "72", "81"],
                             {"5": SA, "25": SA, "34": SA, "42": SA}),
@@ -40,7 +40,7 @@ REAL_SVG = {
     "gc_pattern_test.svg": ([f"piece{k}" for k in range(1, 7)], {}),
 }
 
-REAL_SVG_FAILED = {"fs_florent_layout.svg": ["55", "56"]}
+REAL_SVG_FAILED: dict[str, list[str]] = {}
 
 
 @pytest.mark.parametrize("name", sorted(REAL_SVG))

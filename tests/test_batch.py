@@ -38,7 +38,10 @@ GOOD = {  # file -> pieces written at 2 cm
     "fs_simon_collarstandbend.svg": 2,             # Inkscape SVG (FreeSewing)
     "gpg_skirt_4_panels_specification.json": 4,    # GPG template
 }
-PARTIAL = "fs_florent_layout.svg"                  # 3 pieces gridded, 2 outlines of 2 points fail
+PARTIAL = "partial.svg"          # 3 pieces gridded, a bow-tie outline fails (written by _collection)
+PARTIAL_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="100mm" viewBox="0 0 400 100">
+<path id="a" d="M 0,0 L 100,0 L 100,60 L 0,60 Z"/><path id="bow" d="M 150,0 L 250,60 L 250,0 L 150,60 Z"/>
+<path id="b" d="M 260,0 L 320,0 L 320,60 L 260,60 Z"/><path id="c" d="M 330,0 L 390,0 L 360,50 Z"/></svg>"""
 OPTS = GridOptions(edge_length="2cm")
 SRC = str(Path(__file__).parents[1] / "src")
 
@@ -52,7 +55,7 @@ def _collection(folder: Path) -> Path:
         shutil.copy(SHARED / name, folder / name)
     (folder / "sub").mkdir()
     shutil.copy(SHARED / "fs_simon_collarstandbend.svg", folder / "sub" / "fs_simon_collarstandbend.svg")
-    shutil.copy(SHARED / PARTIAL, folder / PARTIAL)
+    (folder / PARTIAL).write_text(PARTIAL_SVG)
     text = (SHARED / "gpg_dress_specification.json").read_text()
     (folder / "truncated_specification.json").write_text(text[: len(text) // 3])
     (folder / "garbage.svg").write_text("<svg>not closed")
@@ -111,8 +114,8 @@ def test_batch_grids_good_files_and_records_broken_ones(tmp_path, client):
     assert B.assign_stems([Path(b["input"]), Path(a["input"])]) == [b["stem"], a["stem"]]
     part = by_name[PARTIAL]
     assert part["status"] == "partial" and len(part["pieces"]) == 3
-    assert [f["name"] for f in part["failed_pieces"]] == ["55", "56"]
-    assert "only 2 distinct points" in part["failed_pieces"][0]["reason"]
+    assert [f["name"] for f in part["failed_pieces"]] == ["bow"]
+    assert "crosses or touches itself" in part["failed_pieces"][0]["reason"]
     for name, words in (("truncated_specification.json", "invalid JSON"), ("garbage.svg", "SVG")):
         e = by_name[name]
         assert e["status"] == "failed" and words in e["error"] and e["error_type"] == "InputError"

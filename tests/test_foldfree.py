@@ -34,27 +34,47 @@ def test_auto_is_fold_free_on_roache_regions(path, nodes, weights):
     assert grid.info["folded"] == 0
     length = generate(b, nodes, weights=weights)
     assert grid.info["folded_before"] == quality(length).folded
-    assert grid.info["functional"] == ("foldfree" if grid.info["folded_before"] else "length")
+    assert grid.info["functional"] in (("foldfree",) if grid.info["folded_before"] else
+                                       ("length", "evened", "foldfree"))
     # Boundary nodes are kept exactly.
     for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
         assert np.array_equal(grid.points[sl], length.points[sl])
 
 
 def test_auto_returns_the_length_grid_when_it_does_not_fold(rng):
-    for _ in range(20):
-        b = Boundary.from_sides(*smooth_quad_sides(rng, 24, 17, amp=0.03))
-        length = generate(b)
-        if quality(length).folded == 0:
-            break
-    else:
-        pytest.fail("no unfolded random quad drawn")
-    grid = generate(b, functional="auto")
-    assert np.array_equal(grid.points, length.points)
-    assert grid.info["functional"] == "length" and grid.info["folded_before"] == 0 == grid.info["folded"]
+    unchanged = 0
+    for _ in range(12):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 17, 17, amp=0.03))
+        length = generate(b, weights="uniform")
+        if quality(length).folded:
+            continue
+        grid = generate(b, weights="uniform", functional="auto")
+        assert grid.info["folded_before"] == 0 == grid.info["folded"]
+        if grid.info["evened"]["moved"] == 0:        # nothing poor, no outlying edge: as it was
+            assert np.array_equal(grid.points, length.points) and grid.info["functional"] == "length"
+            unchanged += 1
+        else:
+            assert grid.info["functional"] == "evened"
+    assert unchanged >= 3
+
+
+def test_auto_evens_outlying_edges_without_folding_or_sharper_angles():
+    """roache-shell does not fold, but its length grid has a few edges far from the rest: auto
+    moves the nodes near them, lowering the edge spread, keeping the boundary and every angle
+    that was at least 25 degrees at least 25 degrees."""
+    from clothgrid.quality import sim_figures
+
     shell = clothgrid.load_boundary(REGIONS[[p.stem for p in REGIONS].index("roache-shell")])
     length = generate(shell, weights="uniform")
     assert quality(length).folded == 0
-    assert np.array_equal(generate(shell, weights="uniform", functional="auto").points, length.points)
+    grid = generate(shell, weights="uniform", functional="auto")
+    before, after = sim_figures(length.points), sim_figures(grid.points)
+    assert grid.info["functional"] == "evened" and quality(grid).folded == 0
+    assert after["edge_spread"] < 0.8 * before["edge_spread"]
+    assert grid.info["evened"]["spread_after"] == pytest.approx(after["edge_spread"])
+    assert after["min_angle_deg"] >= min(before["min_angle_deg"], 25.0) - 1e-9
+    for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
+        assert np.array_equal(grid.points[sl], length.points[sl])
 
 
 def test_foldfree_always_runs_and_keeps_a_clockwise_or_3d_planar_piece_unfolded(rng):

@@ -320,7 +320,7 @@ def test_self_intersection_search_agrees_with_all_pairs():
 
 def test_big_inputs_take_near_linear_time(tmp_path):
     from clothgrid.boundary import _find_self_intersection
-    from clothgrid.patterns.dxf import _chain
+    from clothgrid.patterns.chains import chain_loops as _chain
     from clothgrid.patterns.garmentcode import _loop
     from clothgrid.patterns.sampling import Bezier
 

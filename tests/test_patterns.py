@@ -742,21 +742,58 @@ def test_godet_skirt_reads_its_triangles_and_grids_every_piece_it_can(capsys, tm
 
 
 @needs_shared
-def test_real_file_with_two_point_paths_writes_the_others(capsys, tmp_path):
-    """fs_florent_layout.svg: paths '55' and '56' are lines (2 points) of class "fabric" (the closing
-    lines of the brim, whose curves are open paths): would-be pieces that cannot be made, so failed
-    (not skipped as annotations); the 3 real pieces are written (their seam-allowance outlines are
-    skipped)."""
+def test_real_file_pieces_drawn_as_open_paths_are_joined(capsys, tmp_path):
+    """fs_florent_layout.svg (FreeSewing) draws two pieces as open paths: the cap side (cut on the
+    fold) as its curve '14' and the fold line '15', the brim as its two curves '53', '54' and two
+    short lines '55', '56' drawn as closed 2-point paths. Each group's paths of one class that meet
+    end to end are one piece, named after the group; the seam-allowance paths ('16', '17', '18',
+    class "fabric sa") do not close and stay open. Every piece is written (exit 0)."""
     src = SHARED / "fs_florent_layout.svg"
     pieces = read_pieces(src)
-    assert [f.name for f in pieces.failed] == ["55", "56"] and len(pieces) == 3
-    assert {s.name for s in pieces.skipped} == {"3", "32", "43"}
+    assert pieces.failed == [] and [p.name for p in pieces] == ["2", "31", "42", "side", "brimPlastic"]
+    by = {p.name: p for p in pieces}
+    assert by["side"].meta["joined"] == ["14", "15"]
+    assert sorted(by["brimPlastic"].meta["joined"]) == ["53", "54", "55", "56"]
+    assert any("joined from 4 open paths" in n for n in by["brimPlastic"].notes)
+    # the brim is a ring sector between its two curves: 181 x 126 mm
+    assert by["brimPlastic"].extent == pytest.approx((181.5, 126.2), abs=0.1)
     code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--edge-length", "20mm", "-q")
-    assert code == EXIT_PARTIAL
-    assert sorted(p.stem for p in tmp_path.glob("*.npz")) == sorted(p.name for p in pieces)
-    for name in ("55", "56"):
-        assert f"clothgrid: error: {src}: piece '{name}': only 2 distinct points" in err
-    code, _, err = run(capsys, "generate", src, "--piece", "2", "-o", tmp_path / "two.npz", "-q")
-    assert code == 0 and (tmp_path / "two.npz").exists()
-    code, _, err = run(capsys, "generate", src, "--piece", "55", "-o", tmp_path / "x.npz")
-    assert code == 2 and "piece '55': only 2 distinct points" in err and not (tmp_path / "x.npz").exists()
+    assert code == 0, err
+    assert sorted(p.stem for p in tmp_path.glob("*.npz")) == sorted(by)
+
+
+def _svg(tmp_path, body: str) -> Path:
+    path = tmp_path / "t.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" '
+                    f'viewBox="0 0 300 200">{body}</svg>')
+    return path
+
+
+def test_open_paths_joined_only_where_two_ends_meet(tmp_path):
+    # two halves of a square in one group: one piece, named after the group
+    path = _svg(tmp_path, '<g id="panel"><path id="p" d="M 0,0 L 100,0 L 100,100"/>'
+                          '<path id="q" d="M 0,0 L 0,100 L 100,100"/></g>')
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["panel"] and got[0].area == pytest.approx(10000)
+    # a third path from a shared end (a fork): which way the outline goes is a guess, so none
+    path = _svg(tmp_path, '<g id="panel"><path id="p" d="M 0,0 L 100,0 L 100,100"/>'
+                          '<path id="q" d="M 0,0 L 0,100 L 100,100"/><path id="r" d="M 0,0 L -9,-9"/></g>'
+                          '<path id="s" d="M 150,0 L 250,0 L 250,100 Z"/>')
+    assert [p.name for p in read_pieces(path)] == ["s"]
+    # paths of different classes (a sew line and a seam allowance) are not joined
+    path = _svg(tmp_path, '<g id="panel"><path class="fabric" d="M 0,0 L 100,0 L 100,100"/>'
+                          '<path class="fabric sa" d="M 0,0 L 0,100 L 100,100"/></g>'
+                          '<path id="s" d="M 150,0 L 250,0 L 250,100 Z"/>')
+    assert [p.name for p in read_pieces(path)] == ["s"]
+
+
+def test_a_line_drawn_closed_is_skipped_not_failed(tmp_path, capsys):
+    path = _svg(tmp_path, '<path id="sq" d="M 0,0 L 100,0 L 100,100 L 0,100 Z"/>'
+                          '<path id="ln" d="M 120,0 L 180,50 z"/>')
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["sq"] and got.failed == []
+    assert [(s.name, s.kind) for s in got.skipped] == [("ln", "line")]
+    code, out, err = run(capsys, "pieces", path)
+    assert code == 0 and "ln" in out and "line" in out
+    code, _, err = run(capsys, "generate", path, "-o", tmp_path / "{piece}.npz", "-q")
+    assert code == 0 and [p.stem for p in tmp_path.glob("*.npz")] == ["sq"]

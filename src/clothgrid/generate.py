@@ -117,10 +117,15 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         ``length``: the weighted length functional (eq. 1), which can fold
         cells on non-convex pieces. ``auto``: its folded and poorly shaped
         cells (a corner angle under about 20 degrees) and the nodes near them
-        are then relaxed by :func:`clothgrid.foldfree.relax` (planar pieces;
-        the length grid is returned unchanged when no cell is poor, and a
-        curved piece keeps its length grid, with ``info["foldfree_skipped"]``
-        saying why). ``foldfree``: every interior node is relaxed.
+        are then relaxed by :func:`clothgrid.foldfree.relax`, and the nodes
+        near its outlying edges (longer or shorter than 1.4 times the
+        geometric mean) moved to even the edge lengths out, no angle made
+        smaller than 25 degrees (:func:`clothgrid.evening.even_edges`; a
+        simulator's time step follows its shortest edge). Planar pieces only:
+        the length grid is returned unchanged when no cell is poor and no
+        edge outlying, and a curved piece keeps its length grid, with
+        ``info["foldfree_skipped"]`` saying why. ``foldfree``: every interior
+        node is relaxed, then the edges evened.
 
     Returns
     -------
@@ -128,9 +133,11 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         With ``info``: solver, backend, init, weights, k, tol, stop,
         iterations, error_estimate (relative; a guaranteed bound when
         ``error_bound`` is True), converged, seconds, nodes, shape,
-        functional (the one used); with ``functional`` auto or foldfree also
-        folded_before (folded cells of the length grid) and folded (of the
-        grid returned); after the fold-free method
+        functional (the one used: ``length``, ``foldfree``, or ``evened``
+        when only the edge evening moved nodes); with ``functional`` auto or
+        foldfree also folded_before (folded cells of the length grid), folded
+        (of the grid returned) and ``evened`` (the edge evening's info:
+        spread before and after, nodes, sweeps, seconds); after the fold-free method
         also ``foldfree`` (its :func:`~clothgrid.foldfree.untangle` info) and
         ``quality_before`` (the length grid's :meth:`Quality.as_dict`).
 
@@ -269,11 +276,12 @@ def check_size(nodes, *, solver: str = "auto", backend: str = "auto", weights="p
 
 
 def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool) -> Grid:
-    """Record the length grid's folds and, for ``foldfree`` / folded ``auto``, untangle it."""
+    """Record the length grid's folds; for ``foldfree`` / poor ``auto`` relax it; then even its edges."""
     from .quality import quality
 
     q = quality(grid)
     grid.info.update(functional="length", folded_before=q.folded, folded=q.folded)
+    from .evening import even_edges
     from .foldfree import relax
 
     try:
@@ -284,14 +292,22 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         grid.info["foldfree_skipped"] = str(exc)
         say(f"warning: {q.folded} folded cells kept: {exc}")
         return grid
-    if functional == "auto" and ff.get("moved", 0) == 0:    # no poor cell: the length grid as it is
-        grid.info["relax"] = ff
+    relaxed = not (functional == "auto" and ff.get("moved", 0) == 0)
+    points, ev = even_edges(points, dim=grid.dim)
+    say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
+        f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s)")
+    if not relaxed and ev["moved"] == 0:     # nothing poor, nothing to even: the length grid as it is
+        grid.info.update(relax=ff, evened=ev)
         return grid
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
     q_after = quality(new)
     new._quality = q_after   # measured once: pipeline.run_job reads it instead of measuring again
-    new.info.update(functional="foldfree", folded=q_after.folded, foldfree=ff,
+    new.info.update(functional="foldfree" if relaxed else "evened", folded=q_after.folded, evened=ev,
                     quality_before=q.as_dict(), seconds=time.perf_counter() - t0)
-    say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s")
+    if relaxed:
+        new.info["foldfree"] = ff
+        say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s")
+    else:
+        new.info["relax"] = ff
     return new

@@ -50,6 +50,7 @@ from ..errors import InputError
 from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
 from ..geometry import signed_area
 from .annotations import LINES, classified, structure_hint
+from .chains import chain_loops
 from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
 from ..units import UNITS, unit_to_mm
@@ -220,116 +221,6 @@ def _entity_prims(e: Any, ctx: _Ctx) -> tuple[list[Primitive], bool]:
     return [], False
 
 
-def _reverse(p: Primitive) -> Primitive:
-    if isinstance(p, Bezier):
-        return Bezier(p.ctrl[::-1].copy(), None if p.weights is None else p.weights[::-1].copy())
-    return EllipseArc(p.center, p.a, p.b, p.t1, p.t0, p.end_point, p.start_point)
-
-
-def _chain(pieces: list[list[Primitive]], tol: float) -> tuple[list[list[Primitive]], int]:
-    """Join open chains end to end; the closed loops and the number of chains left open.
-
-    The ends are hashed into cells of size ``tol`` (near-linear time: 20,000 shuffled LINEs
-    join in well under a second); an infinite ``tol`` (join whatever is nearest) takes the
-    pairwise search, for the few chains of one AAMA block.
-    """
-    if not math.isfinite(tol) or len([p for p in pieces if p]) < 64:
-        return _chain_pairwise(pieces, tol)
-    return _chain_hashed(pieces, tol)
-
-
-def _chain_hashed(pieces: list[list[Primitive]], tol: float) -> tuple[list[list[Primitive]], int]:
-    open_ = [list(p) for p in pieces if p]
-    n = len(open_)
-    ends = np.array([[p[0].start, p[-1].end] for p in open_], dtype=np.float64)   # (n, 2, 2)
-    cell = tol if tol > 0 else 1.0
-    origin = ends.reshape(-1, 2).min(axis=0)
-    keys = np.floor((ends - origin) / cell).astype(np.int64) if tol > 0 else None
-    table: dict[tuple[int, int], list[tuple[int, int]]] = {}
-    if tol > 0:
-        for k in range(n):
-            for side in (0, 1):
-                table.setdefault((int(keys[k, side, 0]), int(keys[k, side, 1])), []).append((k, side))
-    else:
-        for k in range(n):
-            for side in (0, 1):
-                table.setdefault((float(ends[k, side, 0]), float(ends[k, side, 1])), []).append((k, side))
-    used = [False] * n
-
-    def nearest(point: np.ndarray) -> tuple[int, bool]:
-        """The unused chain with an end nearest ``point`` (within tol), first in file order on
-        ties, and whether it must be reversed (its end is the nearer; its start wins ties)."""
-        if tol > 0:
-            cx, cy = (int(v) for v in np.floor((point - origin) / cell))
-            cand = [c for dx in (-1, 0, 1) for dy in (-1, 0, 1) for c in table.get((cx + dx, cy + dy), ())]
-        else:
-            cand = list(table.get((float(point[0]), float(point[1])), ()))
-        best, best_d, flip = -1, tol, False
-        for k in sorted({k for k, _ in cand if not used[k]}):     # as the pairwise search does
-            d0 = float(np.linalg.norm(ends[k, 0] - point))
-            d1 = float(np.linalg.norm(ends[k, 1] - point))
-            if d0 <= best_d:
-                best, best_d, flip = k, d0, False
-            if d1 <= best_d and d1 < d0:
-                best, best_d, flip = k, d1, True
-        return best, flip
-
-    loops: list[list[Primitive]] = []
-    left_open = 0
-    for first in range(n):
-        if used[first]:
-            continue
-        used[first] = True
-        chain = open_[first]
-        start = chain[0].start
-        while True:
-            end = chain[-1].end
-            if len(chain) > 1 and np.linalg.norm(end - start) <= tol:
-                loops.append(chain)
-                break
-            best, flip = nearest(end)
-            if best < 0:
-                if np.linalg.norm(end - start) <= tol:
-                    loops.append(chain)
-                else:
-                    left_open += 1
-                break
-            used[best] = True
-            nxt = open_[best]
-            chain += [_reverse(p) for p in reversed(nxt)] if flip else nxt
-    return loops, left_open
-
-
-def _chain_pairwise(pieces: list[list[Primitive]], tol: float) -> tuple[list[list[Primitive]], int]:
-    open_ = [list(p) for p in pieces if p]
-    loops: list[list[Primitive]] = []
-    left_open = 0
-    while open_:
-        chain = open_.pop(0)
-        while True:
-            start, end = chain[0].start, chain[-1].end
-            if len(chain) > 1 and np.linalg.norm(end - start) <= tol:
-                loops.append(chain)
-                break
-            best, best_d, flip = -1, tol, False
-            for k, other in enumerate(open_):
-                d0 = float(np.linalg.norm(other[0].start - end))
-                d1 = float(np.linalg.norm(other[-1].end - end))
-                if d0 <= best_d:
-                    best, best_d, flip = k, d0, False
-                if d1 <= best_d and d1 < d0:
-                    best, best_d, flip = k, d1, True
-            if best < 0:
-                if np.linalg.norm(end - start) <= tol:
-                    loops.append(chain)
-                else:
-                    left_open += 1
-                break
-            nxt = open_.pop(best)
-            chain += [_reverse(p) for p in reversed(nxt)] if flip else nxt
-    return loops, left_open
-
-
 def _scale(prims: list[Primitive], s: float) -> list[Primitive]:
     out: list[Primitive] = []
     for p in prims:
@@ -425,7 +316,7 @@ def _layer_loops(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Prim
     """(closed loops, open chains left) of the curves on ``layer``."""
     chains, closed = _layer_curves(ents, layer, ctx)
     tol = 1e-6 * _extent(chains + closed)
-    loops, _ = _chain(chains, tol)
+    loops, _ = chain_loops(chains, tol)
     return loops + closed, chains
 
 
@@ -492,10 +383,10 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
         try:
             chains, closed = _layer_curves(ents, "1", ctx)
             tol = 1e-6 * _extent(chains + closed)
-            loops, _ = _chain(chains, tol)
+            loops, _ = chain_loops(chains, tol)
             if not loops and not closed and chains:
                 # the standard's boundary is closed by definition: close the gap with a line
-                joined, _ = _chain(chains, float("inf"))
+                joined, _ = chain_loops(chains, float("inf"))
                 if joined:
                     chain = joined[0]
                     chain.append(Bezier(np.array([chain[-1].end, chain[0].start])))
@@ -591,7 +482,7 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
         else:
             chains.append(prims)
     tol = 1e-6 * _extent([p for p, _ in closed] + chains)
-    loops, left_open = _chain(chains, tol)
+    loops, left_open = chain_loops(chains, tol)
     if not closed and not loops:
         extra = (f" ({left_open} open chain{'s' if left_open != 1 else ''} of lines and curves "
                  "did not close)" if left_open else "")

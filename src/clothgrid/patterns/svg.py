@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -39,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, structure_hint
-from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_primitives
+from .piece import Piece, PieceFailure, Pieces, Skipped, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
 
@@ -344,6 +345,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     names: dict[str, int] = {}
     open_paths = 0
     counter = 0
+    opened: list[_Open] = []                         # open subpaths (and lines drawn closed)
 
     def unique(name: str) -> str:
         if name not in names:
@@ -398,6 +400,10 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
                             if not size > 0 or gap > 1e-9 * size:
                                 open_paths += 1
+                                opened.append(_Open(prims, base, el, around, text, group))
+                                continue
+                            if _drawn_line(prims, size):       # M a L b z: a line, drawn closed
+                                opened.append(_Open(prims[:1], base, el, around, text, group, True))
                                 continue
                             loops.append(prims)
             except InputError as exc:                  # bad path data: a failure, whatever it is
@@ -427,9 +433,98 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group)
 
     visit(root, view)
+    for name, prims, meta, members in _joined(opened):
+        name = unique(name)
+        try:
+            pieces.append(piece_from_primitives(
+                name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
+                notes=(f"units: {how}", f"joined from {len(members)} open paths ("
+                       + ", ".join(repr(m) for m in members) + ") that meet end to end"), meta=meta))
+        except InputError as exc:
+            unmade.append((piece_failure(name, exc, where), meta))
+    open_paths = sum(1 for o in opened if not o.joined and not o.line)
+    lines = [Skipped(unique(o.base), "line", "a line drawn as a closed path (two points): no area, "
+                     "not a piece", None, None, {"element": "path", "id": o.el.get("id"),
+                                                 "class": o.el.get("class"), "group": o.group or None})
+             for o in opened if o.line and not o.joined]   # lines drawn closed that close nothing
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
-    return classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
-                      line=line)
+    out = classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
+                     line=line)
+    out.skipped.extend(lines)
+    return out
+
+
+@dataclass
+class _Open:
+    """An open subpath of an SVG file (or a line drawn as a closed path), to be joined."""
+
+    prims: list[Primitive]
+    base: str
+    el: ET.Element
+    around: tuple[str, ...]
+    text: bool
+    group: str
+    line: bool = False
+    joined: bool = False
+
+
+def _drawn_line(prims: list[Primitive], size: float) -> bool:
+    """Whether a closed subpath is a line drawn closed (``M a L b z``): straight, two distinct points."""
+    if not all(isinstance(p, Bezier) and len(p.ctrl) == 2 for p in prims):
+        return False
+    ends = np.array([p.start for p in prims])
+    return len(np.unique(np.round(ends / (1e-9 * size)), axis=0)) <= 2
+
+
+def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[str]]]:
+    """Closed outlines made of open subpaths that meet end to end, each group on its own.
+
+    A pattern program may draw a piece as several open paths (FreeSewing draws a
+    cap brim as its two curves and the two short lines between them). Within
+    one group (``<g>``) and of one ``class``, subpaths whose ends meet
+    (within ``1e-6`` of their extent) are chained
+    (:func:`~clothgrid.patterns.chains.chain_loops`); a chain that closes is an
+    outline, named after its group (else its first path), unless it passes a
+    point where more than two path ends meet (a fork). The subpaths used are marked ``joined``. Returns ``(name,
+    primitives, meta, member names)`` per outline.
+    """
+    from .chains import chain_loops
+
+    groups: dict[tuple[str, str], list[_Open]] = {}
+    for o in opened:
+        groups.setdefault((o.group, o.el.get("class") or ""), []).append(o)
+    out = []
+    for (group, _), paths in groups.items():
+        if len(paths) < 2:
+            continue
+        ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
+        extent = float(np.hypot(*np.ptp(ends.reshape(-1, 2), axis=0)))
+        tol = 1e-6 * extent
+        if not tol > 0:
+            continue
+        # a point where more than two path ends meet is a fork: which way an outline goes
+        # there is a guess, so no outline is joined through one
+        keys = np.floor(ends / tol).astype(np.int64).reshape(-1, 2)
+        _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        fork = (counts[inverse.ravel()] > 2).reshape(-1, 2).any(axis=1)
+        members: list[list[int]] = []
+        loops, _ = chain_loops([o.prims for o in paths], tol, members)
+        for prims, mem in zip(loops, members):
+            if len(mem) < 2 or fork[mem].any():
+                continue
+            first = paths[mem[0]]
+            for k in mem:
+                paths[k].joined = True
+            classes = [paths[k].el.get("class") for k in mem]
+            hint = structure_hint([c for c in classes if c][:1], first.around,
+                                  any(paths[k].text for k in mem))
+            key = group.rsplit("/", 1)[-1] if group else ""
+            name = key if key and key != "g" else first.base
+            meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
+                    "group": group or None, "structure": hint, "look": _look(first.el),
+                    "part": group or None, "joined": [paths[k].base for k in mem]}
+            out.append((name, prims, meta, [paths[k].base for k in mem]))
+    return out
 

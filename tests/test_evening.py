@@ -1,0 +1,76 @@
+"""Edge evening (clothgrid.evening.even_edges): lower spread, no fold, no angle below the floor."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from clothgrid import Boundary, Grid, generate
+from clothgrid.evening import FLOOR_DEG, even_edges
+from clothgrid.quality import quality, sim_figures
+
+from conftest import smooth_quad_sides
+
+
+def _corner_sines(P: np.ndarray) -> np.ndarray:
+    """(4, nu-1, nv-1) sines of every cell corner angle of a planar grid (grid corners: nan)."""
+    X = P[..., :2]
+    c = (X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:])
+    out = []
+    for k in range(4):
+        a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
+        s = (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+        out.append(s)
+    s = np.stack(out)
+    s[0, 0, 0] = s[1, -1, 0] = s[2, -1, -1] = s[3, 0, -1] = np.nan
+    return s
+
+
+def test_evening_never_lowers_a_corner_below_the_floor_and_lowers_the_spread(rng):
+    floor = math.sin(math.radians(FLOOR_DEG))
+    lowered = 0
+    for _ in range(8):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
+        length = generate(b, weights="paper")            # the paper's weights crowd the lines
+        out, info = even_edges(length.points, dim=2)
+        before, after = _corner_sines(length.points), _corner_sines(out)
+        ok = np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)
+        assert ok.all()                                   # per corner: at the floor, or no worse
+        assert quality(Grid.from_points(out, dim=2)).folded <= quality(length).folded
+        for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
+            assert np.array_equal(out[sl], length.points[sl])
+        fb, fa = sim_figures(length.points), sim_figures(out)
+        assert info["spread_before"] == pytest.approx(fb["edge_spread"])
+        assert info["spread_after"] == pytest.approx(fa["edge_spread"])
+        assert fa["edge_spread"] <= fb["edge_spread"] * (1 + 1e-12)
+        lowered += fa["edge_spread"] < 0.8 * fb["edge_spread"]
+    assert lowered >= 4
+
+
+def test_evening_leaves_an_even_grid_alone():
+    t = np.linspace(0, 1, 21)
+    b = Boundary.from_sides(np.c_[t, 0 * t], np.c_[1 + 0 * t, t], np.c_[t, 1 + 0 * t], np.c_[0 * t, t])
+    g = generate(b, weights="uniform")
+    out, info = even_edges(g.points, dim=2)
+    assert info["active"] == 0 and info["moved"] == 0 and np.array_equal(out, g.points)
+
+
+def test_evening_on_a_real_sleeve(tmp_path):
+    """A GarmentCode sleeve-and-bodice panel: the length grid's spread is set by a few edges."""
+    from pathlib import Path
+
+    from clothgrid.pipeline import generate_piece
+    from clothgrid.readers import read_pieces
+
+    src = Path(__file__).parents[2] / "shared" / "patterns" / "gcn_rand_57NZEOIBHZ_specification.json"
+    if not src.exists():
+        pytest.skip("../shared/patterns is not here")
+    piece = next(p for p in read_pieces(src) if p.name == "right_ftorso")
+    length = generate_piece(piece, functional="length")
+    auto = generate_piece(piece)
+    fl, fa = sim_figures(length.points), sim_figures(auto.points)
+    assert quality(auto).folded == 0
+    assert fa["edge_spread"] < 0.6 * fl["edge_spread"]
+    assert fa["min_angle_deg"] >= min(fl["min_angle_deg"], FLOOR_DEG) - 1e-9
