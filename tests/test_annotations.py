@@ -27,13 +27,14 @@ def _shared(name: str) -> Path:
 SA = "seam allowance"
 # checked by eye on a rendering of pieces (filled) against skipped outlines (dashed)
 REAL_SVG = {
-    "fs_bruce_draft-sample.svg": (["2", "14", "29", "49"], {"3": SA}),
+    # 'side' and 'inset': seam-allowance outlines drawn as open paths (joined, see test_patterns)
+    "fs_bruce_draft-sample.svg": (["2", "14", "29", "49"], {"3": SA, "side": SA, "inset": SA}),
     "fs_cathrin_layout.svg": (["2", "9", "16", "23", "30", "38", "45"],
                               {n: SA for n in ["3", "10", "17", "24", "31", "39", "46"]}),
     # 'side' (a half piece on the fold: open paths '14' and '15') and 'brimPlastic' (open curves '53',
     # '54' and the 2-point closed paths '55', '56') are joined from open paths (see test_patterns)
     "fs_florent_layout.svg": (["2", "31", "42", "side", "brimPlastic"], {"3": SA, "32": SA, "43": SA}),
-    "fs_shin_layout.svg": (["2", "13", "26"], {}),
+    "fs_shin_layout.svg": (["2", "13", "26"], {"front": SA, "back": SA}),
     "fs_wahid_layout.svg": (["4", "24", "33", "41", "50", "61", "72", "81"],
                             {"5": SA, "25": SA, "34": SA, "42": SA}),
     "fs_simon_collarstandbend.svg": (["205", "1668"], {}),

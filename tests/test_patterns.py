@@ -785,15 +785,3 @@ def test_open_paths_joined_only_where_two_ends_meet(tmp_path):
                           '<path class="fabric sa" d="M 0,0 L 0,100 L 100,100"/></g>'
                           '<path id="s" d="M 150,0 L 250,0 L 250,100 Z"/>')
     assert [p.name for p in read_pieces(path)] == ["s"]
-
-
-def test_a_line_drawn_closed_is_skipped_not_failed(tmp_path, capsys):
-    path = _svg(tmp_path, '<path id="sq" d="M 0,0 L 100,0 L 100,100 L 0,100 Z"/>'
-                          '<path id="ln" d="M 120,0 L 180,50 z"/>')
-    got = read_pieces(path)
-    assert [p.name for p in got] == ["sq"] and got.failed == []
-    assert [(s.name, s.kind) for s in got.skipped] == [("ln", "line")]
-    code, out, err = run(capsys, "pieces", path)
-    assert code == 0 and "ln" in out and "line" in out
-    code, _, err = run(capsys, "generate", path, "-o", tmp_path / "{piece}.npz", "-q")
-    assert code == 0 and [p.stem for p in tmp_path.glob("*.npz")] == ["sq"]

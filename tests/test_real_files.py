@@ -2,7 +2,7 @@
 
 Each file is gridded by ``clothgrid generate FILE -o DIR/{piece}.npz --report R.json`` with
 no other option (10 mm edges, uniform weights, ``--functional auto``, automatic corners), in
-this process. Asserted per file: exit 0 (4 for the two files of :data:`FAILED`, whose broken
+this process. Asserted per file: exit 0 (4 for the file of :data:`FAILED`, whose broken
 outlines are named), one ``.npz`` per piece, no folded cell on any piece,
 and the figures measured when this table was made (``python benchmarks/pattern_survey.py``,
 2026-11-23) within small margins, so that a change that makes a file worse fails here:
@@ -12,11 +12,12 @@ and the figures measured when this table was made (``python benchmarks/pattern_s
 - the median and the largest edge spread (longest / shortest edge of a piece) at most
   1.15x the measured ones.
 
-The quality targets of the issue are 0 folded cells (met on every file), a smallest angle
-of 10° on 95 % of pieces and 3° on all, and a median edge spread of 4; where a file misses
-the latter two, the reason is the same on every such piece: a deep dart (or a long thin
-slit-like dart) inside a side. A single structured grid fans around the dart tip, so the
-cells there are small and narrow (docs/patterns.md, "Where the targets are missed").
+The quality targets of the issue are 0 folded cells, a smallest angle of 10° on 95 % of
+pieces and 3° on all, and a median edge spread of 4: over all 455 pieces, 0 folded, 95.8 %
+at 10° or more, 100 % at 3° or more, median spread 2.68 (:func:`test_targets_over_all_files`).
+The pieces under 10° share one reason: a deep dart (or a long thin slit-like dart) inside a
+side. A single structured grid fans around the dart tip, so the cells there are small and
+narrow (docs/patterns.md, "Where the targets are missed").
 """
 
 from __future__ import annotations
@@ -33,47 +34,45 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "patterns"
 
 #: file: (pieces, smallest angle of any piece (deg), pieces under 10°, median spread, largest spread)
 MEASURED = {
-    "astm_DEEP_ARMHOLE_RACER.DXF": (25, 4.28, 3, 24.07, 252.8),
-    "astm_GLX0924S16_NEW.DXF": (42, 15.84, 0, 5.24, 146.7),
-    "astm_GLX0926S16.DXF": (56, 5.40, 4, 2.80, 125.8),
-    "astm_GLX4802S19_AAMA.DXF": (42, 27.94, 0, 8.34, 22.9),
-    "astm_GLX4802S19_ASTM.DXF": (42, 27.94, 0, 8.34, 22.9),
-    "astm_GMH1006F18_AAMA.DXF": (90, 25.89, 0, 4.07, 273.5),
+    "astm_DEEP_ARMHOLE_RACER.DXF": (25, 6.36, 4, 9.66, 82.3),
+    "astm_GLX0924S16_NEW.DXF": (42, 8.22, 1, 2.09, 121.0),
+    "astm_GLX0926S16.DXF": (56, 13.05, 0, 1.63, 78.7),
+    "astm_GLX4802S19_AAMA.DXF": (42, 25.00, 0, 5.60, 14.9),
+    "astm_GLX4802S19_ASTM.DXF": (42, 25.00, 0, 5.60, 14.9),
+    "astm_GMH1006F18_AAMA.DXF": (90, 25.00, 0, 2.83, 6.7),
     "astm_clo-box.dxf": (1, 89.97, 0, 1.00, 1.0),
-    "fs_bruce_draft-sample.svg": (4, 11.64, 0, 3.31, 39.3),
-    "fs_cathrin_layout.svg": (7, 49.77, 0, 2.08, 3.5),
-    "fs_florent_layout.svg": (3, 27.82, 0, 9.32, 20.6),
-    "fs_shin_layout.svg": (3, 5.27, 1, 9.07, 151.2),
-    "fs_simon_collarstandbend.svg": (2, 72.91, 0, 1.44, 1.7),
-    "fs_wahid_layout.svg": (8, 4.17, 2, 2.18, 215.3),
-    "gc_pattern_test.svg": (6, 5.35, 4, 72.63, 145.4),
-    "gcn_rand_57NZEOIBHZ_specification.json": (12, 13.64, 0, 3.75, 7.5),
-    "gcn_rand_BY5OEFCZVD_specification.json": (12, 7.53, 2, 4.47, 98.1),
-    "gcn_rand_IMB4RPKGCM_specification.json": (8, 26.77, 0, 1.81, 2.0),
-    "gcn_rand_JIT6TDX7XB_specification.json": (6, 6.78, 2, 3.43, 150.7),
-    "gcn_rand_KEJUMAMSBX_specification.json": (6, 82.81, 0, 1.08, 1.1),
-    "gcn_rand_L12WU7204Q_specification.json": (10, 5.64, 6, 63.10, 140.9),
-    "gcn_rand_P96VKL21PE_specification.json": (13, 83.43, 0, 1.14, 1.1),
-    "gcn_rand_RMOGWZ2A7X_specification.json": (14, 5.28, 4, 1.55, 155.5),
-    "gcn_rand_TLROKVCYFK_specification.json": (6, 26.02, 0, 3.90, 5.9),
-    "gpg_dress_specification.json": (8, 18.48, 0, 2.06, 23.1),
-    "gpg_jacket_hood_specification.json": (9, 20.81, 0, 3.94, 8.1),
-    "gpg_jumpsuit_specification.json": (10, 20.70, 0, 3.75, 19.6),
-    "gpg_pants_flare_specification.json": (4, 29.47, 0, 4.07, 4.2),
-    "gpg_skirt_4_panels_specification.json": (4, 79.87, 0, 2.64, 3.0),
+    "fs_bruce_draft-sample.svg": (4, 21.61, 0, 2.85, 7.1),
+    "fs_cathrin_layout.svg": (7, 59.20, 0, 1.79, 2.8),
+    "fs_florent_layout.svg": (5, 27.96, 0, 2.73, 24.3),
+    "fs_shin_layout.svg": (3, 38.43, 0, 2.67, 10.5),
+    "fs_simon_collarstandbend.svg": (2, 69.83, 0, 1.68, 1.7),
+    "fs_wahid_layout.svg": (8, 4.14, 2, 2.15, 159.9),
+    "gc_pattern_test.svg": (6, 8.03, 2, 40.23, 51.9),
+    "gcn_rand_57NZEOIBHZ_specification.json": (12, 14.49, 0, 2.36, 5.9),
+    "gcn_rand_BY5OEFCZVD_specification.json": (12, 8.62, 2, 3.25, 47.9),
+    "gcn_rand_IMB4RPKGCM_specification.json": (8, 29.42, 0, 1.77, 2.0),
+    "gcn_rand_JIT6TDX7XB_specification.json": (6, 6.82, 2, 2.64, 86.3),
+    "gcn_rand_KEJUMAMSBX_specification.json": (6, 82.81, 0, 1.10, 1.1),
+    "gcn_rand_L12WU7204Q_specification.json": (10, 7.14, 4, 32.63, 62.5),
+    "gcn_rand_P96VKL21PE_specification.json": (13, 83.43, 0, 1.27, 1.3),
+    "gcn_rand_RMOGWZ2A7X_specification.json": (14, 8.48, 2, 1.53, 45.6),
+    "gcn_rand_TLROKVCYFK_specification.json": (6, 25.92, 0, 2.20, 2.9),
+    "gpg_dress_specification.json": (8, 17.15, 0, 1.97, 12.7),
+    "gpg_jacket_hood_specification.json": (9, 22.34, 0, 1.99, 6.4),
+    "gpg_jumpsuit_specification.json": (10, 13.76, 0, 2.07, 22.1),
+    "gpg_pants_flare_specification.json": (4, 28.28, 0, 2.24, 2.3),
+    "gpg_skirt_4_panels_specification.json": (4, 78.34, 0, 2.35, 2.7),
 }
 
 
 #: Outlines that fail, with the reason; the command then exits 4 (some pieces failed) and
-#: writes the others. Both are in the files as drawn, not made by clothgrid.
+#: writes the others. They are in the file as drawn, not made by clothgrid.
 FAILED = {
     # the cut line (layer 1, no sew line) of three of the racer backs crosses itself over a
     # large loop (its points run 1709 -> 1013 mm and back): the file's outline is broken
     # (the code before the real-pattern work failed on them in the same way)
     "astm_DEEP_ARMHOLE_RACER.DXF": {"DEEP ARMHOLE RACERBK_48", "DEEP ARMHOLE RACERBK_50",
                                     "DEEP ARMHOLE RACERBK_52"},
-    # two closed paths of two distinct points (lines drawn closed), not marked as annotations
-    "fs_florent_layout.svg": {"55", "56"},
 }
 
 
@@ -106,3 +105,13 @@ def test_the_table_covers_every_shared_pattern_file():
         pytest.skip("../shared/patterns is not here")
     files = {p.name for p in SHARED.iterdir() if p.suffix.lower() in (".svg", ".dxf", ".json")}
     assert files == set(MEASURED)
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/patterns is not here")
+def test_targets_over_all_files():
+    """The issue's targets over every piece of every file, from the measured table: the table is
+    what the per-file test above holds each file to, so the pooled figures follow from it."""
+    pieces = sum(m[0] for m in MEASURED.values())
+    under10 = sum(m[2] for m in MEASURED.values())
+    assert pieces >= 450 and 1 - under10 / pieces >= 0.95
+    assert min(m[1] for m in MEASURED.values()) >= 3.0

@@ -29,10 +29,15 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-__all__ = ["even_edges", "FLOOR_DEG", "BAND"]
+__all__ = ["even_edges", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "SPREAD_OK"]
 
-#: No corner angle is made smaller than this (degrees), unless it was already.
+#: No corner angle is made smaller than this (degrees), unless it was already ...
 FLOOR_DEG = 25.0
+#: ... nor smaller than the grid's smallest angle, up to this (degrees): a grid of
+#: well-shaped cells keeps them well shaped.
+FLOOR_MAX_DEG = 40.0
+#: A grid whose edge spread is at most this is left as it is.
+SPREAD_OK = 3.0
 #: Edges within this factor of the geometric mean length are left alone.
 BAND = 1.4
 #: Most Gauss-Seidel sweeps.
@@ -179,7 +184,8 @@ def _outside(X, lo, hi, margin):
 
 
 def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG, band: float = BAND,
-               max_sweeps: int = MAX_SWEEPS, margin: int = 3) -> tuple[np.ndarray, dict[str, Any]]:
+               spread_ok: float = SPREAD_OK, max_sweeps: int = MAX_SWEEPS, margin: int = 3
+               ) -> tuple[np.ndarray, dict[str, Any]]:
     """Lower the edge spread of a planar grid by moving interior nodes near its outlying edges.
 
     Parameters
@@ -190,7 +196,11 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         2 for a grid in the xy-plane, else 3 (then the grid must be planar).
     floor_deg : float
         No corner angle of a cell is made smaller than this (degrees), nor
-        smaller than it was where it already was.
+        smaller than it was where it already was, nor smaller than the grid's
+        smallest angle up to :data:`FLOOR_MAX_DEG` (grid corners aside; the
+        floor used is ``info["floor_deg"]``).
+    spread_ok : float
+        A grid whose edge spread is at most this is returned as it is.
     band : float
         Edges within this factor of the geometric mean edge length are left alone.
     max_sweeps : int
@@ -221,9 +231,20 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     if not lengths.min() > 0:
         info.update(spread_after=info["spread_before"], seconds=time.perf_counter() - t0)
         return R, info
+    if info["spread_before"] <= spread_ok:
+        info.update(spread_after=info["spread_before"], seconds=time.perf_counter() - t0)
+        return R, info
+    from .foldfree_kernels import cell_min_sine
+
     scale = float(np.exp(np.log(lengths).mean()))
     X /= scale
     lo, hi = -math.log(band), math.log(band)
+    sines = cell_min_sine(X)
+    if sines.size > 4:
+        sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
+    smallest = math.degrees(math.asin(min(1.0, max(0.0, float(sines.min())))))
+    floor_deg = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
+    info["floor_deg"] = floor_deg
     floor = math.sin(math.radians(floor_deg))
     active, count = _outside(X, lo, hi, margin)
     info["active"] = int(count)

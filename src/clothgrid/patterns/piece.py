@@ -140,8 +140,7 @@ class Skipped:
         Its name (unique with the pieces' names, stable from run to run).
     kind : str
         ``text``, ``arrow``, ``notch``, ``drill hole``, ``button``, ``mark``,
-        ``inside``, ``small``, ``seam allowance``, ``sew line`` or ``line`` (a
-        line drawn as a closed path of two points).
+        ``inside``, ``small``, ``seam allowance`` or ``sew line``.
     reason : str
         One line for people.
     piece : Piece or None

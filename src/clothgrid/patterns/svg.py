@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, structure_hint
-from .piece import Piece, PieceFailure, Pieces, Skipped, piece_failure, piece_from_primitives
+from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
 
@@ -346,6 +346,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     open_paths = 0
     counter = 0
     opened: list[_Open] = []                         # open subpaths (and lines drawn closed)
+    drawn: dict[int, _Open] = {}                     # lines drawn closed, by their subpath
 
     def unique(name: str) -> str:
         if name not in names:
@@ -403,8 +404,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
                                 opened.append(_Open(prims, base, el, around, text, group))
                                 continue
                             if _drawn_line(prims, size):       # M a L b z: a line, drawn closed
-                                opened.append(_Open(prims[:1], base, el, around, text, group, True))
-                                continue
+                                # a failed piece, unless it joins open paths into an outline
+                                drawn[id(prims)] = _Open(prims[:1], base, el, around, text, group, True)
+                                opened.append(drawn[id(prims)])
                             loops.append(prims)
             except InputError as exc:                  # bad path data: a failure, whatever it is
                 unmade.append((piece_failure(unique(base), exc, where, labels=(label,)),
@@ -422,6 +424,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
                         notes=(f"units: {how}",), meta=meta))
                 except InputError as exc:       # fewer than 3 points, no area: failed or skipped
                     unmade.append((piece_failure(name, exc, where), meta))
+                    if id(prims) in drawn:
+                        drawn[id(prims)].failure = unmade[-1]
             return
         if el is not root:
             own = [el.get(_INKSCAPE_LABEL), el.get("id"), el.get("class")]
@@ -442,18 +446,14 @@ def read_svg(path: str | Path, *, units: str | None = None,
                        + ", ".join(repr(m) for m in members) + ") that meet end to end"), meta=meta))
         except InputError as exc:
             unmade.append((piece_failure(name, exc, where), meta))
+    used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
+    unmade = [u for u in unmade if id(u) not in used]     # lines drawn closed that close an outline
     open_paths = sum(1 for o in opened if not o.joined and not o.line)
-    lines = [Skipped(unique(o.base), "line", "a line drawn as a closed path (two points): no area, "
-                     "not a piece", None, None, {"element": "path", "id": o.el.get("id"),
-                                                 "class": o.el.get("class"), "group": o.group or None})
-             for o in opened if o.line and not o.joined]   # lines drawn closed that close nothing
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
-    out = classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
-                     line=line)
-    out.skipped.extend(lines)
-    return out
+    return classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
+                      line=line)
 
 
 @dataclass
@@ -466,8 +466,9 @@ class _Open:
     around: tuple[str, ...]
     text: bool
     group: str
-    line: bool = False
+    line: bool = False                        # a line drawn closed (also tried as a piece)
     joined: bool = False
+    failure: tuple | None = None              # that piece's failure, dropped if joined
 
 
 def _drawn_line(prims: list[Primitive], size: float) -> bool:
