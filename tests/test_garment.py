@@ -447,3 +447,23 @@ def test_usd_output_reads_back(tmp_path, capsys, suffix, seams):
     for pi, s in enumerate(subsets):
         np.testing.assert_array_equal(np.asarray(s.GetIndicesAttr().Get()), np.flatnonzero(r["face_panel"] == pi))
     assert UsdGeom.Subset.ValidateSubsets(subsets, len(faces), UsdGeom.Tokens.partition)[0]
+
+
+@needs_shared
+def test_a_count_conflict_of_automatic_corners_is_loosened_by_other_corners():
+    """gcn_rand_L12WU7204Q: the skirt panels' best corners by coarse grid make the node counts
+    conflict (a cycle of seams and opposite sides); the next best corners of one of them do not,
+    so the garment is sewn, that panel's corner method says ``seams``, and a progress line says
+    why (corners the user gives are never changed: ``_loosen`` leaves given panels alone)."""
+    from clothgrid.garment import garment
+    from clothgrid.garment_counts import CountConflict
+
+    spec = SHARED / "gcn_rand_L12WU7204Q_specification.json"
+    lines = []
+    g = garment(spec, edge_length="3cm", progress=lines.append)
+    methods = {p["name"]: p["corners"] for p in g.info["panels"]}
+    loosened = [n for n, m in methods.items() if m == "seams"]
+    assert len(loosened) == 1 and loosened[0].startswith("skirt_")
+    assert any("made the node counts conflict" in ln for ln in lines)
+    first = [p for p in g.info["panels"] if p["name"] != loosened[0]]
+    assert all(p["corners"] != "seams" for p in first)

@@ -26,6 +26,7 @@ See ``docs/garment.md``.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -297,6 +298,138 @@ def _ccw_poly(lay: _Layout, k: int) -> tuple[np.ndarray, np.ndarray]:
     return (pts[::-1], s[-1] - s[::-1]) if rev else (pts, s)
 
 
+def _count_problem(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None) -> CountProblem:
+    """The integer program of the garment's node counts, from its panels' corners (sets each
+    layout's segments, sequence and sides)."""
+    for lay in lays.values():
+        lay.fracs, lay.seg = {}, {}
+    # splits: corners inside edges, carried across seams
+    splits: dict[tuple[str, int], set[float]] = {}
+    for name, lay in lays.items():
+        for k, f in lay.corners:
+            if 0.0 < f < 1.0:
+                e, rev = lay.ccw[k]
+                splits.setdefault((name, e), set()).add(1.0 - f if rev else f)
+    propagate_splits(splits, gs.stitches)
+
+    # segments and the integer program
+    prob = CountProblem()
+    for name, lay in lays.items():
+        for e in range(len(lay.spec.edges)):
+            fr = [0.0] + sorted(splits.get((name, e), ())) + [1.0]
+            lay.fracs[e] = fr
+            L = lay.polys[e][1][-1]
+            for j in range(len(fr) - 1):
+                lay.seg[(e, j)] = prob.add_segment(L * (fr[j + 1] - fr[j]) / h)
+        seq: list[tuple[int, int, bool]] = []
+        starts: list[tuple[int, float]] = []
+        for k, (e, rev) in enumerate(lay.ccw):
+            m = len(lay.fracs[e]) - 1
+            for j in (range(m - 1, -1, -1) if rev else range(m)):
+                seq.append((e, j, not rev))
+                starts.append((k, 1.0 - lay.fracs[e][j + 1] if rev else lay.fracs[e][j]))
+        pos = []
+        for k, f in lay.corners:
+            hit = [i for i, (kk, ff) in enumerate(starts) if kk == k and abs(ff - f) <= 1e-12]
+            if not hit:
+                raise InputError(f"panel {name!r}: internal error: a corner is not at a segment start")
+            pos.append(hit[0])
+        first = pos[0]
+        lay.sequence = seq[first:] + seq[:first]
+        pos = [(p_ - first) % len(seq) for p_ in pos] + [len(seq)]
+        lay.sides = [list(range(pos[i], pos[i + 1])) for i in range(4)]
+        if any(not s for s in lay.sides):
+            raise InputError(f"panel {name!r}: a grid side has no segment")
+        ids = [[lay.seg[lay.sequence[i][:2]] for i in side] for side in lay.sides]
+        prob.groups.append((f"panel {name!r}: bottom = top and left = right "
+                            f"(corners at vertices {_corner_names(lay)})",
+                            [(ids[0], ids[2]), (ids[1], ids[3])]))
+        prob.minimum += [(ids[0], 2), (ids[1], 2)]
+    for st in gs.stitches:
+        la, lb = lays[st.a[0]], lays[st.b[0]]
+        ma, mb = len(la.fracs[st.a[1]]) - 1, len(lb.fracs[st.b[1]]) - 1
+        if ma != mb:
+            raise InputError(f"stitch {st.index}: internal error: its edges are split differently")
+        rows = [([la.seg[(st.a[1], j)]], [lb.seg[(st.b[1], j if st.same_direction else ma - 1 - j)]])
+                for j in range(ma)]
+        prob.groups.append((f"stitch {st.index} ({st.a[0]!r} edge {st.a[1]} ~ {st.b[0]!r} edge {st.b[1]}"
+                            + (", right_wrong" if st.same_direction else "") + ")", rows))
+    for (pn, e), n in (fixed or {}).items():
+        lay = lays[pn]
+        if len(lay.fracs[e]) != 2:
+            raise InputError(f"panel {pn!r} edge {e} is split by a corner; its count cannot be fixed")
+        prob.fixed[lay.seg[(e, 0)]] = int(n)
+    return prob
+
+
+#: On a conflict, at most this many other corner sets are tried per conflicting panel.
+MAX_ALTERNATIVES = 12
+
+
+def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
+    """Other corner sets of a panel, at its vertices, best coarse grid first (the current one left out)."""
+    from .patterns.corners import coarse_grid, grid_score
+
+    ccw = lay.ccw
+    if len(ccw) < 4 or len(ccw) > 12:
+        return []
+    parts, starts, count = [], [], 0
+    for e, rev in ccw:
+        pts = lay.polys[e][0][::-1] if rev else lay.polys[e][0]
+        starts.append(count)
+        parts.append(pts[:-1])
+        count += len(pts) - 1
+    outline = np.concatenate(parts)
+    scored = []
+    for ks in itertools.combinations(range(len(ccw)), 4):
+        cand = [(k, 0.0) for k in ks]
+        if sorted(cand) == sorted(lay.corners):
+            continue
+        try:
+            score = grid_score(coarse_grid(outline, [starts[k] for k in ks]))
+        except (InputError, ValueError, FloatingPointError):
+            continue
+        scored.append((-score, ks))
+    scored.sort()
+    out = []
+    for _, ks in scored[:MAX_ALTERNATIVES]:
+        pts = np.array([outline[starts[k]] for k in ks])
+        first = _bottom_first(pts)
+        ks = ks[first:] + ks[:first]
+        out.append([(k, 0.0) for k in ks])
+    return out
+
+
+def _loosen(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, exc: CountConflict,
+            say: Callable[[str], None]) -> tuple[dict, dict, CountProblem]:
+    """Node counts after a conflict: other corners for one of the conflicting panels whose corners
+    were chosen automatically (its next best sets by coarse grid), the first that works; else
+    the conflict, with what to do about it."""
+    names = [n for n in lays if any(f"panel {n!r}:" in g for g in exc.groups)
+             and lays[n].corner_method not in ("given", "pattern")]
+    for name in names:
+        lay = lays[name]
+        kept, method = list(lay.corners), lay.corner_method
+        for alt in _alternatives(lay):
+            lay.corners = alt
+            prob = _count_problem(gs, lays, h, fixed)
+            try:
+                counts, info = solve_counts(prob)
+            except CountConflict:
+                continue
+            lay.corner_method = "seams"
+            say(f"panel {name!r}: other grid corners (vertices {_corner_names(lay)}): the chosen ones "
+                "made the node counts conflict")
+            return counts, info, prob
+        lay.corners, lay.corner_method = kept, method
+    _count_problem(gs, lays, h, fixed)
+    raise CountConflict(f"{gs.path}: {exc}. Loosen it by choosing other grid corners for one of "
+                        "these panels (corners={'PANEL': [i, j, k, l]}, on the command line "
+                        "--corners PANEL=I,J,K,L: panel vertex indices bottom-left, bottom-right, "
+                        "top-right, top-left), so that other edges form its opposite sides",
+                        exc.groups) from None
+
+
 # --------------------------------------------------------------------------- the garment
 
 
@@ -398,70 +531,11 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         lays[name] = lay
     t_corners = time.perf_counter() - t0
 
-    # splits: corners inside edges, carried across seams
-    splits: dict[tuple[str, int], set[float]] = {}
-    for name, lay in lays.items():
-        for k, f in lay.corners:
-            if 0.0 < f < 1.0:
-                e, rev = lay.ccw[k]
-                splits.setdefault((name, e), set()).add(1.0 - f if rev else f)
-    propagate_splits(splits, gs.stitches)
-
-    # segments and the integer program
-    prob = CountProblem()
-    for name, lay in lays.items():
-        for e in range(len(lay.spec.edges)):
-            fr = [0.0] + sorted(splits.get((name, e), ())) + [1.0]
-            lay.fracs[e] = fr
-            L = lay.polys[e][1][-1]
-            for j in range(len(fr) - 1):
-                lay.seg[(e, j)] = prob.add_segment(L * (fr[j + 1] - fr[j]) / h)
-        seq: list[tuple[int, int, bool]] = []
-        starts: list[tuple[int, float]] = []
-        for k, (e, rev) in enumerate(lay.ccw):
-            m = len(lay.fracs[e]) - 1
-            for j in (range(m - 1, -1, -1) if rev else range(m)):
-                seq.append((e, j, not rev))
-                starts.append((k, 1.0 - lay.fracs[e][j + 1] if rev else lay.fracs[e][j]))
-        pos = []
-        for k, f in lay.corners:
-            hit = [i for i, (kk, ff) in enumerate(starts) if kk == k and abs(ff - f) <= 1e-12]
-            if not hit:
-                raise InputError(f"panel {name!r}: internal error: a corner is not at a segment start")
-            pos.append(hit[0])
-        first = pos[0]
-        lay.sequence = seq[first:] + seq[:first]
-        pos = [(p_ - first) % len(seq) for p_ in pos] + [len(seq)]
-        lay.sides = [list(range(pos[i], pos[i + 1])) for i in range(4)]
-        if any(not s for s in lay.sides):
-            raise InputError(f"panel {name!r}: a grid side has no segment")
-        ids = [[lay.seg[lay.sequence[i][:2]] for i in side] for side in lay.sides]
-        prob.groups.append((f"panel {name!r}: bottom = top and left = right "
-                            f"(corners at vertices {_corner_names(lay)})",
-                            [(ids[0], ids[2]), (ids[1], ids[3])]))
-        prob.minimum += [(ids[0], 2), (ids[1], 2)]
-    for st in gs.stitches:
-        la, lb = lays[st.a[0]], lays[st.b[0]]
-        ma, mb = len(la.fracs[st.a[1]]) - 1, len(lb.fracs[st.b[1]]) - 1
-        if ma != mb:
-            raise InputError(f"stitch {st.index}: internal error: its edges are split differently")
-        rows = [([la.seg[(st.a[1], j)]], [lb.seg[(st.b[1], j if st.same_direction else ma - 1 - j)]])
-                for j in range(ma)]
-        prob.groups.append((f"stitch {st.index} ({st.a[0]!r} edge {st.a[1]} ~ {st.b[0]!r} edge {st.b[1]}"
-                            + (", right_wrong" if st.same_direction else "") + ")", rows))
-    for (pn, e), n in (fixed or {}).items():
-        lay = lays[pn]
-        if len(lay.fracs[e]) != 2:
-            raise InputError(f"panel {pn!r} edge {e} is split by a corner; its count cannot be fixed")
-        prob.fixed[lay.seg[(e, 0)]] = int(n)
+    prob = _count_problem(gs, lays, h, fixed)
     try:
         counts, count_info = solve_counts(prob)
     except CountConflict as exc:
-        raise CountConflict(f"{gs.path}: {exc}. Loosen it by choosing other grid corners for one of "
-                            "these panels (corners={'PANEL': [i, j, k, l]}, on the command line "
-                            "--corners PANEL=I,J,K,L: panel vertex indices bottom-left, bottom-right, "
-                            "top-right, top-left), so that other edges form its opposite sides",
-                            exc.groups) from None
+        counts, count_info, prob = _loosen(gs, lays, h, fixed, exc, say)
     say(f"node counts: {len(prob.targets)} segments, {count_info['constraints']} equalities, "
         f"MILP {count_info['seconds']:.3f} s")
 
