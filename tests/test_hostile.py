@@ -401,6 +401,42 @@ def test_signal_during_a_write_leaves_nothing_behind(tmp_path, out, sig):
     assert [p.name for p in out.iterdir()] == ["old.obj"] and keep.read_text() == "finished earlier\n"
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_while_the_command_line_imports(tmp_path, sig):
+    """A signal during ``import clothgrid`` (NumPy, SciPy) of ``python -m clothgrid``: one line and
+    128 + signum, no KeyboardInterrupt traceback (``-X importtime`` shows when the imports run)."""
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.Popen([sys.executable, "-X", "importtime", "-m", "clothgrid", "pieces", str(src)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = ""
+        while "numpy" not in line:              # clothgrid's __init__ is importing NumPy now
+            line = proc.stderr.readline()
+            assert line, "no import lines"
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("import time:")]
+    assert proc.returncode == 128 + sig, err[-2000:]
+    assert lines == ["clothgrid: interrupted" if sig == signal.SIGINT else "clothgrid: terminated by SIGTERM"], lines
+
+
+def test_the_start_up_guard_is_for_the_command_line_only():
+    from clothgrid._startup import _module_run
+
+    assert _module_run(["python", "-m", "clothgrid", "pieces"]) == "clothgrid"
+    assert _module_run(["python", "-X", "importtime", "-u", "-mclothgrid"]) == "clothgrid"
+    assert _module_run(["python", "-m", "pytest", "-q"]) == "pytest"
+    assert _module_run(["python", "-c", "import clothgrid", "-m", "clothgrid"]) is None
+    assert _module_run(["python", "script.py", "-m", "clothgrid"]) is None
+    # this process (pytest) imported clothgrid as a library: SIGINT is still Python's own
+    assert signal.getsignal(signal.SIGINT) is not __import__("clothgrid._startup")._startup._stop
+
+
 # --------------------------------------------------------------------------- noise
 
 
