@@ -12,6 +12,7 @@ import json
 import math
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -191,6 +192,34 @@ def test_huge_request_is_refused_before_allocating(capsys, tmp_path, out):
     src.write_text(json.dumps(_boundary(_square(16))))
     code, err = _run(capsys, _gen(src, out, "--nodes", "1000000000x1000000000"))
     _clean_error(code, err, out, needle="along a side")
+
+
+def _address_space_limit(limit: int):
+    def set_limit() -> None:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    return set_limit
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS and /proc/self/status: Linux")
+def test_memory_check_counts_the_address_space_limit(tmp_path, out):
+    """Under ``ulimit -v`` a grid the limit cannot hold is refused by the memory check, with the
+    limit's figures (which add up), not by a MemoryError half-way through the solve."""
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    limit = 3 * 2**30
+    proc = subprocess.run([sys.executable, "-m", "clothgrid", "generate", str(src), "-o", str(out / "g.npz"),
+                           "--nodes", "8000x8000", "-q"], env=env, capture_output=True, text=True,
+                          timeout=120, preexec_fn=_address_space_limit(limit))
+    _clean_error(proc.returncode, proc.stderr, out, needle="under the address-space limit (ulimit -v)")
+    m = re.search(r"90% of the ([\d.]+) GiB available under the address-space limit \(ulimit -v\): "
+                  r"([\d.]+) GiB less the ([\d.]+) GiB this process maps already, is ([\d.]+) GiB", proc.stderr)
+    assert m, proc.stderr
+    have, lim, used, may = map(float, m.groups())
+    assert lim == pytest.approx(limit / 2**30, rel=1e-3)
+    assert have == pytest.approx(lim - used, abs=2e-3) and may == pytest.approx(0.9 * have, rel=1e-3)
 
 
 def test_svg_deep_groups(capsys, tmp_path, out):
