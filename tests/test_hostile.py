@@ -148,6 +148,32 @@ def test_dxf_binary_garbage_bulge_and_huge_coordinates(capsys, tmp_path, out):
     _clean_error(code, err, out, needle="limit")
 
 
+def _dxf_lines(path: Path, n: int) -> Path:
+    head = "0\nSECTION\n2\nHEADER\n9\n$ACADVER\n1\nAC1009\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n0\nSECTION\n2\nENTITIES\n"
+    path.write_text(head + "".join(f"0\nLINE\n8\n0\n10\n{k}.0\n20\n0.0\n11\n{k}.0\n21\n1.0\n" for k in range(n))
+                    + "0\nENDSEC\n0\nEOF\n")
+    return path
+
+
+def test_dxf_with_too_many_records_is_refused_before_ezdxf_reads_it(capsys, tmp_path, out, monkeypatch):
+    """ezdxf reads some 10^4 records a second: a file over the limit is refused from a count of its
+    text (a 600,000-entity file hung for minutes), before ezdxf is asked to read it."""
+    import ezdxf
+
+    from clothgrid import limits
+    from clothgrid.patterns.dxf import count_records
+
+    src = _dxf_lines(tmp_path / "many.dxf", 3000)
+    # the lines and SECTION, ENDSEC, SECTION, ENDSEC, EOF
+    assert count_records(src, 10**6) == 3000 + 5 and count_records(src, 100) == 101
+    monkeypatch.setattr(limits, "MAX_DXF_RECORDS", 2000)
+    read = []
+    monkeypatch.setattr(ezdxf, "readfile", lambda *a, **k: read.append(a) or pytest.fail("ezdxf read it"))
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="more than 2,000 records")
+    assert read == []
+
+
 @pytest.mark.parametrize("edge", ["1e-12", "1e-320"])
 def test_tiny_edge_length_is_refused(capsys, tmp_path, out, edge):
     src = tmp_path / "sq.json"
@@ -482,7 +508,7 @@ def test_limits_are_documented():
     readme = (ROOT / "README.md").read_text()
     assert "## Limits" in readme
     for name in ("MAX_FILE_BYTES", "MAX_NESTING", "MAX_INT_DIGITS", "MAX_COORDINATE", "MAX_OUTLINE_POINTS",
-                 "MAX_ENTITIES", "MAX_NODES_PER_SIDE"):
+                 "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_NODES_PER_SIDE"):
         assert name in readme, name
         assert getattr(limits, name) > 0
     for code in ("| 129", "| 143", "| 130"):
