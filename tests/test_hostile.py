@@ -407,6 +407,46 @@ def test_big_inputs_take_near_linear_time(tmp_path):
     assert time.perf_counter() - t0 < 5
 
 
+def test_svg_polygon_of_many_points_is_read_in_near_linear_time(tmp_path, monkeypatch, capsys):
+    """A ``<polygon>`` of 2 x 10^5 points: one array, not a svgpathtools segment per point, and the
+    XML in one feed (expat < 2.6 is quadratic in one huge attribute when fed in chunks). The
+    corpus's 10^6-point polygon hung; it now takes seconds."""
+    import svgpathtools
+
+    from clothgrid.patterns.svg import _parse_xml
+
+    n = 200_000
+    th = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    pts = " ".join(f"{100 * math.cos(t):.6f},{100 * math.sin(t):.6f}" for t in th)
+    svg = _svg(tmp_path, f'<polygon points="{pts}"/>')
+    big = tmp_path / "big.xml"                  # 8 MB in one attribute
+    big.write_text('<svg a="' + "1 " * 4_000_000 + '"/>')
+    t0 = time.perf_counter()
+    assert _parse_xml(big).get("a").count("1") == 4_000_000
+    assert time.perf_counter() - t0 < 3
+    monkeypatch.setattr(svgpathtools, "parse_path", lambda *a, **k: pytest.fail("parsed a polygon as a path"))
+    t0 = time.perf_counter()
+    code = main(["pieces", str(svg)])
+    out, err = capsys.readouterr()
+    assert code == 0 and err == "" and f"{n} outline points" in out, err
+    assert time.perf_counter() - t0 < 10
+
+
+def test_svg_polygon_makes_the_piece_its_path_makes(tmp_path):
+    """The polygon fast path (:func:`piece_from_points`) and the path of the same points agree."""
+    from clothgrid.patterns.svg import read_svg
+
+    xy = "0,0 80,0 80,0 80,50 40,50 40,30 0,30"         # an L, with a repeated point
+    d = "M" + " L".join(xy.split()) + " Z"
+    a = read_svg(_svg(tmp_path, f'<g transform="rotate(30)"><polygon points="{xy}"/></g>'))[0]
+    b = read_svg(_svg(tmp_path, f'<g transform="rotate(30)"><path d="{d}"/></g>'))[0]
+    np.testing.assert_allclose(a.outline, b.outline, rtol=0, atol=1e-12)     # (matrix products: rounding)
+    assert np.array_equal(a.vertices, b.vertices)
+    assert a.tolerance == pytest.approx(b.tolerance, rel=1e-12) and a.notes == b.notes
+    open_line = read_svg(_svg(tmp_path, '<polyline points="0,0 10,0 10,10"/><rect width="5" height="5"/>'))
+    assert len(open_line) == 1 and open_line[0].meta["element"] == "rect"
+
+
 # --------------------------------------------------------------------------- signals
 
 
