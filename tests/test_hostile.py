@@ -142,10 +142,13 @@ def test_dxf_binary_garbage_bulge_and_huge_coordinates(capsys, tmp_path, out):
     code, err = _run(capsys, ["pieces", str(src)])
     _clean_error(code, err, out, needle="not a valid DXF")
     sq = [(0, 0), (50, 0), (50, 60), (0, 60)]
-    code, err = _run(capsys, ["pieces", str(_dxf(tmp_path, sq, [1e308, 0, 0, 0]))])
+    src = _dxf(tmp_path, sq, [1e308, 0, 0, 0])
+    code, err = _run(capsys, ["pieces", str(src)])
     _clean_error(code, err, out, needle="bulge")
+    assert err.startswith(f"clothgrid: error: {src}: LWPOLYLINE "), err     # the file and the entity
     code, err = _run(capsys, ["pieces", str(_dxf(tmp_path, [(0, 0), (1e15, 0), (1e15, 1e15), (0, 1e15)]))])
     _clean_error(code, err, out, needle="limit")
+    assert err.startswith(f"clothgrid: error: {src}: LWPOLYLINE "), err
 
 
 def _dxf_lines(path: Path, n: int) -> Path:

@@ -147,7 +147,26 @@ def _polyline_prims(pts: list[tuple[float, float, float]], closed: bool, point, 
 
 
 def _entity_prims(e: Any, ctx: _Ctx) -> tuple[list[Primitive], bool]:
-    """The entity as exact primitives (2D WCS, file units) and whether it is closed."""
+    """The entity as exact primitives (2D WCS, file units) and whether it is closed.
+
+    Raises
+    ------
+    InputError
+        A malformed entity (a bulge or coordinate beyond the limits, not flat), the
+        message naming the file, the entity and its handle and layer.
+    """
+    try:
+        return _entity_prims_of(e, ctx)
+    except InputError as exc:
+        text = str(exc)
+        if text.startswith(ctx.where):
+            raise
+        layer = e.dxf.get("layer", None)
+        on = f" on layer {layer!r}" if layer not in (None, "") else ""
+        raise InputError(f"{ctx.where}: {e.dxftype()} {e.dxf.get('handle', '?')}{on}: {text}") from None
+
+
+def _entity_prims_of(e: Any, ctx: _Ctx) -> tuple[list[Primitive], bool]:
     kind = e.dxftype()
     if kind == "LINE":
         s, t = _xy(e.dxf.start), _xy(e.dxf.end)
