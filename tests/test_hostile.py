@@ -12,6 +12,7 @@ import json
 import math
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -96,8 +97,14 @@ def test_garmentcode_deep_nesting_and_unhashable_order(capsys, tmp_path, out):
                                                                    for i in range(4)]}},
                         "panel_order": [[1], {"x": 2}, "a"]}}
     src.write_text(json.dumps(spec))
+    code, err = _run(capsys, ["pieces", str(src)])      # a malformed file: refused, by both readers
+    _clean_error(code, err, out, needle="panel_order must be a list of panel names (strings); entry 0 is [1]")
+    code, err = _run(capsys, ["garment", str(src), "-o", str(out / "g.npz")])
+    _clean_error(code, err, out, needle="entry 0 is [1]")
+    spec["pattern"]["panel_order"] = ["nowhere", "a"]    # a name that is not a panel is passed over
+    src.write_text(json.dumps(spec))
     code, err = _run(capsys, ["pieces", str(src)])
-    assert code == 0 and "Traceback" not in err
+    assert code == 0 and err == ""
 
 
 @pytest.mark.parametrize("curv", [
@@ -135,10 +142,39 @@ def test_dxf_binary_garbage_bulge_and_huge_coordinates(capsys, tmp_path, out):
     code, err = _run(capsys, ["pieces", str(src)])
     _clean_error(code, err, out, needle="not a valid DXF")
     sq = [(0, 0), (50, 0), (50, 60), (0, 60)]
-    code, err = _run(capsys, ["pieces", str(_dxf(tmp_path, sq, [1e308, 0, 0, 0]))])
+    src = _dxf(tmp_path, sq, [1e308, 0, 0, 0])
+    code, err = _run(capsys, ["pieces", str(src)])
     _clean_error(code, err, out, needle="bulge")
+    assert err.startswith(f"clothgrid: error: {src}: LWPOLYLINE "), err     # the file and the entity
     code, err = _run(capsys, ["pieces", str(_dxf(tmp_path, [(0, 0), (1e15, 0), (1e15, 1e15), (0, 1e15)]))])
     _clean_error(code, err, out, needle="limit")
+    assert err.startswith(f"clothgrid: error: {src}: LWPOLYLINE "), err
+
+
+def _dxf_lines(path: Path, n: int) -> Path:
+    head = "0\nSECTION\n2\nHEADER\n9\n$ACADVER\n1\nAC1009\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n0\nSECTION\n2\nENTITIES\n"
+    path.write_text(head + "".join(f"0\nLINE\n8\n0\n10\n{k}.0\n20\n0.0\n11\n{k}.0\n21\n1.0\n" for k in range(n))
+                    + "0\nENDSEC\n0\nEOF\n")
+    return path
+
+
+def test_dxf_with_too_many_records_is_refused_before_ezdxf_reads_it(capsys, tmp_path, out, monkeypatch):
+    """ezdxf reads some 10^4 records a second: a file over the limit is refused from a count of its
+    text (a 600,000-entity file hung for minutes), before ezdxf is asked to read it."""
+    import ezdxf
+
+    from clothgrid import limits
+    from clothgrid.patterns.dxf import count_records
+
+    src = _dxf_lines(tmp_path / "many.dxf", 3000)
+    # the lines and SECTION, ENDSEC, SECTION, ENDSEC, EOF
+    assert count_records(src, 10**6) == 3000 + 5 and count_records(src, 100) == 101
+    monkeypatch.setattr(limits, "MAX_DXF_RECORDS", 2000)
+    read = []
+    monkeypatch.setattr(ezdxf, "readfile", lambda *a, **k: read.append(a) or pytest.fail("ezdxf read it"))
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="more than 2,000 records")
+    assert read == []
 
 
 @pytest.mark.parametrize("edge", ["1e-12", "1e-320"])
@@ -185,6 +221,34 @@ def test_huge_request_is_refused_before_allocating(capsys, tmp_path, out):
     src.write_text(json.dumps(_boundary(_square(16))))
     code, err = _run(capsys, _gen(src, out, "--nodes", "1000000000x1000000000"))
     _clean_error(code, err, out, needle="along a side")
+
+
+def _address_space_limit(limit: int):
+    def set_limit() -> None:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    return set_limit
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS and /proc/self/status: Linux")
+def test_memory_check_counts_the_address_space_limit(tmp_path, out):
+    """Under ``ulimit -v`` a grid the limit cannot hold is refused by the memory check, with the
+    limit's figures (which add up), not by a MemoryError half-way through the solve."""
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    limit = 3 * 2**30
+    proc = subprocess.run([sys.executable, "-m", "clothgrid", "generate", str(src), "-o", str(out / "g.npz"),
+                           "--nodes", "8000x8000", "-q"], env=env, capture_output=True, text=True,
+                          timeout=120, preexec_fn=_address_space_limit(limit))
+    _clean_error(proc.returncode, proc.stderr, out, needle="under the address-space limit (ulimit -v)")
+    m = re.search(r"90% of the ([\d.]+) GiB available under the address-space limit \(ulimit -v\): "
+                  r"([\d.]+) GiB less the ([\d.]+) GiB this process maps already, is ([\d.]+) GiB", proc.stderr)
+    assert m, proc.stderr
+    have, lim, used, may = map(float, m.groups())
+    assert lim == pytest.approx(limit / 2**30, rel=1e-3)
+    assert have == pytest.approx(lim - used, abs=2e-3) and may == pytest.approx(0.9 * have, rel=1e-3)
 
 
 def test_svg_deep_groups(capsys, tmp_path, out):
@@ -346,6 +410,72 @@ def test_big_inputs_take_near_linear_time(tmp_path):
     assert time.perf_counter() - t0 < 5
 
 
+def test_annotation_classification_of_many_outlines_is_near_linear():
+    """Sorting 10^5 small outlines (an SVG of 10^5 rectangles) into pieces and marks took minutes: a
+    sorted copy of every box's left edge was made again for each outline, and each small outline's
+    notch hosts were sought among all others."""
+    from clothgrid.patterns.annotations import classify
+    from clothgrid.patterns.piece import Piece
+
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float64)
+
+    def squares(n: int) -> list[Piece]:
+        return [Piece(f"p{k}", square + [2 * (k % 300), 2 * (k // 300)], np.arange(4), np.zeros(0, np.int64),
+                      meta={"element": "rect"}) for k in range(n)]
+
+    ps = squares(40_000)
+    t0 = time.process_time()
+    got = classify(ps)
+    assert len(got) == 40_000 and not got.skipped
+    assert time.process_time() - t0 < 11          # 3.5 s of CPU here; 22 s before
+
+
+def test_svg_polygon_of_many_points_is_read_in_near_linear_time(tmp_path, monkeypatch, capsys):
+    """A ``<polygon>`` of 2 x 10^5 points: one array, not a svgpathtools segment per point, and the
+    XML in one feed (expat < 2.6 is quadratic in one huge attribute when fed in chunks). The
+    corpus's 10^6-point polygon hung; it now takes seconds."""
+    import svgpathtools
+
+    from clothgrid.patterns.svg import _parse_xml
+
+    n = 200_000
+    th = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    pts = " ".join(f"{100 * math.cos(t):.6f},{100 * math.sin(t):.6f}" for t in th)
+    svg = _svg(tmp_path, f'<polygon points="{pts}"/>')
+    big = tmp_path / "big.xml"                  # 8 MB in one attribute
+    big.write_text('<svg a="' + "1 " * 4_000_000 + '"/>')
+    t0 = time.perf_counter()
+    assert _parse_xml(big).get("a").count("1") == 4_000_000
+    assert time.perf_counter() - t0 < 3
+    monkeypatch.setattr(svgpathtools, "parse_path", lambda *a, **k: pytest.fail("parsed a polygon as a path"))
+    t0 = time.perf_counter()
+    code = main(["pieces", str(svg)])
+    out, err = capsys.readouterr()
+    assert code == 0 and err == "" and f"{n} outline points" in out, err
+    assert time.perf_counter() - t0 < 10
+
+
+def test_svg_polygon_makes_the_piece_its_path_makes(tmp_path):
+    """The polygon fast path (:func:`piece_from_points`) and the path of the same points agree."""
+    from clothgrid.patterns.svg import read_svg
+
+    xy = "0,0 80,0 80,0 80,50 40,50 40,30 0,30"         # an L, with a repeated point
+    d = "M" + " L".join(xy.split()) + " Z"
+    a = read_svg(_svg(tmp_path, f'<g transform="rotate(30)"><polygon points="{xy}"/></g>'))[0]
+    b = read_svg(_svg(tmp_path, f'<g transform="rotate(30)"><path d="{d}"/></g>'))[0]
+    np.testing.assert_allclose(a.outline, b.outline, rtol=0, atol=1e-12)     # (matrix products: rounding)
+    assert np.array_equal(a.vertices, b.vertices)
+    assert a.tolerance == pytest.approx(b.tolerance, rel=1e-12) and a.notes == b.notes
+    r = read_svg(_svg(tmp_path, '<rect x="3" y="4" width="20" height="10" transform="skewX(10)"/>'))[0]
+    q = read_svg(_svg(tmp_path, '<path d="M3,4 H23 V14 H3 Z" transform="skewX(10)"/>'))[0]
+    np.testing.assert_allclose(r.outline, q.outline, rtol=0, atol=1e-12)
+    assert np.array_equal(r.vertices, q.vertices) and r.meta["element"] == "rect"
+    rounded = read_svg(_svg(tmp_path, '<rect width="20" height="10" rx="2"/>'))[0]     # arcs: path data
+    assert len(rounded.outline) > 8
+    open_line = read_svg(_svg(tmp_path, '<polyline points="0,0 10,0 10,10"/><rect width="5" height="5"/>'))
+    assert len(open_line) == 1 and open_line[0].meta["element"] == "rect"
+
+
 # --------------------------------------------------------------------------- signals
 
 
@@ -395,6 +525,42 @@ def test_signal_during_a_write_leaves_nothing_behind(tmp_path, out, sig):
     assert [p.name for p in out.iterdir()] == ["old.obj"] and keep.read_text() == "finished earlier\n"
 
 
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_while_the_command_line_imports(tmp_path, sig):
+    """A signal during ``import clothgrid`` (NumPy, SciPy) of ``python -m clothgrid``: one line and
+    128 + signum, no KeyboardInterrupt traceback (``-X importtime`` shows when the imports run)."""
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.Popen([sys.executable, "-X", "importtime", "-m", "clothgrid", "pieces", str(src)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = ""
+        while "numpy" not in line:              # clothgrid's __init__ is importing NumPy now
+            line = proc.stderr.readline()
+            assert line, "no import lines"
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("import time:")]
+    assert proc.returncode == 128 + sig, err[-2000:]
+    assert lines == ["clothgrid: interrupted" if sig == signal.SIGINT else "clothgrid: terminated by SIGTERM"], lines
+
+
+def test_the_start_up_guard_is_for_the_command_line_only():
+    from clothgrid._startup import _module_run
+
+    assert _module_run(["python", "-m", "clothgrid", "pieces"]) == "clothgrid"
+    assert _module_run(["python", "-X", "importtime", "-u", "-mclothgrid"]) == "clothgrid"
+    assert _module_run(["python", "-m", "pytest", "-q"]) == "pytest"
+    assert _module_run(["python", "-c", "import clothgrid", "-m", "clothgrid"]) is None
+    assert _module_run(["python", "script.py", "-m", "clothgrid"]) is None
+    # this process (pytest) imported clothgrid as a library: SIGINT is still Python's own
+    assert signal.getsignal(signal.SIGINT) is not __import__("clothgrid._startup")._startup._stop
+
+
 # --------------------------------------------------------------------------- noise
 
 
@@ -411,7 +577,7 @@ def test_limits_are_documented():
     readme = (ROOT / "README.md").read_text()
     assert "## Limits" in readme
     for name in ("MAX_FILE_BYTES", "MAX_NESTING", "MAX_INT_DIGITS", "MAX_COORDINATE", "MAX_OUTLINE_POINTS",
-                 "MAX_ENTITIES", "MAX_NODES_PER_SIDE"):
+                 "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_NODES_PER_SIDE"):
         assert name in readme, name
         assert getattr(limits, name) > 0
     for code in ("| 129", "| 143", "| 130"):

@@ -12,6 +12,10 @@ The public API::
 
 from __future__ import annotations
 
+from ._startup import guard_cli_start
+
+guard_cli_start()     # python -m clothgrid / the clothgrid script: a signal while importing ends it cleanly
+
 from .boundary import Boundary
 from .errors import (BackendUnavailableError, BoundaryError, ClothgridError, InputError, NotConvergedError,
                      PiecesError, SizeError)

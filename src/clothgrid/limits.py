@@ -19,7 +19,7 @@ from typing import Any
 from .errors import InputError
 
 __all__ = ["MAX_FILE_BYTES", "MAX_NESTING", "MAX_INT_DIGITS", "MAX_COORDINATE", "MAX_OUTLINE_POINTS",
-           "MAX_ENTITIES", "MAX_NODES_PER_SIDE", "MAX_BULGE", "MAX_K", "MIN_K", "check_input_file",
+           "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_NODES_PER_SIDE", "MAX_BULGE", "MAX_K", "MIN_K", "check_input_file",
            "load_json", "check_coordinates"]
 
 #: largest input file read (bytes)
@@ -35,6 +35,10 @@ MAX_COORDINATE = 1e12
 MAX_OUTLINE_POINTS = 5_000_000
 #: most entities (DXF) or elements (SVG) or edges (GarmentCode panel) in one file
 MAX_ENTITIES = 1_000_000
+#: most records of a DXF file (entities, polyline vertices, block and table entries: each
+#: ``0`` group), counted in the text before ezdxf reads it: ezdxf reads some 10^4 records
+#: a second, and the largest real pattern files at hand have about 11,000
+MAX_DXF_RECORDS = 250_000
 #: most grid nodes along one side (a grid's size is also checked against the memory first)
 MAX_NODES_PER_SIDE = 100_000_000
 #: largest |bulge| of a DXF polyline vertex (tan of a quarter of the arc's angle; 1e6 is an

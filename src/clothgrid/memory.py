@@ -18,17 +18,24 @@ solver:
 
 Measured: ``clothgrid generate tshirt_front.json --nodes 4096x4096 --solver
 multigrid -o g.npz`` peaked at 1.78 GB (estimate 2.5 GB).
+
+The memory available is the system's (``MemAvailable``) or, when the process
+runs under a resource limit (``ulimit -v``: ``RLIMIT_AS``; ``ulimit -d``:
+``RLIMIT_DATA``), what that limit leaves above what the process maps already,
+whichever is less: a request the limit cannot hold is refused by the check,
+with the limit's figures, instead of failing with ``MemoryError``.
 """
 
 from __future__ import annotations
 
 import math
 import os
+from typing import NamedTuple
 
 from .errors import SizeError
 
-__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes", "FIT_FRACTION",
-           "KEPT_BYTES_PER_NODE"]
+__all__ = ["available_bytes", "system_available_bytes", "limit_headroom", "Headroom", "estimate_bytes", "check_memory",
+           "format_bytes", "FIT_FRACTION", "KEPT_BYTES_PER_NODE"]
 
 PIPELINE_BYTES_PER_NODE = 80
 #: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
@@ -39,7 +46,70 @@ QUALITY_BYTES_PER_CELL = 200
 
 
 def available_bytes() -> int:
-    """Memory available to this process now (``MemAvailable`` on Linux)."""
+    """Memory available to this process now: the least of the system's free memory
+    (:func:`system_available_bytes`) and what its resource limits leave (:func:`limit_headroom`)."""
+    have = system_available_bytes()
+    limit = limit_headroom()
+    return have if limit is None else min(have, limit.bytes)
+
+
+def _status_bytes(key: str) -> int | None:
+    """A ``kB`` line of ``/proc/self/status`` (``VmSize``, ``VmData``) in bytes; None if unknown."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+class Headroom(NamedTuple):
+    """What a resource limit leaves: ``bytes = limit - used`` (at least 0)."""
+
+    bytes: int
+    limit: int
+    used: int
+    what: str
+
+
+def limit_headroom() -> Headroom | None:
+    """What the tighter of the soft address-space and data limits still lets this process map.
+
+    Returns
+    -------
+    Headroom or None
+        The limit in bytes less what the process holds under it (``VmSize``
+        for ``RLIMIT_AS``, ``VmData`` for ``RLIMIT_DATA``), and which limit
+        (``"address-space limit (ulimit -v)"``); None when neither limit is set
+        (or on a system without them).
+    """
+    try:
+        import resource
+    except ImportError:                      # not a Unix system
+        return None
+    best: Headroom | None = None
+    for name, key, what in (("RLIMIT_AS", "VmSize", "address-space limit (ulimit -v)"),
+                            ("RLIMIT_DATA", "VmData", "data-segment limit (ulimit -d)")):
+        res = getattr(resource, name, None)
+        if res is None:
+            continue
+        try:
+            soft, _ = resource.getrlimit(res)
+        except (OSError, ValueError):
+            continue
+        if soft == resource.RLIM_INFINITY or soft < 0:
+            continue
+        used = _status_bytes(key) or 0
+        room = Headroom(max(int(soft) - used, 0), int(soft), used, what)
+        if best is None or room.bytes < best.bytes:
+            best = room
+    return best
+
+
+def system_available_bytes() -> int:
+    """Memory the system has available now (``MemAvailable`` on Linux)."""
     try:
         with open("/proc/meminfo") as f:
             for line in f:
@@ -94,10 +164,13 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
     until every output is written) is at most :data:`FIT_FRACTION` (90 %) of
     the available memory. ``what`` starts the message (``"piece 'front': "``).
     The message gives the numbers of that rule: what is needed, what is
-    available and the 90 % of it a solve may take.
+    available and the 90 % of it a solve may take; when a resource limit
+    (``ulimit -v``) is what leaves that little, the limit and what the process
+    maps already.
     """
     need = estimate_bytes(solver, nu, nv)
     have = available_bytes() if available is None else available
+    limit = limit_headroom() if available is None else None
     total = need + max(int(kept), 0)
     if total > FIT_FRACTION * have:
         hint = "use fewer nodes or a longer edge length"
@@ -108,8 +181,13 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
         # the two numbers of the rule in one unit and 4 digits, so that 90 % of the one is the other
         unit_of = format_bytes(have).split()[1]
         scale = 1024 ** ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB").index(unit_of)
+        # under a resource limit that binds, say which and how its figure comes about
+        source = ""
+        if limit is not None and limit.bytes <= have:
+            source = (f" under the {limit.what}: {limit.limit / scale:.4g} {unit_of} less the "
+                      f"{limit.used / scale:.4g} {unit_of} this process maps already,")
         raise SizeError(f"{what}a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(total)} of "
                         f"memory{held}, more than a solve may take: {FIT_FRACTION:.0%} of the "
-                        f"{have / scale:.4g} {unit_of} available is {FIT_FRACTION * have / scale:.4g} {unit_of}: "
-                        f"{hint}")
+                        f"{have / scale:.4g} {unit_of} available{source} is {FIT_FRACTION * have / scale:.4g} "
+                        f"{unit_of}: {hint}")
     return need

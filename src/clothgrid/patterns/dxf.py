@@ -47,6 +47,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import InputError
+from .. import limits
 from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
 from ..geometry import signed_area
 from .annotations import LINES, classified, structure_hint
@@ -55,7 +56,7 @@ from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, p
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
 from ..units import UNITS, unit_to_mm
 
-__all__ = ["read_dxf", "INSUNITS"]
+__all__ = ["read_dxf", "count_records", "INSUNITS"]
 
 #: $INSUNITS code -> unit name (see clothgrid.units.UNITS)
 INSUNITS: dict[int, str] = {1: "in", 2: "ft", 4: "mm", 5: "cm", 6: "m", 8: "um", 9: "mil",
@@ -147,7 +148,26 @@ def _polyline_prims(pts: list[tuple[float, float, float]], closed: bool, point, 
 
 
 def _entity_prims(e: Any, ctx: _Ctx) -> tuple[list[Primitive], bool]:
-    """The entity as exact primitives (2D WCS, file units) and whether it is closed."""
+    """The entity as exact primitives (2D WCS, file units) and whether it is closed.
+
+    Raises
+    ------
+    InputError
+        A malformed entity (a bulge or coordinate beyond the limits, not flat), the
+        message naming the file, the entity and its handle and layer.
+    """
+    try:
+        return _entity_prims_of(e, ctx)
+    except InputError as exc:
+        text = str(exc)
+        if text.startswith(ctx.where):
+            raise
+        layer = e.dxf.get("layer", None)
+        on = f" on layer {layer!r}" if layer not in (None, "") else ""
+        raise InputError(f"{ctx.where}: {e.dxftype()} {e.dxf.get('handle', '?')}{on}: {text}") from None
+
+
+def _entity_prims_of(e: Any, ctx: _Ctx) -> tuple[list[Primitive], bool]:
     kind = e.dxftype()
     if kind == "LINE":
         s, t = _xy(e.dxf.start), _xy(e.dxf.end)
@@ -511,6 +531,34 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
     return classified(pieces, unmade, ctx.where, line=line)
 
 
+def count_records(path: str | Path, stop: int) -> int | None:
+    """The records of an ASCII DXF file (its ``0`` group tags), counted up to ``stop + 1``.
+
+    A DXF file is pairs of lines, a group code and a value; every entity,
+    polyline vertex, table and block entry starts with code ``0``. The count
+    streams the file (constant memory, about 3 x 10^6 lines a second) and stops
+    once it passes ``stop``, so that a file too big for ezdxf is refused before
+    ezdxf spends minutes reading it.
+
+    Returns
+    -------
+    int or None
+        The count (``stop + 1`` when there are more); None for a binary DXF,
+        which is not counted here.
+    """
+    with open(path, "rb") as f:
+        if f.read(18) == b"AutoCAD Binary DXF":
+            return None
+        f.seek(0)
+        count = 0
+        for code, _value in zip(f, f):
+            if code.strip() == b"0":
+                count += 1
+                if count > stop:
+                    break
+    return count
+
+
 def read_dxf(path: str | Path, *, units: str | None = None,
              rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
     """Read the pattern pieces of a DXF file (AAMA/ASTM or plain), in millimetres.
@@ -547,6 +595,13 @@ def read_dxf(path: str | Path, *, units: str | None = None,
     path = Path(path)
     ctx = _Ctx(str(path))
     check_input_file(path)
+    try:
+        records = count_records(path, limits.MAX_DXF_RECORDS)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    if records is not None and records > limits.MAX_DXF_RECORDS:
+        raise InputError(f"{path}: more than {limits.MAX_DXF_RECORDS:,} records (entities, polyline vertices, "
+                         "table entries), the limit for a DXF file")
     try:
         doc = ezdxf.readfile(str(path))
     except DXFError as exc:

@@ -202,6 +202,44 @@ def _reversed_curvature(curv: Any) -> Any:
     return curv
 
 
+def _panel_names(pattern: dict[str, Any], panels: dict[str, Any], where: str) -> list[str]:
+    """The panels' names in the file's ``panel_order``, then the others in file order.
+
+    ``panel_order`` is optional; when given it must be a list of panel names
+    (strings). A name that is not a panel is passed over (the order only sorts
+    the panels), but an entry that is not a string (``[1]``, ``{"x": 2}``) is
+    a malformed file.
+
+    Raises
+    ------
+    InputError
+        ``panel_order`` is not a list, or one of its entries is not a string.
+    """
+    order = pattern.get("panel_order")
+    if order is None:
+        order = []
+    if not isinstance(order, list):
+        raise InputError(f"{where}: pattern.panel_order must be a list of panel names, "
+                         f"not {type(order).__name__}")
+    for k, n in enumerate(order):
+        if not isinstance(n, str):
+            raise InputError(f"{where}: pattern.panel_order must be a list of panel names (strings); "
+                             f"entry {k} is {_json_snippet(n)}")
+    names = list(dict.fromkeys(n for n in order if n in panels))
+    return names + [n for n in panels if n not in names]
+
+
+def _json_snippet(value: Any, size: int = 40) -> str:
+    """``value`` as short JSON text for a message."""
+    import json
+
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= size else text[:size] + "..."
+
+
 def read_garmentcode(path: str | Path, *, units: str | None = None,
                      rel_tol: float = DEFAULT_REL_TOL, data: Any = None) -> Pieces:
     """Read every panel of a GarmentCode pattern JSON as a :class:`Piece` (mm).
@@ -262,9 +300,7 @@ def read_garmentcode(path: str | Path, *, units: str | None = None,
     panels = data["pattern"]["panels"]
     if not isinstance(panels, dict) or not panels:
         raise InputError(f"{where}: the pattern has no panels")
-    order = data["pattern"].get("panel_order")
-    names = [n for n in order if isinstance(n, str) and n in panels] if isinstance(order, list) else []
-    names += [n for n in panels if n not in names]
+    names = _panel_names(data["pattern"], panels, where)
     pieces: list[Piece] = []
     failed: list[PieceFailure] = []
     for name in names:
@@ -464,9 +500,7 @@ def read_garment_spec(path: str | Path, *, units: str | None = None) -> GarmentS
     raw_panels = data["pattern"]["panels"]
     if not isinstance(raw_panels, dict) or not raw_panels:
         raise InputError(f"{where}: the pattern has no panels")
-    order = data["pattern"].get("panel_order")
-    names = [n for n in order if n in raw_panels] if isinstance(order, list) else []
-    names += [n for n in raw_panels if n not in names]
+    names = _panel_names(data["pattern"], raw_panels, where)
     panels: dict[str, SpecPanel] = {}
     for name in names:
         panel = raw_panels[name]

@@ -16,7 +16,7 @@ from ..limits import MAX_COORDINATE, MAX_OUTLINE_POINTS
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
 __all__ = ["Piece", "PieceFailure", "Skipped", "Pieces", "piece_failure", "pattern_pieces", "piece_from_primitives",
-           "piece_from_polygon", "MIN_POINTS"]
+           "piece_from_polygon", "piece_from_points", "MIN_POINTS"]
 
 #: the fewest distinct outline points of a piece (a triangle: a godet, a gusset)
 MIN_POINTS = 3
@@ -331,6 +331,12 @@ def _check_simple(pts: np.ndarray, label: str) -> None:
                      "outline (a bow-tie, a figure eight) cannot be gridded")
 
 
+def _sorted_unique(a: np.ndarray) -> np.ndarray:
+    """``np.unique`` of integers by sorting (NumPy 2's hashing ``unique`` takes a second on 10^6)."""
+    a = np.sort(np.asarray(a, dtype=np.int64))
+    return a[np.concatenate(([True], a[1:] != a[:-1]))] if len(a) else a
+
+
 def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | None = None,
                        turn_points: np.ndarray | None = None, where: str = "",
                        **kwargs: Any) -> Piece:
@@ -396,7 +402,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     def remap(idx: np.ndarray | None) -> np.ndarray:
         if idx is None or len(idx) == 0:
             return np.zeros(0, dtype=np.int64)
-        return np.unique(new_index[np.asarray(idx, dtype=np.int64) % n0])
+        return _sorted_unique(new_index[np.asarray(idx, dtype=np.int64) % n0])
 
     verts, turns = remap(vertices), remap(turn_points)
     crossing = _self_crossing(pts)            # one near-linear search on the common path
@@ -413,7 +419,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
         raise InputError(f"{label}: encloses no area (its outline runs back over itself)")
     if area < 0:                              # make it counter-clockwise, keeping point 0
         pts = np.roll(pts[::-1], 1, axis=0)
-        verts, turns = np.unique((n - verts) % n), np.unique((n - turns) % n)
+        verts, turns = _sorted_unique((n - verts) % n), _sorted_unique((n - turns) % n)
     if crossing is not None:                  # named in the final numbering ('clothgrid pieces')
         _check_simple(pts, label)
     return Piece(name=name, outline=np.ascontiguousarray(pts), vertices=verts,
@@ -461,3 +467,45 @@ def piece_from_primitives(name: str, prims: list[Primitive], *, rel_tol: float =
         turns = nearest[ok]
     return piece_from_polygon(name, outline, vertices=starts, turn_points=turns, where=where,
                               tolerance=tol, notes=tuple(notes), **kwargs)
+
+
+def piece_from_points(name: str, points: Any, *, rel_tol: float = DEFAULT_REL_TOL, where: str = "",
+                      **kwargs: Any) -> Piece:
+    """A closed polygon (mm), every point a vertex, into a :class:`Piece`.
+
+    The piece :func:`piece_from_primitives` makes of the polygon's straight
+    segments (the same checks, tolerance and vertices), without a primitive
+    per segment: an SVG ``<polygon>`` of 10^6 points takes a second, not
+    minutes.
+
+    Parameters
+    ----------
+    name : str
+        The piece's name.
+    points : array_like
+        ``(n, 2)`` points in order; the last joins the first (a repeated first
+        point is dropped as a duplicate).
+    rel_tol : float
+        Chord tolerance relative to the piece's size, kept as the piece's
+        ``tolerance`` (straight segments need no more points).
+    where : str
+        Prefix for messages (the file name).
+    """
+    label = f"{where}piece {name!r}"
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) > MAX_OUTLINE_POINTS:
+        raise InputError(f"{label}: {len(pts):,} points, more than the limit of {MAX_OUTLINE_POINTS:,} "
+                         "points per outline")
+    if not len(pts):
+        raise InputError(f"{label}: no curves")
+    if not np.isfinite(pts).all():
+        raise InputError(f"{label}: a non-finite coordinate (NaN or inf)")
+    big = float(np.abs(pts).max())
+    if big > MAX_COORDINATE:
+        raise InputError(f"{label}: a coordinate of {big:.3g} mm, beyond the limit of "
+                         f"{MAX_COORDINATE:.0e} in size")
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    if not size > 0:
+        raise InputError(f"{label}: zero size")
+    return piece_from_polygon(name, pts, vertices=np.arange(len(pts)), where=where,
+                              tolerance=rel_tol * size, **kwargs)

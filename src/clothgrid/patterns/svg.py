@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, structure_hint
-from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_primitives
+from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_points, piece_from_primitives
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
 
@@ -80,7 +80,20 @@ def _css_length(text: str | None, what: str, where: str) -> tuple[float, str] | 
     return value, unit
 
 
+_PLAIN_NUMBERS = re.compile(r"[0-9eE.,+\-\s]*")
+
+
 def _numbers(text: str, what: str, where: str) -> list[float]:
+    """The numbers of an SVG number list (``points``, ``viewBox``), separated by spaces and/or commas.
+
+    Plain lists (every number set apart, as exporters write them) are converted by
+    NumPy in one go; compact forms (``1-2``, ``.5.5``) and errors go through the regex.
+    """
+    if _PLAIN_NUMBERS.fullmatch(text):
+        try:
+            return np.array(text.replace(",", " ").split(), dtype=np.float64).tolist()
+        except ValueError:
+            pass                                     # 1-2, .5.5, 1e, ...: read below
     stripped = re.sub(r"[\s,]+", " ", text).strip()
     nums = _NUMBER.findall(text)
     if stripped and re.sub(_NUMBER, "", stripped).replace(" ", ""):
@@ -177,20 +190,57 @@ def _attr(el: ET.Element, name: str, where: str, default: float | None = None) -
     return float(m.group(1))
 
 
+def _polygon_points(el: ET.Element, m: np.ndarray, where: str) -> tuple[np.ndarray, bool] | None:
+    """The points of a ``<polygon>`` or ``<polyline>`` (transformed by ``m``) and whether they close.
+
+    None when there are fewer than 2 points (nothing drawn). A polygon is closed;
+    a polyline when it ends at its start. Read without svgpathtools (one array,
+    not a segment object per point): a polygon of 10^6 points takes a second.
+    """
+    tag = _local(el.tag)
+    nums = _numbers(el.get("points", ""), "points", where)
+    if len(nums) % 2:
+        raise InputError(f"{where}: <{tag}> has an odd number of coordinates in 'points'")
+    if len(nums) < 4:
+        return None
+    xy = np.asarray(nums, dtype=np.float64).reshape(-1, 2)
+    with np.errstate(over="ignore", invalid="ignore"):
+        pts = xy @ m[:2, :2].T + m[:2, 2]
+    if tag == "polygon":
+        return pts, True
+    finite = pts[np.isfinite(pts).all(axis=1)]
+    size = float(np.hypot(*np.ptp(finite, axis=0))) if len(finite) else 0.0
+    return pts, size > 0 and float(np.linalg.norm(pts[-1] - pts[0])) <= 1e-9 * size
+
+
+def _rect_corners(el: ET.Element, m: np.ndarray, where: str) -> np.ndarray | None:
+    """The four corners (transformed by ``m``) of a ``<rect>`` with square corners, or None
+    (rounded corners: read as path data by :func:`_shape_d`; no width or height: nothing drawn).
+
+    A polygon, not four line primitives: a file of 10^5 small rectangles is read in seconds.
+    """
+    w, h = _attr(el, "width", where, 0.0), _attr(el, "height", where, 0.0)
+    if w <= 0 or h <= 0:
+        return None
+    rx_t, ry_t = el.get("rx"), el.get("ry")
+    rx = _attr(el, "rx", where, 0.0) if rx_t not in (None, "auto") else None
+    ry = _attr(el, "ry", where, 0.0) if ry_t not in (None, "auto") else None
+    rx, ry = (rx if rx is not None else ry or 0.0), (ry if ry is not None else rx or 0.0)
+    if min(max(rx, 0.0), w / 2) > 0 and min(max(ry, 0.0), h / 2) > 0:
+        return None
+    x, y = _attr(el, "x", where, 0.0), _attr(el, "y", where, 0.0)
+    xy = np.array([[x, y], [x + w, y], [x + w, y + h], [x, y + h]])
+    with np.errstate(over="ignore", invalid="ignore"):
+        return xy @ m[:2, :2].T + m[:2, 2]
+
+
 def _shape_d(el: ET.Element, where: str) -> str | None:
-    """Path data of a shape element (None if it draws nothing)."""
+    """Path data of a ``<path>`` or a rounded ``<rect>`` (None if it draws nothing; polygons,
+    polylines, square rects, circles and ellipses are read by :func:`_polygon_points`,
+    :func:`_rect_corners` and :func:`_ellipse_prims`)."""
     tag = _local(el.tag)
     if tag == "path":
         return el.get("d") or None
-    if tag in ("polygon", "polyline"):
-        nums = _numbers(el.get("points", ""), "points", where)
-        if len(nums) % 2:
-            raise InputError(f"{where}: <{tag}> has an odd number of coordinates in 'points'")
-        pts = list(zip(nums[::2], nums[1::2]))
-        if len(pts) < 2:
-            return None
-        d = "M" + " L".join(f"{x!r},{y!r}" for x, y in pts)
-        return d + (" Z" if tag == "polygon" else "")
     if tag == "rect":
         x, y = _attr(el, "x", where, 0.0), _attr(el, "y", where, 0.0)
         w, h = _attr(el, "width", where, 0.0), _attr(el, "height", where, 0.0)
@@ -290,6 +340,20 @@ def _tree_size(root: ET.Element) -> tuple[int, int]:
     return deepest, count
 
 
+def _parse_xml(path: Path) -> ET.Element:
+    """The root element of an XML file, parsed in one feed.
+
+    ``ET.parse`` feeds expat 64 KiB at a time, and expat before 2.6 parses a token
+    cut by a chunk boundary again from its start with every chunk: quadratic in the
+    size of one attribute (10 s for a ``<polygon>`` of 10^6 points, 20 MB). Fed
+    whole (the file is at most :data:`~clothgrid.limits.MAX_FILE_BYTES`), it takes
+    0.2 s.
+    """
+    parser = ET.XMLParser()
+    parser.feed(path.read_bytes())
+    return parser.close()
+
+
 def read_svg(path: str | Path, *, units: str | None = None,
              rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
     """Read the closed paths of an SVG file: the pieces (mm), and the annotations skipped.
@@ -328,12 +392,11 @@ def read_svg(path: str | Path, *, units: str | None = None,
     where = str(path)
     check_input_file(path)
     try:
-        tree = ET.parse(path)
+        root = _parse_xml(path)
     except ET.ParseError as exc:
         raise InputError(f"{where}: not a well-formed SVG file (truncated?): {exc}") from None
     except OSError as exc:
         raise InputError(f"{where}: cannot read the file ({exc.strerror or exc})") from None
-    root = tree.getroot()
     if _local(root.tag) != "svg":
         raise InputError(f"{where}: not an SVG file (the root element is <{_local(root.tag)}>, "
                          "not <svg>)")
@@ -373,9 +436,17 @@ def read_svg(path: str | Path, *, units: str | None = None,
             counter += 1
             base = _name(el, f"piece{counter}")
             label = f"<{tag}> {base!r}"
-            loops: list[list[Primitive]] = []
+            loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
             try:
-                if tag in ("circle", "ellipse"):
+                if tag in ("polygon", "polyline"):
+                    poly = _polygon_points(el, m, f"{where}: {label}")
+                    if poly is not None and poly[1]:
+                        loops.append(poly[0])
+                    elif poly is not None:
+                        open_paths += 1
+                elif tag == "rect" and (quad := _rect_corners(el, m, f"{where}: {label}")) is not None:
+                    loops.append(quad)
+                elif tag in ("circle", "ellipse"):
                     prims = _ellipse_prims(el, m, f"{where}: {label}")
                     if prims:
                         loops.append(prims)
@@ -418,8 +489,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
                         "group": group or None, "structure": hint, "look": _look(el),
                         "part": group or None}
+                make = piece_from_points if isinstance(prims, np.ndarray) else piece_from_primitives
                 try:
-                    pieces.append(piece_from_primitives(
+                    pieces.append(make(
                         name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
                         notes=(f"units: {how}",), meta=meta))
                 except InputError as exc:       # fewer than 3 points, no area: failed or skipped

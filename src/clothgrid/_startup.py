@@ -1,0 +1,93 @@
+"""Signals while the command line starts: a message and the exit code, not a traceback.
+
+``python -m clothgrid`` and the ``clothgrid`` script import the package (NumPy,
+SciPy: about a second) before :func:`clothgrid.cli.main` installs its signal
+handlers. A Ctrl-C in that window would print a ``KeyboardInterrupt``
+traceback, and SIGTERM or SIGHUP would kill the process without a word.
+:func:`guard_cli_start`, run first thing by ``clothgrid/__init__.py``, installs
+handlers for that window that print one ``clothgrid:`` line and exit with
+``128 + signum`` (130, 143, 129) at once: nothing has been written yet, so
+there is nothing to clean up. ``main`` then puts its own handlers in place.
+
+Only a process that is starting clothgrid's command line is touched: a program
+that imports clothgrid as a library keeps its signal handlers. Only the
+standard library is imported here.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from typing import Any
+
+__all__ = ["guard_cli_start", "starting_the_cli"]
+
+#: options of the ``python`` command that take a separate argument (``-X importtime``)
+_OPTION_ARGS = ("-X", "-W", "--check-hash-based-pycs")
+#: the signals of :data:`clothgrid.cli.HANDLED_SIGNALS`, with their messages
+_MESSAGES = {"SIGINT": "interrupted", "SIGTERM": "terminated by SIGTERM", "SIGHUP": "terminated by SIGHUP"}
+
+
+def _module_run(orig_argv: list[str]) -> str | None:
+    """The module that ``python [options] -m MODULE`` runs, or None (a script, ``-c``, a REPL)."""
+    k = 1
+    while k < len(orig_argv):
+        a = orig_argv[k]
+        if a == "-m":
+            return orig_argv[k + 1] if k + 1 < len(orig_argv) else None
+        if a.startswith("-m"):
+            return a[2:]
+        if a in _OPTION_ARGS:
+            k += 2
+            continue
+        if a == "-c" or a == "-" or not a.startswith("-"):
+            return None
+        k += 1
+    return None
+
+
+def starting_the_cli() -> bool:
+    """Is this interpreter starting clothgrid's command line?
+
+    True for ``python [options] -m clothgrid ...`` while the module is being
+    located (``sys.argv[0]`` is ``"-m"`` then) and for the installed
+    ``clothgrid`` script.
+    """
+    argv0 = sys.argv[0] if sys.argv else ""
+    if argv0 == "-m":
+        return _module_run(list(getattr(sys, "orig_argv", []))) == "clothgrid"
+    name = os.path.basename(argv0)
+    return name in ("clothgrid", "clothgrid.exe", "clothgrid-script.py")
+
+
+def _stop(signum: int, frame: Any) -> None:
+    """Exit at once with one line: a signal during the imports of a command-line run.
+
+    (Also after :func:`clothgrid.cli.main` has returned and put this handler back: the
+    run is over then, and the exit code says it was cut short.)
+    """
+    name = signal.Signals(signum).name
+    try:
+        os.write(2, f"clothgrid: {_MESSAGES.get(name, name)}\n".encode())
+    finally:
+        os._exit(128 + signum)
+
+
+def guard_cli_start() -> None:
+    """In a command-line run, end SIGINT/SIGTERM/SIGHUP during start-up with a message and 128+signum.
+
+    Does nothing in a program that imports clothgrid, or outside the main thread.
+    """
+    if not starting_the_cli():
+        return
+    for name in _MESSAGES:
+        sig = getattr(signal, name, None)
+        if sig is None:
+            continue
+        try:
+            if signal.getsignal(sig) in (signal.SIG_IGN,):    # nohup: an ignored SIGHUP stays ignored
+                continue
+            signal.signal(sig, _stop)
+        except (OSError, ValueError):       # not the main thread
+            pass
