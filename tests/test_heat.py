@@ -170,9 +170,11 @@ def test_conductivity_jumps_of_1e4_converge(case, rng):
         k[n // 3:n // 2, n // 4:3 * n // 4] = 250.0
         sides = dict(left=34, right=20)     # insulated bottom and top
     p = HeatProblem(k, (0.01, 0.01), **sides)
-    res = solve_steady(p, tol=1e-11, max_iter=300)
-    assert res.info["converged"] and res.info["residual"] <= 1e-11
-    assert res.info["iterations"] < 150      # the residual-to-error amplification is ~cond(A) ~ 1e8 here
+    # 1e-10, not less: a float64 field cannot do much better here (SciPy's sparse direct solution of the
+    # fabric case has a relative residual of 1.6e-11: the rounding of T ~ 30 C times conductances ~ 500)
+    res = solve_steady(p, tol=1e-10, max_iter=300)
+    assert res.info["converged"] and res.info["residual"] <= 1e-10
+    assert res.info["iterations"] <= 30      # black-box multigrid: 12-16 (the grid solver's V-cycle: up to 92)
     ref = _direct(p)
     assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
 
