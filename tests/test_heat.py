@@ -179,6 +179,22 @@ def test_conductivity_jumps_of_1e4_converge(case, rng):
     assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
 
 
+def test_black_box_multigrid_bounds_the_iterations_on_1e4_blocks():
+    """The benchmark's hard case at 256^2 (layers of 0.04 and 0.4 W/(m K), a band of random 0.025 / 250
+    blocks): the grid solver's V-cycle as preconditioner needed 70 CG iterations, black-box multigrid
+    (operator-dependent interpolation) about 10; the answer matches a direct solve."""
+    n, rng = 256, np.random.default_rng(0)
+    k = np.full((n, n), 0.04)
+    k[:, n // 3: 2 * n // 3] = 0.4
+    blocks = np.where(rng.random((32, 32)) < 0.3, 250.0, 0.025).repeat(8, 0).repeat(8, 1)
+    k[:, n // 2 - 16: n // 2 + 16] = blocks[:, n // 2 - 16: n // 2 + 16]
+    p = HeatProblem(k, (0.004, 0.004), bottom=34, top=20, source=2e4)
+    res = solve_steady(p, tol=1e-8)
+    assert res.info["converged"] and res.info["iterations"] <= 30, res.info
+    ref = _direct(p)
+    assert np.abs(res.temperature - ref).max() < 1e-5 * np.ptp(ref)
+
+
 def test_error_bound_holds():
     p = HeatProblem(np.r_[np.full(16, 1.0), np.full(16, 1e-3)][:, None].repeat(24, 1), (0.01, 0.01),
                     left=34, right="h=10,T=20", top=25)

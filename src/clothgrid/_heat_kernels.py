@@ -132,17 +132,16 @@ def residual9(S, b, x, r):
             r[i, j] = b[i, j] - S[i, j, 4] * x[i, j] - _row9(S, x, i, j)
 
 
-@numba.njit(parallel=True, **_OPTS)
-def smooth9(S, b, x, ci, cj):
-    """Gauss-Seidel over one of four colours: the points with ``i % 2 == ci`` and ``j % 2 == cj``."""
+@numba.njit(**_OPTS)
+def smooth9_lex(S, b, x, forward):
+    """One lexicographic Gauss-Seidel sweep, forward (``i``, ``j`` ascending) or backward: one pass over
+    ``S`` (a four-colour sweep reads most of it four times); the backward sweep is the forward's adjoint."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
-    i0 = 2 - ci                       # the first interior i with i % 2 == ci (ci = 1 -> 1, 0 -> 2)
-    j0 = 2 - cj
-    rows = (nu - i0) // 2 + 1
-    for t in numba.prange(rows):
-        i = i0 + 2 * t
-        for j in range(j0, nv + 1, 2):
+    for t in range(nu):
+        i = 1 + t if forward else nu - t
+        for u in range(nv):
+            j = 1 + u if forward else nv - u
             x[i, j] = (b[i, j] - _row9(S, x, i, j)) / S[i, j, 4]
 
 

@@ -274,6 +274,8 @@ def _add_heat_parser(sub: Any) -> None:
                    help="steady: also compute a guaranteed bound on the temperature error (one more solve)")
     h.add_argument("--backend", choices=BACKENDS, default="cpu",
                    help="where the multigrid runs: cpu only for heat (gl and cuda exit 2: docs/heat.md)")
+    h.add_argument("--threads", type=_positive_int, metavar="N",
+                   help="Numba threads for the solve (default: all cores; 1 can be faster on a busy machine)")
     h.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
                    help="output file by extension: .npz (temperature, x, y, conductivity, info), .vts "
                         "(ParaView) or .png (field and isotherms); repeatable")
@@ -306,11 +308,11 @@ def _cmd_heat(args: argparse.Namespace) -> int:
     progress = _progress(args.quiet)
     if args.dt is None:
         res = heat.solve_steady(problem, backend=args.backend, tol=args.tol, max_iter=args.max_iter,
-                                error_bound=args.error_bound, progress=progress)
+                                error_bound=args.error_bound, progress=progress, threads=args.threads)
     else:
         res = heat.solve_transient(problem, dt=args.dt, steps=args.steps, initial=args.initial,
                                    scheme=args.scheme, save_every=args.save_every, backend=args.backend,
-                                   tol=args.tol, max_iter=args.max_iter, progress=progress)
+                                   tol=args.tol, max_iter=args.max_iter, progress=progress, threads=args.threads)
     info, T = res.info, res.temperature
     flows = res.heat_flows()
     bound = f", error bound {info['error_bound']:.2e} K" if "error_bound" in info else ""

@@ -71,7 +71,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .errors import BackendUnavailableError, InputError, NotConvergedError
-from .heat_multigrid import HeatMultigrid, Stencil5, padded, pcg
+from .heat_multigrid import HeatMultigrid, Stencil5, numba_threads, padded, pcg
 from .weights import Weights
 
 __all__ = ["Side", "temperature", "flux", "convection", "INSULATED", "parse_side", "load_field", "HeatProblem",
@@ -637,7 +637,7 @@ def plot_temperature(res: HeatResult, path: str | Path, *, title: str | None = N
 
 def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-8, max_iter: int = 500,
                  error_bound: bool = False, allow_unconverged: bool = False,
-                 progress: Callable[[str], None] | None = None) -> HeatResult:
+                 progress: Callable[[str], None] | None = None, threads: int | None = None) -> HeatResult:
     """Steady temperature: ``-div(k grad T) = q`` with the problem's boundary conditions.
 
     Parameters
@@ -657,6 +657,10 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
         Return the result instead of raising :class:`~clothgrid.errors.NotConvergedError`.
     progress : callable, optional
         Receives one line when done.
+    threads : int, optional
+        Numba threads for the solve (default: Numba's, all cores). On a
+        machine shared with other jobs 1 can be faster: a parallel kernel waits
+        for its slowest thread (docs/heat.md).
 
     Returns
     -------
@@ -666,26 +670,27 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
         raise InputError("a steady problem needs a side with a fixed temperature or convection: with every side "
                          "insulated or at a fixed flux the temperature is not determined")
     tol = _check_tol(tol)
-    be = _backend(backend)
-    t0 = time.perf_counter()
-    weights, ring, rhs = problem.system()
-    transpose = _transpose_for(problem)
-    op = _Operator(weights, None, transpose)
-    b = op.orient(rhs) + _ring_load(op, ring)
-    x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
-    info = _info(problem, op, it, rel, tol, backend="cpu")
-    if error_bound:
-        info["error_bound"] = _error_bound(op, b, x, max_iter)
-    info["seconds"] = time.perf_counter() - t0
-    T = op.orient(x)
-    res = HeatResult(T, *problem.centres(), problem, info)
-    if progress:
-        progress(f"heat: steady, {problem.cells[0]} x {problem.cells[1]} cells, {it} CG iterations, "
-                 f"relative residual {rel:.2e} (tol {tol:.1e}), {info['seconds']:.3f} s")
-    if not info["converged"] and not allow_unconverged:
-        raise NotConvergedError(f"heat: the relative residual {rel:.2e} is above tol {tol:.1e} after {it} "
-                                "iterations", grid=res)
-    return res
+    _backend(backend)
+    with numba_threads(threads):
+        t0 = time.perf_counter()
+        weights, ring, rhs = problem.system()
+        transpose = _transpose_for(problem)
+        op = _Operator(weights, None, transpose)
+        b = op.orient(rhs) + _ring_load(op, ring)
+        x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
+        info = _info(problem, op, it, rel, tol, backend="cpu")
+        if error_bound:
+            info["error_bound"] = _error_bound(op, b, x, max_iter)
+        info["seconds"] = time.perf_counter() - t0
+        T = op.orient(x)
+        res = HeatResult(T, *problem.centres(), problem, info)
+        if progress:
+            progress(f"heat: steady, {problem.cells[0]} x {problem.cells[1]} cells, {it} CG iterations, "
+                     f"relative residual {rel:.2e} (tol {tol:.1e}), {info['seconds']:.3f} s")
+        if not info["converged"] and not allow_unconverged:
+            raise NotConvergedError(f"heat: the relative residual {rel:.2e} is above tol {tol:.1e} after {it} "
+                                    "iterations", grid=res)
+        return res
 
 
 def _check_tol(tol: float) -> float:
@@ -707,16 +712,19 @@ def _ring_load(op: _Operator, ring: np.ndarray) -> np.ndarray:
 
 
 def _info(problem: HeatProblem, op: _Operator, it: int, rel: float, tol: float, backend: str) -> dict[str, Any]:
+    import numba
+
     return {"solver": "pcg-multigrid", "backend": backend, "iterations": int(it), "residual": float(rel),
             "tol": float(tol), "converged": bool(rel <= tol), "levels": len(op.multigrid),
-            "transposed": bool(op.transpose), "cells": list(problem.cells), "size_m": list(problem.size),
+            "transposed": bool(op.transpose), "threads": numba.get_num_threads(), "cells": list(problem.cells), "size_m": list(problem.size),
             "sides": {s: str(getattr(problem, s)) for s in SIDES}}
 
 
 def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any = 20.0,
                     scheme: str = "crank-nicolson", save_every: int | None = None, backend: str = "cpu",
                     tol: float = 1e-8, max_iter: int = 500, allow_unconverged: bool = False,
-                    progress: Callable[[str], None] | None = None, progress_every: int | None = None) -> HeatResult:
+                    progress: Callable[[str], None] | None = None, progress_every: int | None = None,
+                    threads: int | None = None) -> HeatResult:
     """Implicit time steps of ``rho c dT/dt = div(k grad T) + q``.
 
     Parameters
@@ -733,7 +741,7 @@ def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any
         Second-order Crank-Nicolson or first-order (L-stable) backward Euler.
     save_every : int, optional
         Keep the field every this many steps in ``history`` (and the initial one).
-    backend, tol, max_iter, allow_unconverged
+    backend, tol, max_iter, allow_unconverged, threads
         As in :func:`solve_steady` (``tol`` per step).
     progress : callable, optional
         Receives a line per batch of ``progress_every`` steps (default: about 10 lines).
@@ -752,44 +760,45 @@ def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any
         raise InputError(f"steps must be an integer >= 1, not {steps!r}")
     steps = int(steps)
     tol = _check_tol(tol)
-    be = _backend(backend)
-    t0 = time.perf_counter()
-    T = np.broadcast_to(load_field(initial, name="initial temperature", shape=problem.cells, positive=False),
-                        problem.cells).astype(np.float64)
-    weights, ring, rhs = problem.system()
-    transpose = _transpose_for(problem)
-    m = problem.mass() / dt
-    half = scheme == "crank-nicolson"
-    op = _Operator(weights, m, transpose, scale=0.5 if half else 1.0)
-    steady = Stencil5.from_weights(op.wu, op.wv)   # A alone (halved), for the explicit half of Crank-Nicolson
-    mo = op.orient(m)
-    load = op.orient(rhs) + _ring_load(op, ring) * (2.0 if half else 1.0)   # ring load of the unscaled A
-    x = op.orient(T).copy()
-    total, worst = 0, 0.0
-    times, history = ([0.0], [T.copy()]) if save_every else (None, None)
-    every = progress_every or max(1, steps // 10)
-    t_batch = time.perf_counter()
-    for n in range(1, steps + 1):
-        b = mo * x + load
-        if half:
-            b -= steady.apply(padded(x))[1:-1, 1:-1]   # (M/dt - A/2) T_n + b, op = M/dt + A/2
-        x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
-        total += it
-        worst = max(worst, rel)
-        if rel > tol and not allow_unconverged:
-            raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
-                                    f"after {it} iterations")
-        if save_every and n % save_every == 0:
-            times.append(n * dt)
-            history.append(op.orient(x).copy())
-        if progress and (n % every == 0 or n == steps):
-            progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
-                     f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
-            t_batch = time.perf_counter()
-    info = _info(problem, op, total, worst, tol, backend="cpu")
-    info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
-    info["residual_note"] = "largest relative residual over the steps"
-    out = op.orient(x)
-    return HeatResult(out, *problem.centres(), problem, info,
-                      times=None if times is None else np.asarray(times),
-                      history=None if history is None else np.stack(history))
+    _backend(backend)
+    with numba_threads(threads):
+        t0 = time.perf_counter()
+        T = np.broadcast_to(load_field(initial, name="initial temperature", shape=problem.cells, positive=False),
+                            problem.cells).astype(np.float64)
+        weights, ring, rhs = problem.system()
+        transpose = _transpose_for(problem)
+        m = problem.mass() / dt
+        half = scheme == "crank-nicolson"
+        op = _Operator(weights, m, transpose, scale=0.5 if half else 1.0)
+        steady = Stencil5.from_weights(op.wu, op.wv)   # A alone (halved), for the explicit half of Crank-Nicolson
+        mo = op.orient(m)
+        load = op.orient(rhs) + _ring_load(op, ring) * (2.0 if half else 1.0)   # ring load of the unscaled A
+        x = op.orient(T).copy()
+        total, worst = 0, 0.0
+        times, history = ([0.0], [T.copy()]) if save_every else (None, None)
+        every = progress_every or max(1, steps // 10)
+        t_batch = time.perf_counter()
+        for n in range(1, steps + 1):
+            b = mo * x + load
+            if half:
+                b -= steady.apply(padded(x))[1:-1, 1:-1]   # (M/dt - A/2) T_n + b, op = M/dt + A/2
+            x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
+            total += it
+            worst = max(worst, rel)
+            if rel > tol and not allow_unconverged:
+                raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
+                                        f"after {it} iterations")
+            if save_every and n % save_every == 0:
+                times.append(n * dt)
+                history.append(op.orient(x).copy())
+            if progress and (n % every == 0 or n == steps):
+                progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
+                         f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
+                t_batch = time.perf_counter()
+        info = _info(problem, op, total, worst, tol, backend="cpu")
+        info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
+        info["residual_note"] = "largest relative residual over the steps"
+        out = op.orient(x)
+        return HeatResult(out, *problem.centres(), problem, info,
+                          times=None if times is None else np.asarray(times),
+                          history=None if history is None else np.stack(history))
