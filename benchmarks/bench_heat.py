@@ -24,8 +24,13 @@ Usage::
 
 from __future__ import annotations
 
+import os
 import sys
 import time
+
+# as `clothgrid heat` does: Numba's OpenMP threads sleep between kernels (spinning, the default, cost each
+# parallel kernel ~15 ms on a loaded machine); before Numba runs its first parallel kernel
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numpy as np
 
@@ -83,7 +88,8 @@ def main(sizes: list[int], pcg: bool = False) -> None:
 
     solve_steady(HeatProblem(conductivity(64), (L, L), bottom=34, top=20), tol=1e-8)   # warm up Numba
     print(f"fipy {fipy.__version__} (default solver {fipy.DefaultSolver.__name__}); numpy {np.__version__}; "
-          f"numba {numba.__version__}, {numba.get_num_threads()} threads; case {CASE}")
+          f"numba {numba.__version__}, {numba.get_num_threads()} threads, OMP_WAIT_POLICY="
+          f"{os.environ.get('OMP_WAIT_POLICY')}; load average {os.getloadavg()[0]:.1f}; case {CASE}")
     print(f"| cells | clothgrid s ({numba.get_num_threads()} threads) | clothgrid s (1 thread) | CG its | FiPy default s "
           "| FiPy / clothgrid (all threads, 1 thread) | max dT vs FiPy (K) |" + (" FiPy PCG s | ratio |" if pcg else ""))
     print("|---|---|---|---|---|---|---|" + ("---|---|" if pcg else ""))

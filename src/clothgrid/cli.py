@@ -285,6 +285,12 @@ def _add_heat_parser(sub: Any) -> None:
 
 def _cmd_heat(args: argparse.Namespace) -> int:
     """``clothgrid heat``: solve, print one summary line, write the outputs (all or none)."""
+    import os
+
+    # Numba's OpenMP threads sleep between kernels instead of spinning: on a machine shared with other jobs
+    # spinning made each parallel kernel of the heat multigrid cost ~15 ms (a 256^2 solve 3.6 s instead of
+    # 0.1 s); read by libgomp when Numba first runs a parallel kernel, so set before any (docs/heat.md)
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from . import heat
 
     outs = [Path(o) for o in args.output]

@@ -33,25 +33,20 @@ outer ring holds the boundary data:
   conductance, ``q_b dy`` enters the boundary cell's right-hand side.
 
 The system ``A T = b`` is symmetric positive definite (an M-matrix). It is
-solved by conjugate gradients preconditioned with one V-cycle of the grid
-solver's multigrid (:mod:`clothgrid.solvers.multigrid`: zebra line
-Gauss-Seidel along ``u``, semi-coarsening along ``v``, Galerkin coarse
-operators built by :func:`clothgrid.multigrid_levels.build_hierarchy`). The
-V-cycle alone stalls on conductivity jumps of 10^4 (its linear interpolation
-along ``v`` does not follow the jumps: measured factor 0.9 per cycle); as a
-preconditioner of CG it converges in 4 to 80 iterations on every case measured
-(docs/heat.md). The grid is oriented so that the sides that fix the
-temperature (fixed temperature, convection) close the coarsened direction
-``v``: insulated ``v``-sides cost the coarse grid its constants (23 instead of
-4 iterations on a uniform medium).
+solved by conjugate gradients preconditioned with one V(1,1) cycle of
+black-box multigrid (:mod:`clothgrid.heat_multigrid`: Dendy's
+operator-dependent interpolation, Galerkin coarse operators, full coarsening,
+symmetric Gauss-Seidel; Numba kernels). The grid solver's multigrid (linear
+interpolation) stalls on conductivity jumps of 10^4 (0.93 per cycle) and
+needed 70-79 CG iterations on them as a preconditioner; black-box multigrid
+needs 10-16 (docs/heat.md). The grid is oriented so that the sides that fix the
+temperature (fixed temperature, convection) are bottom and top
+(``info["transposed"]``), which the old hierarchy needed.
 
 Time steps are implicit, backward Euler or Crank-Nicolson, with the mass
-``rho c dx dy / dt`` on the diagonal: the hierarchy's level 0 is then a
-9-point level with an explicit centre, which only the cpu backend's
-multigrid takes. The gl and cuda backends run neither: the conjugate
-gradient wrapper gives the V-cycle a new right-hand side every iteration,
-which :class:`~clothgrid.backends.protocol.MultigridOps` cannot reload on a
-device without rebuilding the hierarchy there (see docs/heat.md).
+``rho c dx dy / dt`` on the diagonal of level 0. The multigrid runs on the CPU
+only: the gl and cuda backends supply the grid solver's multigrid, not this
+one (docs/heat.md says what running there would take).
 
 Stopping: the relative residual ``||b - A T|| / ||b||`` (2-norm), recomputed
 from the final temperature in float64, must be at most ``tol`` for
@@ -492,9 +487,8 @@ def _backend(name: str) -> Any:
 
         load_backend(name)   # an unknown name raises its usual InputError
         raise BackendUnavailableError(
-            f"heat runs on the cpu backend only, not {name!r}: its conjugate-gradient wrapper gives the "
-            "multigrid a new right-hand side every iteration and time steps need a mass diagonal on the "
-            "finest level, neither of which the gl and cuda multigrid operations take (docs/heat.md)")
+            f"heat runs on the cpu backend only, not {name!r}: its black-box multigrid (operator-dependent "
+            "interpolation, Numba kernels) has no gl or cuda implementation yet (docs/heat.md)")
     return get_backend("cpu")
 
 
