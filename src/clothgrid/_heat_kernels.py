@@ -73,28 +73,6 @@ def residual5(we, wn, c0, b, x, r):
 
 
 @numba.njit(parallel=True, **_OPTS)
-def smooth5(we, wn, d, b, x, colour):
-    """One Gauss-Seidel half sweep over the points with ``(i + j) % 2 == colour`` (red-black)."""
-    nu = x.shape[0] - 2
-    nv = x.shape[1] - 2
-    for i in numba.prange(1, nu + 1):
-        j0 = 1 if (i + 1) % 2 == colour else 2
-        for j in range(j0, nv + 1, 2):
-            x[i, j] = (b[i, j] + we[i - 1, j] * x[i - 1, j] + we[i, j] * x[i + 1, j]
-                       + wn[i, j - 1] * x[i, j - 1] + wn[i, j] * x[i, j + 1]) / d[i, j]
-
-
-@numba.njit(parallel=True, **_OPTS)
-def smooth5_first(d, b, x, colour):
-    """The first half sweep from ``x = 0``: ``x = b / d`` on one colour, zero on the other."""
-    nu = x.shape[0] - 2
-    nv = x.shape[1] - 2
-    for i in numba.prange(1, nu + 1):
-        for j in range(1, nv + 1):
-            x[i, j] = b[i, j] / d[i, j] if (i + j) % 2 == colour else 0.0
-
-
-@numba.njit(parallel=True, **_OPTS)
 def five_to_nine(we, wn, d, S):
     """The 9-point form of a 5-point level (corners zero)."""
     nu = d.shape[0] - 2
@@ -132,17 +110,56 @@ def residual9(S, b, x, r):
             r[i, j] = b[i, j] - S[i, j, 4] * x[i, j] - _row9(S, x, i, j)
 
 
-@numba.njit(**_OPTS)
-def smooth9_lex(S, b, x, forward):
-    """One lexicographic Gauss-Seidel sweep, forward (``i``, ``j`` ascending) or backward: one pass over
-    ``S`` (a four-colour sweep reads most of it four times); the backward sweep is the forward's adjoint."""
+@numba.njit(parallel=True, **_OPTS)
+def lines5(we, wn, d, b, x, colour, cp, dp):
+    """Zebra line Gauss-Seidel: solve every line ``i`` with ``i % 2 == colour`` exactly along ``j``
+    (tridiagonal, Thomas), its neighbour lines ``i - 1``, ``i + 1`` held; ``cp``, ``dp`` scratch."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
-    for t in range(nu):
-        i = 1 + t if forward else nu - t
-        for u in range(nv):
-            j = 1 + u if forward else nv - u
-            x[i, j] = (b[i, j] - _row9(S, x, i, j)) / S[i, j, 4]
+    i0 = 2 - colour
+    rows = (nu - i0) // 2 + 1
+    for t in numba.prange(rows):
+        i = i0 + 2 * t
+        prev_c = 0.0
+        prev_d = 0.0
+        for j in range(1, nv + 1):
+            a = -wn[i, j - 1]
+            rhs = b[i, j] + we[i - 1, j] * x[i - 1, j] + we[i, j] * x[i + 1, j]
+            m = d[i, j] - a * prev_c
+            prev_c = -wn[i, j] / m
+            prev_d = (rhs - a * prev_d) / m
+            cp[i, j] = prev_c
+            dp[i, j] = prev_d
+        v = 0.0
+        for j in range(nv, 0, -1):
+            v = dp[i, j] - cp[i, j] * v
+            x[i, j] = v
+
+
+@numba.njit(parallel=True, **_OPTS)
+def lines9(S, b, x, colour, cp, dp):
+    """Zebra line Gauss-Seidel on a 9-point level (as :func:`lines5`)."""
+    nu = x.shape[0] - 2
+    nv = x.shape[1] - 2
+    i0 = 2 - colour
+    rows = (nu - i0) // 2 + 1
+    for t in numba.prange(rows):
+        i = i0 + 2 * t
+        prev_c = 0.0
+        prev_d = 0.0
+        for j in range(1, nv + 1):
+            a = S[i, j, 3]
+            rhs = b[i, j] - (S[i, j, 0] * x[i - 1, j - 1] + S[i, j, 1] * x[i - 1, j] + S[i, j, 2] * x[i - 1, j + 1]
+                             + S[i, j, 6] * x[i + 1, j - 1] + S[i, j, 7] * x[i + 1, j] + S[i, j, 8] * x[i + 1, j + 1])
+            m = S[i, j, 4] - a * prev_c
+            prev_c = S[i, j, 5] / m
+            prev_d = (rhs - a * prev_d) / m
+            cp[i, j] = prev_c
+            dp[i, j] = prev_d
+        v = 0.0
+        for j in range(nv, 0, -1):
+            v = dp[i, j] - cp[i, j] * v
+            x[i, j] = v
 
 
 # --------------------------------------------------------------------------- transfers
