@@ -63,11 +63,12 @@ def apply5_dot(we, wn, c0, x, out):
 
 
 @numba.njit(parallel=True, **_OPTS)
-def residual5(we, wn, c0, b, x, r):
-    """``r = b - A x`` on the interior (flux form, as :func:`apply5_dot`)."""
+def residual5(we, wn, c0, b, x, r, i0=1, step=1):
+    """``r = b - A x`` on the interior rows ``i0, i0 + step, ...`` (flux form, as :func:`apply5_dot`)."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
-    for i in numba.prange(1, nu + 1):
+    for t in numba.prange((nu - i0) // step + 1):
+        i = i0 + step * t
         for j in range(1, nv + 1):
             r[i, j] = b[i, j] - _flux5(we, wn, c0, x, i, j)
 
@@ -101,35 +102,53 @@ def _row9(S, x, i, j):
 
 
 @numba.njit(parallel=True, **_OPTS)
-def residual9(S, b, x, r):
-    """``r = b - A x`` on the interior."""
+def residual9(S, b, x, r, i0=1, step=1):
+    """``r = b - A x`` on the interior rows ``i0, i0 + step, ...``."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
-    for i in numba.prange(1, nu + 1):
+    for t in numba.prange((nu - i0) // step + 1):
+        i = i0 + step * t
         for j in range(1, nv + 1):
             r[i, j] = b[i, j] - S[i, j, 4] * x[i, j] - _row9(S, x, i, j)
 
 
 @numba.njit(parallel=True, **_OPTS)
-def lines5(we, wn, d, b, x, colour, cp, dp):
+def line_factors(S, we, wn, d, five, cp, im):
+    """The Thomas factors of every line along ``j``, once per level: ``cp`` the eliminated
+    super-diagonal, ``im`` the inverse pivots (of ``S``, or of ``we``, ``wn``, ``d`` when ``five``)."""
+    nu = cp.shape[0] - 2
+    nv = cp.shape[1] - 2
+    for i in numba.prange(1, nu + 1):
+        prev_c = 0.0
+        for j in range(1, nv + 1):
+            if five:
+                a, c, m0 = -wn[i, j - 1], -wn[i, j], d[i, j]
+            else:
+                a, c, m0 = S[i, j, 3], S[i, j, 5], S[i, j, 4]
+            inv = 1.0 / (m0 - a * prev_c)
+            prev_c = c * inv
+            cp[i, j] = prev_c
+            im[i, j] = inv
+
+
+@numba.njit(parallel=True, **_OPTS)
+def lines5(we, wn, b, x, colour, cp, im, dp, first=False):
     """Zebra line Gauss-Seidel: solve every line ``i`` with ``i % 2 == colour`` exactly along ``j``
-    (tridiagonal, Thomas), its neighbour lines ``i - 1``, ``i + 1`` held; ``cp``, ``dp`` scratch."""
+    (tridiagonal, factors from :func:`line_factors`), its neighbour lines ``i - 1``, ``i + 1`` held
+    (``first``: taken as zero, whatever ``x`` holds there: the first half sweep from zero)."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
     i0 = 2 - colour
     rows = (nu - i0) // 2 + 1
     for t in numba.prange(rows):
         i = i0 + 2 * t
-        prev_c = 0.0
-        prev_d = 0.0
+        prev = 0.0
         for j in range(1, nv + 1):
-            a = -wn[i, j - 1]
-            rhs = b[i, j] + we[i - 1, j] * x[i - 1, j] + we[i, j] * x[i + 1, j]
-            m = d[i, j] - a * prev_c
-            prev_c = -wn[i, j] / m
-            prev_d = (rhs - a * prev_d) / m
-            cp[i, j] = prev_c
-            dp[i, j] = prev_d
+            rhs = b[i, j]
+            if not first:
+                rhs += we[i - 1, j] * x[i - 1, j] + we[i, j] * x[i + 1, j]
+            prev = (rhs + wn[i, j - 1] * prev) * im[i, j]
+            dp[i, j] = prev
         v = 0.0
         for j in range(nv, 0, -1):
             v = dp[i, j] - cp[i, j] * v
@@ -137,7 +156,7 @@ def lines5(we, wn, d, b, x, colour, cp, dp):
 
 
 @numba.njit(parallel=True, **_OPTS)
-def lines9(S, b, x, colour, cp, dp):
+def lines9(S, b, x, colour, cp, im, dp, first=False):
     """Zebra line Gauss-Seidel on a 9-point level (as :func:`lines5`)."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
@@ -145,17 +164,14 @@ def lines9(S, b, x, colour, cp, dp):
     rows = (nu - i0) // 2 + 1
     for t in numba.prange(rows):
         i = i0 + 2 * t
-        prev_c = 0.0
-        prev_d = 0.0
+        prev = 0.0
         for j in range(1, nv + 1):
-            a = S[i, j, 3]
-            rhs = b[i, j] - (S[i, j, 0] * x[i - 1, j - 1] + S[i, j, 1] * x[i - 1, j] + S[i, j, 2] * x[i - 1, j + 1]
-                             + S[i, j, 6] * x[i + 1, j - 1] + S[i, j, 7] * x[i + 1, j] + S[i, j, 8] * x[i + 1, j + 1])
-            m = S[i, j, 4] - a * prev_c
-            prev_c = S[i, j, 5] / m
-            prev_d = (rhs - a * prev_d) / m
-            cp[i, j] = prev_c
-            dp[i, j] = prev_d
+            rhs = b[i, j]
+            if not first:
+                rhs -= (S[i, j, 0] * x[i - 1, j - 1] + S[i, j, 1] * x[i - 1, j] + S[i, j, 2] * x[i - 1, j + 1]
+                        + S[i, j, 6] * x[i + 1, j - 1] + S[i, j, 7] * x[i + 1, j] + S[i, j, 8] * x[i + 1, j + 1])
+            prev = (rhs - S[i, j, 3] * prev) * im[i, j]
+            dp[i, j] = prev
         v = 0.0
         for j in range(nv, 0, -1):
             v = dp[i, j] - cp[i, j] * v
@@ -166,40 +182,34 @@ def lines9(S, b, x, colour, cp, dp):
 
 
 @numba.njit(parallel=True, **_OPTS)
-def restrict(P, r, bc):
-    """``bc = P^T r``: coarse point ``(I, J)`` gathers the fine points around ``(2 I, 2 J)``."""
-    nu = r.shape[0] - 2
+def restrict_even(P, r, bc):
+    """``bc = P^T r`` for a residual that is zero on the odd rows ``i`` (after a zebra sweep that ends
+    with the odd lines: their equations hold exactly), reading the even rows only."""
     nv = r.shape[1] - 2
     ncu = bc.shape[0] - 2
     ncv = bc.shape[1] - 2
     for I in numba.prange(1, ncu + 1):
+        i = 2 * I
         for J in range(1, ncv + 1):
-            s = 0.0
-            for di in range(-1, 2):
-                pi = 2 * I + di
-                if pi > nu:
-                    continue
-                a = 1 if di == -1 else 0
-                for dj in range(-1, 2):
-                    pj = 2 * J + dj
-                    if pj > nv:
-                        continue
-                    b = 1 if dj == -1 else 0
-                    s += P[pi, pj, a + 2 * b] * r[pi, pj]
+            j = 2 * J
+            s = r[i, j] + P[i, j - 1, 2] * r[i, j - 1]
+            if j + 1 <= nv:
+                s += P[i, j + 1, 0] * r[i, j + 1]
             bc[I, J] = s
 
 
 @numba.njit(parallel=True, **_OPTS)
-def prolong_add(P, xc, x):
-    """``x += P xc`` on the interior."""
+def prolong_add_even(P, xc, x):
+    """``x += P xc`` on the even rows ``i`` only: before a zebra sweep that starts with the odd lines,
+    which overwrite their own values, only the even rows' correction is ever read."""
     nu = x.shape[0] - 2
     nv = x.shape[1] - 2
-    for i in numba.prange(1, nu + 1):
+    for t in numba.prange(nu // 2):
+        i = 2 * (t + 1)
         I = i // 2
         for j in range(1, nv + 1):
             J = j // 2
-            x[i, j] += (P[i, j, 0] * xc[I, J] + P[i, j, 1] * xc[I + 1, J]
-                        + P[i, j, 2] * xc[I, J + 1] + P[i, j, 3] * xc[I + 1, J + 1])
+            x[i, j] += P[i, j, 0] * xc[I, J] + P[i, j, 2] * xc[I, J + 1]
 
 
 @numba.njit(parallel=True, **_OPTS)

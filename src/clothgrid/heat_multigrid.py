@@ -140,12 +140,13 @@ class _Level:
     x: np.ndarray = field(init=False, repr=False)
     b: np.ndarray = field(init=False, repr=False)
     r: np.ndarray = field(init=False, repr=False)
-    cp: np.ndarray = field(init=False, repr=False)     # line solves' scratch
-    dp: np.ndarray = field(init=False, repr=False)
+    cp: np.ndarray = field(init=False, repr=False)     # the line solves' factors (line_factors)
+    im: np.ndarray = field(init=False, repr=False)
+    dp: np.ndarray = field(init=False, repr=False)     # and their scratch
 
     def __post_init__(self) -> None:
         nu, nv = self.shape
-        self.x, self.b, self.r, self.cp, self.dp = (np.zeros((nu + 2, nv + 2)) for _ in range(5))
+        self.x, self.b, self.r, self.cp, self.im, self.dp = (np.zeros((nu + 2, nv + 2)) for _ in range(6))
 
 
 def _sparse(S: np.ndarray) -> Any:
@@ -196,6 +197,12 @@ class HeatMultigrid:
             self.levels[-1].P = P
             self.levels.append(_Level((ncu, ncv), Sc))
             S = Sc
+        none = np.zeros((1, 1))
+        for lev in self.levels:
+            if lev.S is None:
+                K.line_factors(np.zeros((1, 1, 9)), fine.we, fine.wn, fine.d, True, lev.cp, lev.im)
+            else:
+                K.line_factors(lev.S, none, none, none, False, lev.cp, lev.im)
         from scipy.sparse.linalg import splu
 
         last = self.levels[-1]
@@ -210,38 +217,40 @@ class HeatMultigrid:
         """Zebra line Gauss-Seidel along ``v``: from zero, even lines then odd (pre-smoothing), or odd
         then even (post-smoothing, the adjoint)."""
         lev = self.levels[l]
-        if pre:
-            lev.x.fill(0.0)
         for colour in ((0, 1) if pre else (1, 0)):
+            first = pre and colour == 0
             if l == 0:
                 f = self.fine
-                K.lines5(f.we, f.wn, f.d, lev.b, lev.x, colour, lev.cp, lev.dp)
+                K.lines5(f.we, f.wn, lev.b, lev.x, colour, lev.cp, lev.im, lev.dp, first)
             else:
-                K.lines9(lev.S, lev.b, lev.x, colour, lev.cp, lev.dp)
+                K.lines9(lev.S, lev.b, lev.x, colour, lev.cp, lev.im, lev.dp, first)
 
     def precondition(self, r: np.ndarray, z: np.ndarray) -> None:
-        """``z = M r``: one V(1,1) cycle from zero on ``A z = r`` (padded arrays; ``z`` is overwritten)."""
+        """``z = M r``: one V(1,1) cycle from zero on ``A z = r`` (padded arrays; ``z`` is overwritten).
+
+        The zebra sweeps end (pre-smoothing) with the odd lines solved, so the residual is computed and
+        restricted from the even rows only; they start (post-smoothing) with the odd lines, so the
+        correction is interpolated to the even rows only.
+        """
         top = self.levels[0]
         top.b, top.x = r, z
         last = len(self.levels) - 1
-        if last == 0:
-            z.fill(0.0)
         for l in range(last):
             lev, nxt = self.levels[l], self.levels[l + 1]
             self._smooth(l, True)
             if l == 0:
                 f = self.fine
-                K.residual5(f.we, f.wn, f.c0, lev.b, lev.x, lev.r)
+                K.residual5(f.we, f.wn, f.c0, lev.b, lev.x, lev.r, 2, 2)
             else:
-                K.residual9(lev.S, lev.b, lev.x, lev.r)
-            K.restrict(lev.P, lev.r, nxt.b)
+                K.residual9(lev.S, lev.b, lev.x, lev.r, 2, 2)
+            K.restrict_even(lev.P, lev.r, nxt.b)
         coarse = self.levels[last]
         nu, nv = coarse.shape
         rhs = coarse.b[1:-1, 1:-1].reshape(-1)
-        sol = self._lu.solve(rhs)
-        coarse.x[1:-1, 1:-1] = sol.reshape(nu, nv)
+        coarse.x.fill(0.0)
+        coarse.x[1:-1, 1:-1] = self._lu.solve(rhs).reshape(nu, nv)
         for l in range(last - 1, -1, -1):
-            K.prolong_add(self.levels[l].P, self.levels[l + 1].x, self.levels[l].x)
+            K.prolong_add_even(self.levels[l].P, self.levels[l + 1].x, self.levels[l].x)
             self._smooth(l, False)
 
 
