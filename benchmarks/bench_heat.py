@@ -7,7 +7,9 @@ bottom, 20 C at the top, insulated left and right, a uniform source. FiPy
 (4.x, SciPy solvers) solves it with its default solver (``DefaultSolver``:
 SuperLU at the time of writing) and, with ``--pcg``, also with ``LinearPCGSolver`` (unpreconditioned
 conjugate gradients: it did not reach 1e-10 in 20000 iterations at 256^2, 260 s); clothgrid with
-``solve_steady`` at ``tol=1e-8`` (relative residual). Times are wall seconds
+``solve_steady`` at ``tol=1e-8`` (relative residual), with Numba's threads (all cores) and with one
+thread (FiPy's SuperLU is single-threaded; on a machine shared with other jobs one thread can be
+the faster: a parallel kernel waits for its slowest thread). Times are wall seconds
 for building the problem and solving it (FiPy: mesh, variables, equation,
 solve); Numba's compilation is warmed up first. The largest temperature
 difference between the two is printed too.
@@ -22,8 +24,13 @@ Usage::
 
 from __future__ import annotations
 
+import os
 import sys
 import time
+
+# as `clothgrid heat` does: Numba's OpenMP threads sleep between kernels (spinning, the default, cost each
+# parallel kernel ~15 ms on a loaded machine); before Numba runs its first parallel kernel
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numpy as np
 
@@ -48,12 +55,12 @@ L = 0.004
 SOURCE = 2e4
 
 
-def run_clothgrid(k: np.ndarray) -> tuple[float, np.ndarray, dict]:
+def run_clothgrid(k: np.ndarray, threads: int | None = None) -> tuple[float, np.ndarray, dict]:
     from clothgrid.heat import HeatProblem, solve_steady
 
     t0 = time.perf_counter()
     p = HeatProblem(k, (L, L), bottom=34, top=20, source=SOURCE)
-    res = solve_steady(p, tol=1e-8)
+    res = solve_steady(p, tol=1e-8, threads=threads)
     return time.perf_counter() - t0, res.temperature, res.info
 
 
@@ -77,16 +84,22 @@ def main(sizes: list[int], pcg: bool = False) -> None:
     import fipy
     from clothgrid.heat import HeatProblem, solve_steady
 
+    import numba
+
     solve_steady(HeatProblem(conductivity(64), (L, L), bottom=34, top=20), tol=1e-8)   # warm up Numba
-    print(f"fipy {fipy.__version__} (default solver {fipy.DefaultSolver.__name__}); numpy {np.__version__}")
-    print("| cells | clothgrid s | CG its | FiPy default s | ratio | max dT vs FiPy (K) |"
-          + (" FiPy PCG s | ratio |" if pcg else ""))
-    print("|---|---|---|---|---|---|" + ("---|---|" if pcg else ""))
+    print(f"fipy {fipy.__version__} (default solver {fipy.DefaultSolver.__name__}); numpy {np.__version__}; "
+          f"numba {numba.__version__}, {numba.get_num_threads()} threads, OMP_WAIT_POLICY="
+          f"{os.environ.get('OMP_WAIT_POLICY')}; load average {os.getloadavg()[0]:.1f}; case {CASE}")
+    print(f"| cells | clothgrid s ({numba.get_num_threads()} threads) | clothgrid s (1 thread) | CG its | FiPy default s "
+          "| FiPy / clothgrid (all threads, 1 thread) | max dT vs FiPy (K) |" + (" FiPy PCG s | ratio |" if pcg else ""))
+    print("|---|---|---|---|---|---|---|" + ("---|---|" if pcg else ""))
     for n in sizes:
         k = conductivity(n)
         tc, Tc, info = run_clothgrid(k)
+        t1, T1, _ = run_clothgrid(k, threads=1)
         tf, Tf = run_fipy(k, "default")
-        row = f"| {n}^2 | {tc:.3f} | {info['iterations']} | {tf:.2f} | {tf / tc:.1f}x | {np.abs(Tc - Tf).max():.1e} |"
+        row = (f"| {n}^2 | {tc:.3f} | {t1:.3f} | {info['iterations']} | {tf:.2f} | {tf / tc:.1f}x, {tf / t1:.1f}x "
+               f"| {max(np.abs(Tc - Tf).max(), np.abs(T1 - Tf).max()):.1e} |")
         if pcg:
             tp, _ = run_fipy(k, "pcg")
             row += f" {tp:.2f} | {tp / tc:.1f}x |"

@@ -170,9 +170,44 @@ def test_conductivity_jumps_of_1e4_converge(case, rng):
         k[n // 3:n // 2, n // 4:3 * n // 4] = 250.0
         sides = dict(left=34, right=20)     # insulated bottom and top
     p = HeatProblem(k, (0.01, 0.01), **sides)
-    res = solve_steady(p, tol=1e-11, max_iter=300)
-    assert res.info["converged"] and res.info["residual"] <= 1e-11
-    assert res.info["iterations"] < 150      # the residual-to-error amplification is ~cond(A) ~ 1e8 here
+    # 1e-10, not less: a float64 field cannot do much better here (SciPy's sparse direct solution of the
+    # fabric case has a relative residual of 1.6e-11: the rounding of T ~ 30 C times conductances ~ 500)
+    res = solve_steady(p, tol=1e-10, max_iter=300)
+    assert res.info["converged"] and res.info["residual"] <= 1e-10
+    assert res.info["iterations"] <= 30      # black-box multigrid: 12-16 (the grid solver's V-cycle: up to 92)
+    ref = _direct(p)
+    assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
+
+
+def test_black_box_multigrid_bounds_the_iterations_on_1e4_blocks():
+    """The benchmark's hard case at 256^2 (layers of 0.04 and 0.4 W/(m K), a band of random 0.025 / 250
+    blocks): the grid solver's V-cycle as preconditioner needed 70 CG iterations, black-box multigrid
+    (operator-dependent interpolation) about 10; the answer matches a direct solve."""
+    n, rng = 256, np.random.default_rng(0)
+    k = np.full((n, n), 0.04)
+    k[:, n // 3: 2 * n // 3] = 0.4
+    blocks = np.where(rng.random((32, 32)) < 0.3, 250.0, 0.025).repeat(8, 0).repeat(8, 1)
+    k[:, n // 2 - 16: n // 2 + 16] = blocks[:, n // 2 - 16: n // 2 + 16]
+    p = HeatProblem(k, (0.004, 0.004), bottom=34, top=20, source=2e4)
+    res = solve_steady(p, tol=1e-8, error_bound=True)
+    assert res.info["converged"] and res.info["iterations"] <= 30, res.info
+    ref = _direct(p)
+    err = np.abs(res.temperature - ref).max()
+    assert err < 1e-5 * np.ptp(ref)
+    assert err <= res.info["error_bound"] < 1.0       # finite (0.57 K): its z solve is tightened until it holds
+
+
+@pytest.mark.parametrize("sides", [dict(bottom=34, top=20), dict(left=34, right=20)])
+def test_cells_100_times_wider_than_tall(sides):
+    """Strong coupling along y: the line smoother must solve along it (the problem is oriented so), else
+    red-black points took 300 iterations and lines across it 500+. Measured: 6 with the temperature fixed
+    on the strong axis's sides, 70 on the weak axis's (the grid solver's semi-coarsening: 24 and 8)."""
+    rng = np.random.default_rng(1)
+    k = 10 ** rng.uniform(-1, 1, size=(128, 128))
+    p = HeatProblem(k, (0.01, 0.0001), source=1e3, **sides)
+    res = solve_steady(p, tol=1e-10, max_iter=300)
+    assert res.info["converged"]
+    assert res.info["iterations"] <= (15 if "bottom" in sides else 120), res.info
     ref = _direct(p)
     assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
 

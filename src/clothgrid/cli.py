@@ -274,6 +274,8 @@ def _add_heat_parser(sub: Any) -> None:
                    help="steady: also compute a guaranteed bound on the temperature error (one more solve)")
     h.add_argument("--backend", choices=BACKENDS, default="cpu",
                    help="where the multigrid runs: cpu only for heat (gl and cuda exit 2: docs/heat.md)")
+    h.add_argument("--threads", type=_positive_int, metavar="N",
+                   help="Numba threads for the solve (default: all cores; 1 can be faster on a busy machine)")
     h.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
                    help="output file by extension: .npz (temperature, x, y, conductivity, info), .vts "
                         "(ParaView) or .png (field and isotherms); repeatable")
@@ -283,6 +285,12 @@ def _add_heat_parser(sub: Any) -> None:
 
 def _cmd_heat(args: argparse.Namespace) -> int:
     """``clothgrid heat``: solve, print one summary line, write the outputs (all or none)."""
+    import os
+
+    # Numba's OpenMP threads sleep between kernels instead of spinning: on a machine shared with other jobs
+    # spinning made each parallel kernel of the heat multigrid cost ~15 ms (a 256^2 solve 3.6 s instead of
+    # 0.1 s); read by libgomp when Numba first runs a parallel kernel, so set before any (docs/heat.md)
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     from . import heat
 
     outs = [Path(o) for o in args.output]
@@ -306,11 +314,11 @@ def _cmd_heat(args: argparse.Namespace) -> int:
     progress = _progress(args.quiet)
     if args.dt is None:
         res = heat.solve_steady(problem, backend=args.backend, tol=args.tol, max_iter=args.max_iter,
-                                error_bound=args.error_bound, progress=progress)
+                                error_bound=args.error_bound, progress=progress, threads=args.threads)
     else:
         res = heat.solve_transient(problem, dt=args.dt, steps=args.steps, initial=args.initial,
                                    scheme=args.scheme, save_every=args.save_every, backend=args.backend,
-                                   tol=args.tol, max_iter=args.max_iter, progress=progress)
+                                   tol=args.tol, max_iter=args.max_iter, progress=progress, threads=args.threads)
     info, T = res.info, res.temperature
     flows = res.heat_flows()
     bound = f", error bound {info['error_bound']:.2e} K" if "error_bound" in info else ""

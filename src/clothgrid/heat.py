@@ -33,25 +33,19 @@ outer ring holds the boundary data:
   conductance, ``q_b dy`` enters the boundary cell's right-hand side.
 
 The system ``A T = b`` is symmetric positive definite (an M-matrix). It is
-solved by conjugate gradients preconditioned with one V-cycle of the grid
-solver's multigrid (:mod:`clothgrid.solvers.multigrid`: zebra line
-Gauss-Seidel along ``u``, semi-coarsening along ``v``, Galerkin coarse
-operators built by :func:`clothgrid.multigrid_levels.build_hierarchy`). The
-V-cycle alone stalls on conductivity jumps of 10^4 (its linear interpolation
-along ``v`` does not follow the jumps: measured factor 0.9 per cycle); as a
-preconditioner of CG it converges in 4 to 80 iterations on every case measured
-(docs/heat.md). The grid is oriented so that the sides that fix the
-temperature (fixed temperature, convection) close the coarsened direction
-``v``: insulated ``v``-sides cost the coarse grid its constants (23 instead of
-4 iterations on a uniform medium).
+solved by conjugate gradients preconditioned with one V(1,1) cycle of
+black-box multigrid (:mod:`clothgrid.heat_multigrid`: Dendy's
+operator-dependent interpolation, Galerkin coarse operators, full coarsening,
+symmetric zebra line Gauss-Seidel; Numba kernels). The grid solver's multigrid (linear
+interpolation) stalls on conductivity jumps of 10^4 (0.93 per cycle) and
+needed 70-79 CG iterations on them as a preconditioner; black-box multigrid
+needs 10-16 (docs/heat.md). The grid is oriented so that the line smoother
+solves along the direction of the stronger coupling (``info["transposed"]``).
 
 Time steps are implicit, backward Euler or Crank-Nicolson, with the mass
-``rho c dx dy / dt`` on the diagonal: the hierarchy's level 0 is then a
-9-point level with an explicit centre, which only the cpu backend's
-multigrid takes. The gl and cuda backends run neither: the conjugate
-gradient wrapper gives the V-cycle a new right-hand side every iteration,
-which :class:`~clothgrid.backends.protocol.MultigridOps` cannot reload on a
-device without rebuilding the hierarchy there (see docs/heat.md).
+``rho c dx dy / dt`` on the diagonal of level 0. The multigrid runs on the CPU
+only: the gl and cuda backends supply the grid solver's multigrid, not this
+one (docs/heat.md says what running there would take).
 
 Stopping: the relative residual ``||b - A T|| / ||b||`` (2-norm), recomputed
 from the final temperature in float64, must be at most ``tol`` for
@@ -71,7 +65,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .errors import BackendUnavailableError, InputError, NotConvergedError
-from .multigrid_levels import Level, build_hierarchy, coarsen
+from .heat_multigrid import HeatMultigrid, Stencil5, numba_threads, padded, pcg
 from .weights import Weights
 
 __all__ = ["Side", "temperature", "flux", "convection", "INSULATED", "parse_side", "load_field", "HeatProblem",
@@ -427,116 +421,64 @@ class HeatProblem:
 
 
 class _Operator:
-    """``A + diag(shift)`` of a problem on one orientation, with its multigrid hierarchy.
+    """``A + diag(shift)`` of a problem on one orientation, with its black-box multigrid hierarchy.
 
-    ``transpose`` swaps x and y so that the coarsened direction ``v`` is the
-    one closed by fixing sides. ``scale`` multiplies the conductances (0.5 for
+    ``transpose`` swaps x and y so that ``v``, along which the multigrid's
+    line smoother solves, is the direction of the stronger coupling
+    (:func:`_transpose_for`). ``scale`` multiplies the conductances (0.5 for
     Crank-Nicolson).
     """
 
-    def __init__(self, weights: Weights, shift: np.ndarray | None, transpose: bool, backend: Any,
-                 scale: float = 1.0):
+    def __init__(self, weights: Weights, shift: np.ndarray | None, transpose: bool, scale: float = 1.0):
         wu, wv = weights.wu * scale, weights.wv * scale
         if transpose:
             wu, wv = wv.T.copy(), wu.T.copy()
-        self.wu, self.wv, self.transpose, self.backend = wu, wv, transpose, backend
+        self.wu, self.wv, self.transpose = wu, wv, transpose
         self.shift = None if shift is None else (shift.T.copy() if transpose else shift)
-        nu, nv = wv.shape[0], wu.shape[1]
-        self.shape = (nu - 2, nv - 2)
-        if self.shift is None:
-            self.levels = build_hierarchy(Weights(wu=wu, wv=wv, kind="heat"))
-        else:
-            C = np.zeros((nu, nv))
-            C[1:-1, 1:-1] = wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:] + self.shift
-            E, N = np.zeros((nu, nv)), np.zeros((nu, nv))
-            E[:-1], N[:, :-1] = wu, wv
-            zero = np.zeros((nu, nv))
-            levels = [Level(C=C, E=E, N=N, NE=zero, NW=zero)]
-            while levels[-1].shape[1] > 3:
-                levels.append(coarsen(levels[-1]))
-            self.levels = levels
-        self._pad = np.zeros((nu, nv, 1))
-        self._ops: Any = None
+        self.stencil = Stencil5.from_weights(wu, wv, self.shift)
+        self.shape = self.stencil.shape
+        self._mg: HeatMultigrid | None = None
+
+    @property
+    def multigrid(self) -> HeatMultigrid:
+        """The hierarchy, built on first use."""
+        if self._mg is None:
+            self._mg = HeatMultigrid(self.stencil)
+        return self._mg
 
     def orient(self, a: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(a.T) if self.transpose else a
 
     def apply(self, p: np.ndarray) -> np.ndarray:
-        """``(A + shift) p`` for an interior array ``p`` (ring zero)."""
-        self._pad[1:-1, 1:-1, 0] = p
-        out = -self.backend.residual(self._pad, self.wu, self.wv)[..., 0]
-        if self.shift is not None:
-            out += self.shift * p
-        return out
-
-    def precondition(self, r: np.ndarray) -> np.ndarray:
-        """One V(1,1) cycle of the multigrid from zero on ``A z = r``."""
-        from .solvers.multigrid import vcycle
-
-        if self._ops is None:
-            self._ops = self.backend.multigrid(self.levels, np.zeros(self._pad.shape), rhs=r[..., None])
-        else:   # the cpu operations take a new right-hand side without rebuilding (CpuMultigrid.load)
-            self._ops.load(np.zeros(self._pad.shape), r[..., None])
-        ops = self._ops
-        vcycle(ops)
-        return ops.solution()[1:-1, 1:-1, 0]
+        """``(A + shift) p`` for an interior array ``p``."""
+        return self.stencil.apply(padded(p))[1:-1, 1:-1]
 
     def diagonal(self) -> np.ndarray:
-        wu, wv = self.wu, self.wv
-        d = wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
-        return d + self.shift if self.shift is not None else d
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    """``sum(a * b)`` without BLAS: OpenBLAS's threads, started after Numba's have run, made each
-    dot product 100x slower on a loaded machine (8 ms instead of 0.08 ms at 256^2)."""
-    return float(np.multiply(a, b).sum())
+        return self.stencil.d[1:-1, 1:-1].copy()
 
 
 def _pcg(op: _Operator, b: np.ndarray, x: np.ndarray, tol: float, max_iter: int) -> tuple[np.ndarray, int, float]:
-    """Flexible preconditioned CG on ``op x = b`` from ``x``; stops on the true relative residual.
+    """Preconditioned CG on ``op x = b`` from ``x`` (:func:`clothgrid.heat_multigrid.pcg`).
 
     Returns ``(x, iterations, relative residual ||b - A x|| / ||b||)`` (the
     residual recomputed from ``x`` at the end).
     """
-    nb = math.sqrt(_dot(b, b))
-    if nb == 0.0:
-        return np.zeros_like(b), 0, 0.0
-    r = b - op.apply(x)
-    rel = math.sqrt(_dot(r, r)) / nb
-    it = 0
-    while rel > tol and it < max_iter:
-        z = op.precondition(r)
-        p = z.copy()
-        rz = _dot(r, z)
-        while it < max_iter:
-            q = op.apply(p)
-            pq = _dot(p, q)
-            if not pq > 0:
-                break
-            a = rz / pq
-            x += a * p
-            r -= a * q
-            it += 1
-            rel = math.sqrt(_dot(r, r)) / nb
-            if rel <= tol:
-                break
-            z_new = op.precondition(r)
-            rz_new = _dot(r, z_new)
-            beta = (rz_new - _dot(r, z)) / rz    # flexible (Polak-Ribiere): float32 coarse levels
-            z, rz = z_new, rz_new
-            p = z + beta * p
-        r = b - op.apply(x)                           # the true residual: restart if the recursion drifted
-        rel = math.sqrt(_dot(r, r)) / nb
-    return x, it, rel
+    xp = padded(x)
+    it, rel = pcg(op.multigrid, padded(b), xp, tol, max_iter)
+    return xp[1:-1, 1:-1].copy(), it, rel
 
 
 def _error_bound(op: _Operator, b: np.ndarray, x: np.ndarray, max_iter: int) -> float:
-    """Guaranteed ``max |T* - T|`` (kelvin): ``max |D^-1 r| * max z``, ``D^-1 A z = 1`` (bounds.py's barrier)."""
+    """Guaranteed ``max |T* - T|`` (kelvin): ``max |D^-1 r| * max z / (1 - delta)`` with ``A z ~ D 1`` solved
+    until its Jacobi-scaled residual ``delta`` is at most 0.5 (bounds.py's barrier)."""
     d = op.diagonal()
     step = float(np.max(np.abs(b - op.apply(x)) / d))
-    z, _, _ = _pcg(op, d.copy(), np.zeros_like(d), 1e-3, max_iter)
-    delta = float(np.max(np.abs(d - op.apply(z)) / d))   # A z >= (1 - delta) D 1, and A^-1 >= 0
+    z = np.zeros_like(d)
+    for tol_z in (1e-3, 1e-5, 1e-7, 1e-9, 1e-11):   # a 2-norm tolerance does not bound the largest |r_i| / d_i
+        z, _, _ = _pcg(op, d, z, tol_z, max_iter)
+        delta = float(np.max(np.abs(d - op.apply(z)) / d))   # A z >= (1 - delta) D 1, and A^-1 >= 0
+        if delta <= 0.5:
+            break
     if not delta < 1:
         return math.inf
     return step * float(np.max(z)) / (1.0 - delta)
@@ -550,17 +492,16 @@ def _backend(name: str) -> Any:
 
         load_backend(name)   # an unknown name raises its usual InputError
         raise BackendUnavailableError(
-            f"heat runs on the cpu backend only, not {name!r}: its conjugate-gradient wrapper gives the "
-            "multigrid a new right-hand side every iteration and time steps need a mass diagonal on the "
-            "finest level, neither of which the gl and cuda multigrid operations take (docs/heat.md)")
+            f"heat runs on the cpu backend only, not {name!r}: its black-box multigrid (operator-dependent "
+            "interpolation, Numba kernels) has no gl or cuda implementation yet (docs/heat.md)")
     return get_backend("cpu")
 
 
-def _transpose_for(problem: HeatProblem) -> bool:
-    """Whether to swap x and y: the coarsened direction v should be closed by fixing sides."""
-    fx = problem.left.fixes + problem.right.fixes
-    fy = problem.bottom.fixes + problem.top.fixes
-    return fx > fy
+def _transpose_for(weights: Weights) -> bool:
+    """Whether to swap x and y: the multigrid's line smoother solves along ``v``, which should be the
+    direction of the stronger coupling (the larger total conductance between cells): with cells 100 times
+    wider than tall, lines across the strong coupling took 500+ iterations, along it 6."""
+    return float(np.sum(weights.wu[1:-1, 1:-1])) > float(np.sum(weights.wv[1:-1, 1:-1]))
 
 
 @dataclass
@@ -695,7 +636,7 @@ def plot_temperature(res: HeatResult, path: str | Path, *, title: str | None = N
 
 def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-8, max_iter: int = 500,
                  error_bound: bool = False, allow_unconverged: bool = False,
-                 progress: Callable[[str], None] | None = None) -> HeatResult:
+                 progress: Callable[[str], None] | None = None, threads: int | None = None) -> HeatResult:
     """Steady temperature: ``-div(k grad T) = q`` with the problem's boundary conditions.
 
     Parameters
@@ -715,6 +656,10 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
         Return the result instead of raising :class:`~clothgrid.errors.NotConvergedError`.
     progress : callable, optional
         Receives one line when done.
+    threads : int, optional
+        Numba threads for the solve (default: Numba's, all cores). On a
+        machine shared with other jobs 1 can be faster: a parallel kernel waits
+        for its slowest thread (docs/heat.md).
 
     Returns
     -------
@@ -724,26 +669,27 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
         raise InputError("a steady problem needs a side with a fixed temperature or convection: with every side "
                          "insulated or at a fixed flux the temperature is not determined")
     tol = _check_tol(tol)
-    be = _backend(backend)
-    t0 = time.perf_counter()
-    weights, ring, rhs = problem.system()
-    transpose = _transpose_for(problem)
-    op = _Operator(weights, None, transpose, be)
-    b = op.orient(rhs) + _ring_load(op, ring)
-    x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
-    info = _info(problem, op, it, rel, tol, backend="cpu")
-    if error_bound:
-        info["error_bound"] = _error_bound(op, b, x, max_iter)
-    info["seconds"] = time.perf_counter() - t0
-    T = op.orient(x)
-    res = HeatResult(T, *problem.centres(), problem, info)
-    if progress:
-        progress(f"heat: steady, {problem.cells[0]} x {problem.cells[1]} cells, {it} CG iterations, "
-                 f"relative residual {rel:.2e} (tol {tol:.1e}), {info['seconds']:.3f} s")
-    if not info["converged"] and not allow_unconverged:
-        raise NotConvergedError(f"heat: the relative residual {rel:.2e} is above tol {tol:.1e} after {it} "
-                                "iterations", grid=res)
-    return res
+    _backend(backend)
+    with numba_threads(threads):
+        t0 = time.perf_counter()
+        weights, ring, rhs = problem.system()
+        transpose = _transpose_for(weights)
+        op = _Operator(weights, None, transpose)
+        b = op.orient(rhs) + _ring_load(op, ring)
+        x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
+        info = _info(problem, op, it, rel, tol, backend="cpu")
+        if error_bound:
+            info["error_bound"] = _error_bound(op, b, x, max_iter)
+        info["seconds"] = time.perf_counter() - t0
+        T = op.orient(x)
+        res = HeatResult(T, *problem.centres(), problem, info)
+        if progress:
+            progress(f"heat: steady, {problem.cells[0]} x {problem.cells[1]} cells, {it} CG iterations, "
+                     f"relative residual {rel:.2e} (tol {tol:.1e}), {info['seconds']:.3f} s")
+        if not info["converged"] and not allow_unconverged:
+            raise NotConvergedError(f"heat: the relative residual {rel:.2e} is above tol {tol:.1e} after {it} "
+                                    "iterations", grid=res)
+        return res
 
 
 def _check_tol(tol: float) -> float:
@@ -755,23 +701,29 @@ def _check_tol(tol: float) -> float:
 
 def _ring_load(op: _Operator, ring: np.ndarray) -> np.ndarray:
     """What the ring nodes' temperatures put on the boundary cells: ``sum w * T_ring``."""
-    g = op.orient(ring)[..., None]
-    pad = g.copy()
-    pad[1:-1, 1:-1] = 0.0
-    return op.backend.residual(pad, op.wu, op.wv)[..., 0]
+    g, wu, wv = op.orient(ring), op.wu, op.wv
+    load = np.zeros(op.shape)
+    load[0] += wu[0, 1:-1] * g[0, 1:-1]
+    load[-1] += wu[-1, 1:-1] * g[-1, 1:-1]
+    load[:, 0] += wv[1:-1, 0] * g[1:-1, 0]
+    load[:, -1] += wv[1:-1, -1] * g[1:-1, -1]
+    return load
 
 
 def _info(problem: HeatProblem, op: _Operator, it: int, rel: float, tol: float, backend: str) -> dict[str, Any]:
+    import numba
+
     return {"solver": "pcg-multigrid", "backend": backend, "iterations": int(it), "residual": float(rel),
-            "tol": float(tol), "converged": bool(rel <= tol), "levels": len(op.levels),
-            "transposed": bool(op.transpose), "cells": list(problem.cells), "size_m": list(problem.size),
+            "tol": float(tol), "converged": bool(rel <= tol), "levels": len(op.multigrid),
+            "transposed": bool(op.transpose), "threads": numba.get_num_threads(), "cells": list(problem.cells), "size_m": list(problem.size),
             "sides": {s: str(getattr(problem, s)) for s in SIDES}}
 
 
 def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any = 20.0,
                     scheme: str = "crank-nicolson", save_every: int | None = None, backend: str = "cpu",
                     tol: float = 1e-8, max_iter: int = 500, allow_unconverged: bool = False,
-                    progress: Callable[[str], None] | None = None, progress_every: int | None = None) -> HeatResult:
+                    progress: Callable[[str], None] | None = None, progress_every: int | None = None,
+                    threads: int | None = None) -> HeatResult:
     """Implicit time steps of ``rho c dT/dt = div(k grad T) + q``.
 
     Parameters
@@ -788,7 +740,7 @@ def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any
         Second-order Crank-Nicolson or first-order (L-stable) backward Euler.
     save_every : int, optional
         Keep the field every this many steps in ``history`` (and the initial one).
-    backend, tol, max_iter, allow_unconverged
+    backend, tol, max_iter, allow_unconverged, threads
         As in :func:`solve_steady` (``tol`` per step).
     progress : callable, optional
         Receives a line per batch of ``progress_every`` steps (default: about 10 lines).
@@ -807,46 +759,45 @@ def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any
         raise InputError(f"steps must be an integer >= 1, not {steps!r}")
     steps = int(steps)
     tol = _check_tol(tol)
-    be = _backend(backend)
-    t0 = time.perf_counter()
-    T = np.broadcast_to(load_field(initial, name="initial temperature", shape=problem.cells, positive=False),
-                        problem.cells).astype(np.float64)
-    weights, ring, rhs = problem.system()
-    transpose = _transpose_for(problem)
-    m = problem.mass() / dt
-    half = scheme == "crank-nicolson"
-    op = _Operator(weights, m, transpose, be, scale=0.5 if half else 1.0)
-    steady = _Operator.__new__(_Operator)   # A alone, for the explicit half of Crank-Nicolson
-    steady.wu, steady.wv, steady.shift, steady.backend, steady.transpose = op.wu, op.wv, None, be, transpose
-    steady._pad = np.zeros_like(op._pad)
-    mo = op.orient(m)
-    load = op.orient(rhs) + _ring_load(op, ring) * (2.0 if half else 1.0)   # ring load of the unscaled A
-    x = op.orient(T).copy()
-    total, worst = 0, 0.0
-    times, history = ([0.0], [T.copy()]) if save_every else (None, None)
-    every = progress_every or max(1, steps // 10)
-    t_batch = time.perf_counter()
-    for n in range(1, steps + 1):
-        b = mo * x + load
-        if half:
-            b -= steady.apply(x)        # (M/dt - A/2) T_n + b with op = M/dt + A/2 (its A already halved)
-        x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
-        total += it
-        worst = max(worst, rel)
-        if rel > tol and not allow_unconverged:
-            raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
-                                    f"after {it} iterations")
-        if save_every and n % save_every == 0:
-            times.append(n * dt)
-            history.append(op.orient(x).copy())
-        if progress and (n % every == 0 or n == steps):
-            progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
-                     f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
-            t_batch = time.perf_counter()
-    info = _info(problem, op, total, worst, tol, backend="cpu")
-    info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
-    info["residual_note"] = "largest relative residual over the steps"
-    out = op.orient(x)
-    return HeatResult(out, *problem.centres(), problem, info,
-                      times=None if times is None else np.asarray(times),
-                      history=None if history is None else np.stack(history))
+    _backend(backend)
+    with numba_threads(threads):
+        t0 = time.perf_counter()
+        T = np.broadcast_to(load_field(initial, name="initial temperature", shape=problem.cells, positive=False),
+                            problem.cells).astype(np.float64)
+        weights, ring, rhs = problem.system()
+        transpose = _transpose_for(weights)
+        m = problem.mass() / dt
+        half = scheme == "crank-nicolson"
+        op = _Operator(weights, m, transpose, scale=0.5 if half else 1.0)
+        steady = Stencil5.from_weights(op.wu, op.wv)   # A alone (halved), for the explicit half of Crank-Nicolson
+        mo = op.orient(m)
+        load = op.orient(rhs) + _ring_load(op, ring) * (2.0 if half else 1.0)   # ring load of the unscaled A
+        x = op.orient(T).copy()
+        total, worst = 0, 0.0
+        times, history = ([0.0], [T.copy()]) if save_every else (None, None)
+        every = progress_every or max(1, steps // 10)
+        t_batch = time.perf_counter()
+        for n in range(1, steps + 1):
+            b = mo * x + load
+            if half:
+                b -= steady.apply(padded(x))[1:-1, 1:-1]   # (M/dt - A/2) T_n + b, op = M/dt + A/2
+            x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
+            total += it
+            worst = max(worst, rel)
+            if rel > tol and not allow_unconverged:
+                raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
+                                        f"after {it} iterations")
+            if save_every and n % save_every == 0:
+                times.append(n * dt)
+                history.append(op.orient(x).copy())
+            if progress and (n % every == 0 or n == steps):
+                progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
+                         f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
+                t_batch = time.perf_counter()
+        info = _info(problem, op, total, worst, tol, backend="cpu")
+        info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
+        info["residual_note"] = "largest relative residual over the steps"
+        out = op.orient(x)
+        return HeatResult(out, *problem.centres(), problem, info,
+                          times=None if times is None else np.asarray(times),
+                          history=None if history is None else np.stack(history))
