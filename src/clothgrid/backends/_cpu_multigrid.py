@@ -62,7 +62,7 @@ def _line_range(nv, p):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
+def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb, scr):
     """Level 0: solve the interior rows of parity ``p`` exactly along ``i``, ``mb`` rows a block."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
@@ -73,8 +73,8 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb          # own rows
         ta, tz = m0 + ob, m0 + ob + nb   # rows below, in the other parity
-        g = np.empty((nu, mb))
-        iv = np.empty((nu, mb))
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
         g[0] = 0.0
         for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, ta:tz], No[i, a:z]
@@ -102,7 +102,7 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
+def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb, scr):
     """Coarse levels: the same line solves for a 9-point stencil."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
@@ -113,8 +113,8 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb
         ta, tz = m0 + ob, m0 + ob + nb
-        g = np.empty((nu, mb), dtype=xo.dtype)
-        iv = np.empty((nu, mb), dtype=xo.dtype)
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
         g[0] = 0.0
         for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             ci, elo, ehi = Co[i, a:z], Eo[i - 1, a:z], Eo[i, a:z]
@@ -144,7 +144,7 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb):
+def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb, scr):
     """Coarse levels of separable weights: :func:`_relax9` with the stencil formed on the fly.
 
     The stencil is ``Ku (x) M + Du (x) K`` (:class:`~clothgrid.multigrid_levels.Separable`):
@@ -160,10 +160,9 @@ def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb
         ta, tz = m0 + ob, m0 + ob + nb
-        g = np.empty((nu, mb), dtype=xo.dtype)
-        iv = np.empty((nu, mb), dtype=xo.dtype)
-        nlo = np.empty(mb, dtype=xo.dtype)
-        nhi = np.empty(mb, dtype=xo.dtype)
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
+        nlo, nhi = g[nu], iv[nu]
         g[0] = 0.0
         md, mu, kd, ku, mt, kt = mdo[a:z], muo[a:z], kdo[a:z], kuo[a:z], mut[ta:tz], kut[ta:tz]
         for i in range(1, nu - 1):
@@ -528,6 +527,12 @@ class CpuMultigrid:
             self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
         self.sep = [False]
         dt = np.float32
+        # The line solves' scratch (Thomas factors of one block of rows per thread), allocated
+        # once: a fresh 1-2 MB array per block and sweep cost page faults, up to half a sweep's time.
+        # Every level has the finest level's columns.
+        nthreads = numba.config.NUMBA_NUM_THREADS
+        self._scr = {np.dtype(t): np.empty((nthreads, 2, x0.shape[0] + 1, self.mb), dtype=t)
+                     for t in (np.float64, np.float32)}
         for lv in levels[1:]:
             nu, nv = lv.shape
             self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
@@ -564,25 +569,26 @@ class CpuMultigrid:
     def smooth(self, level: int, reverse: bool = False) -> None:
         """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
+        scr = self._scr[xe.dtype]
         for p in ((1, 0) if reverse else (0, 1)):
             own, other = (xe, xo) if p == 0 else (xo, xe)
             b = be if p == 0 else bo
             if level == 0 and not self.nine0:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
-                                                    p, nv, self._has_b, self.mb)
+                                                    p, nv, self._has_b, self.mb, scr)
             elif self.sep[level]:
                 cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo = st
                 q = 1 - p
                 md, mu, kd, ku = (mde, mdo), (mue, muo), (kde, kdo), (kue, kuo)
                 _pick("_relax9s", self.nodes[level])(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
-                                                     mu[q], ku[q], p, nv, self.mb)
+                                                     mu[q], ku[q], p, nv, self.mb, scr)
             else:
                 Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
                 q = 1 - p
                 _pick("_relax9", self.nodes[level])(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
                                                     (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
-                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, self.mb)
+                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, self.mb, scr)
 
     def restrict(self, level: int) -> None:
         """``b[l+1] = P^T (b[l] - A x[l])`` from the even rows (the odd rows' residual is zero
