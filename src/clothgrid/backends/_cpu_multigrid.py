@@ -212,88 +212,131 @@ def _zero_rows(i, a, b, c, d):
     d[:, i, :] = 0.0
 
 
+# Restriction: the residual of one column ``i`` is formed in a contiguous row of the
+# per-thread scratch ``rows`` (``row[J]``, coarse row J = fine row 2J, zero at J = 0 and
+# nc - 1), then stored by J's parity in two strided loops; the coarse corrections are
+# zeroed, and the right-hand sides written once (no zero-fill first).
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
+def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco, rows):
     """Coarse right-hand side from level 0's even rows (the odd rows' residual is zero
     after pre-smoothing); coarse row J is fine row 2J, stored by J's parity."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = bce.shape[2] + bco.shape[2]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
     for i in numba.prange(nu):
-        _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
             continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
+        elo, ehi, nlo, nhi = Ee[i - 1, 1:nc - 1], Ee[i, 1:nc - 1], No[i, 0:nc - 2], Ne[i, 1:nc - 1]
         for c in range(k):
-            for J in range(1, nc - 1):
-                r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+            xm, x0, xp = xe[c, i - 1, 1:nc - 1], xe[c, i, 1:nc - 1], xe[c, i + 1, 1:nc - 1]
+            tlo, thi = xo[c, i, 0:nc - 2], xo[c, i, 1:nc - 1]
+            r = row[1:nc - 1]
+            for q in range(nc - 2):
+                r[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                        + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+            if has_b:
+                bi = be[c, i, 1:nc - 1]
+                for q in range(nc - 2):
+                    r[q] += bi[q]
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco):
+def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco, rows):
     k, nu = xe.shape[0], xe.shape[1]
-    nc = bce.shape[2] + bco.shape[2]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
     for i in numba.prange(nu):
-        _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
             continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
         for c in range(k):
             x = xe[c]
             t = xo[c]
             for J in range(1, nc - 1):
                 m = J
                 mb = m - 1
-                r = (be[c, i, m] - Ce[i, m] * x[i, m] + Ee[i - 1, m] * x[i - 1, m] + Ee[i, m] * x[i + 1, m]
-                     + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
-                     + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
-                     + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+                row[J] = (be[c, i, m] - Ce[i, m] * x[i, m] + Ee[i - 1, m] * x[i - 1, m] + Ee[i, m] * x[i + 1, m]
+                          + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
+                          + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
+                          + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco, xce, xco):
+def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco, xce, xco, rows):
     """:func:`_restrict9` for a separable level (the stencil formed on the fly, see :func:`_relax9s`)."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = bce.shape[2] + bco.shape[2]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
     for i in numba.prange(nu):
-        _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
             continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
         cl, cr, kk, dd = cu[i - 1], cu[i], kud[i], du[i]
+        n = nc - 2
+        md, mu, kd, ku, mo, ko = mde[1:nc - 1], mue[1:nc - 1], kde[1:nc - 1], kue[1:nc - 1], muo[0:n], kuo[0:n]
         for c in range(k):
-            x = xe[c]
-            t = xo[c]
-            for J in range(1, nc - 1):
-                m = J
-                mb = m - 1
-                r = (be[c, i, m] - (kk * mde[m] + dd * kde[m]) * x[i, m]
-                     + mde[m] * (cl * x[i - 1, m] + cr * x[i + 1, m])
-                     - (kk * muo[mb] + dd * kuo[mb]) * t[i, mb] - (kk * mue[m] + dd * kue[m]) * t[i, mb + 1]
-                     + mue[m] * (cr * t[i + 1, mb + 1] + cl * t[i - 1, mb + 1])
-                     + muo[mb] * (cl * t[i - 1, mb] + cr * t[i + 1, mb]))
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+            bi = be[c, i, 1:nc - 1]
+            xm, x0, xp = xe[c, i - 1, 1:nc - 1], xe[c, i, 1:nc - 1], xe[c, i + 1, 1:nc - 1]
+            tm_lo, t0_lo, tp_lo = xo[c, i - 1, 0:n], xo[c, i, 0:n], xo[c, i + 1, 0:n]
+            tm_hi, t0_hi, tp_hi = xo[c, i - 1, 1:n + 1], xo[c, i, 1:n + 1], xo[c, i + 1, 1:n + 1]
+            r = row[1:nc - 1]
+            for q in range(n):
+                r[q] = (bi[q] - (kk * md[q] + dd * kd[q]) * x0[q]
+                        + md[q] * (cl * xm[q] + cr * xp[q])
+                        - (kk * mo[q] + dd * ko[q]) * t0_lo[q] - (kk * mu[q] + dd * ku[q]) * t0_hi[q]
+                        + mu[q] * (cr * tp_hi[q] + cl * tm_hi[q])
+                        + mo[q] * (cl * tm_lo[q] + cr * tp_lo[q]))
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _prolong(xe, xce, xco):
     """Add the coarse correction to the even rows (odd rows are re-solved next)."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = xce.shape[2] + xco.shape[2]
+    nce, nco = xce.shape[2], xco.shape[2]
+    nc = nce + nco
     for i in numba.prange(1, nu - 1):
         for c in range(k):
-            for J in range(1, nc - 1):
-                if J % 2 == 0:
-                    xe[c, i, J] += xce[c, i, J // 2]
-                else:
-                    xe[c, i, J] += xco[c, i, J // 2]
+            x, ce, co = xe[c, i], xce[c, i], xco[c, i]
+            for K in range(1, (nc - 2) // 2 + 1):      # J = 2K <= nc - 2
+                x[2 * K] += ce[K]
+            for K in range(0, (nc - 3) // 2 + 1):      # J = 2K + 1 <= nc - 2
+                x[2 * K + 1] += co[K]
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -533,6 +576,7 @@ class CpuMultigrid:
         nthreads = numba.config.NUMBA_NUM_THREADS
         self._scr = {np.dtype(t): np.empty((nthreads, 2, x0.shape[0] + 1, self.mb), dtype=t)
                      for t in (np.float64, np.float32)}
+        self._rows = np.empty((nthreads, x0.shape[1] + 2))   # restriction's residual rows, per thread
         for lv in levels[1:]:
             nu, nv = lv.shape
             self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
@@ -597,15 +641,15 @@ class CpuMultigrid:
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
         if level == 0 and not self.nine0:
             Ee, _, Ne, No = st
-            _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco)
+            _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco, self._rows)
         elif self.sep[level]:
             cu, kud, du, mde, _, mue, muo, kde, _, kue, kuo = st
             _pick("_restrict9s", self.nodes[level])(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo,
-                                                    bce, bco, xce, xco)
+                                                    bce, bco, xce, xco, self._rows)
         else:
             Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
             _pick("_restrict9", self.nodes[level])(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
-                                                   bce, bco, xce, xco)
+                                                   bce, bco, xce, xco, self._rows)
 
     def prolong(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""

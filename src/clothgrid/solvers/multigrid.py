@@ -156,7 +156,10 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     if nu < 3 or nv < 3 or not active:
         return SolveResult(problem.r0.copy(), iterations=0, error_estimate=0.0, converged=True)
     levels = build_hierarchy(problem.weights)
-    ops = backend.multigrid(levels, problem.r0[..., active])
+    contiguous = active == list(range(active[0], active[-1] + 1))
+    # a view where the active coordinates are contiguous: no copy of the grid (16-24 MB at 1024^2)
+    x0 = problem.r0[..., active[0]:active[-1] + 1] if contiguous else problem.r0[..., active]
+    ops = backend.multigrid(levels, x0)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
     setup = time.perf_counter() - t0
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
@@ -182,7 +185,6 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     t_download = time.perf_counter()
     # The inactive coordinates (zero) and the boundary nodes are r0's own.
     out = problem.r0 if problem.overwrite else problem.r0.copy()
-    contiguous = active == list(range(active[0], active[-1] + 1))
     if contiguous:   # a view: no temporary grid on the cpu and cuda backends (400 MB at 4096^2)
         ops.solution_into(out[..., active[0]:active[-1] + 1])
     else:
