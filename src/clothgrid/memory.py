@@ -27,7 +27,7 @@ import os
 
 from .errors import SizeError
 
-__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes", "FIT_FRACTION",
+__all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes", "discard", "FIT_FRACTION",
            "KEPT_BYTES_PER_NODE"]
 
 PIPELINE_BYTES_PER_NODE = 80
@@ -113,3 +113,46 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
                         f"{have / scale:.4g} {unit_of} available is {FIT_FRACTION * have / scale:.4g} {unit_of}: "
                         f"{hint}")
     return need
+
+
+def discard(a) -> int:
+    """Give the memory pages of ``a``'s buffer back to the system; its contents then read as zero.
+
+    For an array whose contents are dead but which must stay allocated, e.g. the grid a solve
+    writes its solution into (:attr:`clothgrid.solvers.problem.Problem.overwrite`): while the solver
+    holds the iterate in its own layout, the grid costs no resident memory (400 MB at 4096^2).
+    Only whole pages inside the buffer are released (the partial first and last pages keep their
+    contents). Linux only (``madvise(MADV_DONTNEED)`` on a private anonymous mapping, which
+    NumPy's large arrays are); elsewhere, or for a non-contiguous array, nothing happens.
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        A C-contiguous array that owns its memory or views all of it.
+
+    Returns
+    -------
+    int
+        Bytes released (0 where nothing was done).
+    """
+    import sys
+
+    if not sys.platform.startswith("linux") or not a.flags.c_contiguous or a.nbytes == 0:
+        return 0
+    import ctypes
+    import mmap
+
+    page = mmap.PAGESIZE
+    addr = a.ctypes.data
+    start = -(-addr // page) * page
+    end = (addr + a.nbytes) // page * page
+    if end <= start:
+        return 0
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.madvise.argtypes = (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int)
+        if libc.madvise(ctypes.c_void_p(start), ctypes.c_size_t(end - start), 4) != 0:   # MADV_DONTNEED
+            return 0
+    except (OSError, AttributeError):
+        return 0
+    return end - start

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..backends.protocol import Backend, MultigridOps
 from ..errors import InputError
+from ..memory import discard
 from ..multigrid_levels import Level, Separable, build_hierarchy, coarse_rows
 from ..weights import Weights
 from .bounds import barrier_max
@@ -53,6 +54,10 @@ __all__ = ["Level", "Separable", "MultigridOps", "build_hierarchy", "coarse_rows
 
 # V-cycles allowed by default: far more than the 3-15 a solve needs.
 DEFAULT_MAX_CYCLES = 100
+
+# A grid the solve may overwrite gives its pages back during the cycles from this size on (4096^2:
+# 400 MB); below it, faulting them in again for the solution costs more time than the memory is worth.
+DISCARD_MIN_BYTES = 128 << 20
 
 # Start with a full-multigrid pass (every backend supplies ``restrict_full`` and ``prolong_full``).
 FULL_MULTIGRID_START = True
@@ -161,6 +166,13 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     x0 = problem.r0[..., active[0]:active[-1] + 1] if contiguous else problem.r0[..., active]
     ops = backend.multigrid(levels, x0)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
+    ring = None
+    if problem.overwrite and problem.r0.nbytes >= DISCARD_MIN_BYTES:
+        # The iterate lives in ops now, and the solution comes back into r0: until then r0's
+        # contents are dead (its boundary ring aside, kept here), and its pages go back to the
+        # system (400 MB at 4096^2). Inactive coordinates are zero, as the released pages read.
+        ring = _ring(problem.r0)
+        discard(problem.r0)
     setup = time.perf_counter() - t0
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
                        _barrier_solver(problem, backend, levels))
@@ -189,6 +201,8 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
         ops.solution_into(out[..., active[0]:active[-1] + 1])
     else:
         out[..., active] = ops.solution()
+    if ring is not None:
+        _ring(out, ring)
     factors = [b / a for a, b in zip(steps, steps[1:]) if a > 0]
     extra = {"levels": len(levels), "setup_seconds": setup, "cycle_seconds": cycles,
              "download_seconds": time.perf_counter() - t_download,
@@ -197,6 +211,16 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     extra.update(ops.extra())   # e.g. the gl backend's pass counts and timings ({} on the cpu)
     return SolveResult(out, iterations=len(steps), error_estimate=step * zmax / problem.scale,
                        converged=step <= limit, extra=extra)
+
+
+def _ring(r: np.ndarray, put: tuple | None = None) -> tuple | None:
+    """The boundary nodes of ``r`` (copies of its four sides), or, with ``put``, write them back."""
+    sides = (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1])
+    if put is None:
+        return tuple(r[s].copy() for s in sides)
+    for s, v in zip(sides, put):
+        r[s] = v
+    return None
 
 
 def _barrier_solver(problem: Problem, backend: Backend, levels: list[Level]) -> Callable[[np.ndarray], np.ndarray]:
