@@ -12,12 +12,18 @@ solver:
 - ``direct``: the sparse LU factors, whose fill on an ``N``-node grid was
   measured at ``N (6.5 log2 N - 52)`` entries, about 24 bytes each at peak;
 - ``jacobi``: one extra grid;
-- ``multigrid``: the float64 iterate and float32 coarse levels (about as many
-  nodes again), 68 bytes per node for three coordinates (48 with separable
-  weights, whose coarse stencils are 1D factors).
+- ``multigrid``: the solve's phases (:func:`multigrid_bytes`): the grid (24 bytes a node) and
+  the float64 iterate's parity planes (8 a coordinate) while the one is copied into the other;
+  the planes and the float32 coarse levels (8 a coordinate) during the cycles, the grid's pages
+  given back from :data:`DISCARD_MIN_BYTES` on (:func:`discard`); the planes and the grid while
+  the solution is written back, the coarse levels' pages given back. Weights without a
+  separable form add their arrays (16 bytes a node) and the stencils (56).
 
-Measured: ``clothgrid generate tshirt_front.json --nodes 4096x4096 --solver
-multigrid -o g.npz`` peaked at 1.78 GB (estimate 2.5 GB).
+The estimate printed before a solve is the larger of the solve's peak (``outputs=False``: what
+:func:`clothgrid.generate` holds) and the outputs' (the grid, uv and quads of an output file,
+one block of quality measurements). Measured (``benchmarks/bench_speed.py --memory``, 4096^2,
+paper weights, a 2D piece): ``generate``'s resident peak 0.69 GB above the interpreter's, estimate
+0.67 GiB.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ import os
 from .errors import SizeError
 
 __all__ = ["available_bytes", "estimate_bytes", "check_memory", "format_bytes", "discard", "FIT_FRACTION",
-           "KEPT_BYTES_PER_NODE"]
+           "KEPT_BYTES_PER_NODE", "multigrid_bytes", "DISCARD_MIN_BYTES"]
 
 PIPELINE_BYTES_PER_NODE = 80
 #: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
@@ -36,6 +42,8 @@ KEPT_BYTES_PER_NODE = 72
 #: a grid fits when its estimate is at most this fraction of the available memory
 FIT_FRACTION = 0.9
 QUALITY_BYTES_PER_CELL = 200
+#: a solve's own grid of at least this size gives its pages back while the solver holds the iterate
+DISCARD_MIN_BYTES = 128 << 20
 
 
 def available_bytes() -> int:
@@ -53,12 +61,49 @@ def available_bytes() -> int:
         return 1 << 62
 
 
-def estimate_bytes(solver: str, nu: int, nv: int) -> int:
-    """Peak memory, in bytes, to generate an ``nu x nv`` grid with ``solver``."""
+def multigrid_bytes(nu: int, nv: int, coords: int = 3, separable: bool = False) -> int:
+    """Peak bytes of a multigrid solve of an ``nu x nv`` grid with ``coords`` coordinates, its own grid included.
+
+    The largest of its three phases (module docstring); weights without a separable form add
+    their arrays throughout.
+    """
+    from .multigrid_levels import hierarchy_bytes
+
+    n = nu * nv
+    grid = 24 * n
+    planes = 8 * coords * n
+    coarse = hierarchy_bytes(nu, nv, coords, separable=True) - planes
+    extra = 0 if separable else 16 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - coarse
+    if grid >= DISCARD_MIN_BYTES:
+        return max(grid + planes, planes + coarse) + extra
+    return grid + planes + coarse + extra
+
+
+def estimate_bytes(solver: str, nu: int, nv: int, *, coords: int = 3, separable: bool = False,
+                   outputs: bool = True) -> int:
+    """Peak memory, in bytes, to generate an ``nu x nv`` grid with ``solver``.
+
+    Parameters
+    ----------
+    solver : str
+        ``multigrid``, ``fdm``, ``direct`` or ``jacobi``.
+    nu, nv : int
+        Nodes.
+    coords : int, optional
+        Coordinates solved (2 for a planar piece); ``multigrid`` only.
+    separable : bool, optional
+        Weights with a separable form (the paper's, uniform); ``multigrid`` only.
+    outputs : bool, optional
+        Also the outputs' peak: the grid, uv and quads of an output file and a block of quality
+        measurements (the whole command); without it, what :func:`clothgrid.generate` holds.
+    """
     n = nu * nv
     m_u, m_v = max(nu - 2, 1), max(nv - 2, 1)
     from .quality import BLOCK_CELLS
 
+    after = PIPELINE_BYTES_PER_NODE * n + QUALITY_BYTES_PER_CELL * min(n, BLOCK_CELLS) if outputs else 0
+    if solver == "multigrid":
+        return int(max(multigrid_bytes(nu, nv, coords, separable), after))
     total = PIPELINE_BYTES_PER_NODE * n + QUALITY_BYTES_PER_CELL * min(n, BLOCK_CELLS)
     if solver == "fdm":
         total += 16 * (m_u**2 + m_v**2) + 48 * n
@@ -67,10 +112,6 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
         total += int(24 * fill) + 60 * n
     elif solver == "jacobi":
         total += 24 * n
-    elif solver == "multigrid":
-        from .multigrid_levels import hierarchy_bytes
-
-        total += hierarchy_bytes(nu, nv)
     return int(total)
 
 
@@ -86,7 +127,7 @@ def format_bytes(b: float, digits: int = 3) -> str:
 
 
 def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
-                 kept: int = 0, what: str = "") -> int:
+                 kept: int = 0, what: str = "", coords: int = 3, separable: bool = False) -> int:
     """Raise :class:`SizeError` if the grid would not fit; return the estimate.
 
     A grid fits when its estimate (plus ``kept``: bytes already held that the
@@ -94,9 +135,10 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
     until every output is written) is at most :data:`FIT_FRACTION` (90 %) of
     the available memory. ``what`` starts the message (``"piece 'front': "``).
     The message gives the numbers of that rule: what is needed, what is
-    available and the 90 % of it a solve may take.
+    available and the 90 % of it a solve may take. ``coords`` and ``separable``
+    as for :func:`estimate_bytes`.
     """
-    need = estimate_bytes(solver, nu, nv)
+    need = estimate_bytes(solver, nu, nv, coords=coords, separable=separable)
     have = available_bytes() if available is None else available
     total = need + max(int(kept), 0)
     if total > FIT_FRACTION * have:

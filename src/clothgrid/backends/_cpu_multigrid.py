@@ -50,9 +50,6 @@ _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up
 # rows and ``-1`` for even rows. Couplings owned by the row below (``N`` to
 # it, ``NE`` and ``NW`` from it) are read from the other parity's arrays.
 
-#: Coarse levels of at least this many bytes give their pages back before the solution is written.
-DISCARD_MIN_BYTES = 128 << 20
-
 _MB = 128   # lines per block of a half-sweep (long inner loops amortise the row slicing)
 
 
@@ -857,16 +854,16 @@ class CpuMultigrid:
         """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides).
 
         First gives the coarse levels' pages back to the system when they are large
-        (:data:`DISCARD_MIN_BYTES`): between cycles their contents are dead (every cycle, and the
+        (:data:`clothgrid.memory.DISCARD_MIN_BYTES`): between cycles their contents are dead (every cycle, and the
         full multigrid start, writes a coarse level's iterate and right-hand side before reading
         them), so the released pages, which read as zero, change nothing; and the solution's
         grid, often written here for the first time, does not add to them (268 MB at 4096^2
         for two coordinates).
         """
+        from ..memory import DISCARD_MIN_BYTES, discard
+
         coarse = [a for lv in (self.x[1:] + self.b[1:]) for a in lv]
         if sum(a.nbytes for a in coarse) >= DISCARD_MIN_BYTES:
-            from ..memory import discard
-
             for a in coarse:
                 discard(a)
         _pick("_merge_grid", self.nodes[0])(*self.x[0], out)

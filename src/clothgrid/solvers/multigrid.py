@@ -43,7 +43,7 @@ import numpy as np
 
 from ..backends.protocol import Backend, MultigridOps
 from ..errors import InputError
-from ..memory import discard
+from ..memory import DISCARD_MIN_BYTES, discard
 from ..multigrid_levels import Level, Separable, build_hierarchy, coarse_rows
 from ..weights import Weights
 from .bounds import barrier_max
@@ -54,10 +54,6 @@ __all__ = ["Level", "Separable", "MultigridOps", "build_hierarchy", "coarse_rows
 
 # V-cycles allowed by default: far more than the 3-15 a solve needs.
 DEFAULT_MAX_CYCLES = 100
-
-# A grid the solve may overwrite gives its pages back during the cycles from this size on (4096^2:
-# 400 MB); below it, faulting them in again for the solution costs more time than the memory is worth.
-DISCARD_MIN_BYTES = 128 << 20
 
 # Start with a full-multigrid pass (every backend supplies ``restrict_full`` and ``prolong_full``).
 FULL_MULTIGRID_START = True
@@ -167,6 +163,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     ops = backend.multigrid(levels, x0)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
     ring = None
+    # (from DISCARD_MIN_BYTES on: below it, faulting the pages in again costs more time than the memory is worth)
     if problem.overwrite and problem.r0.nbytes >= DISCARD_MIN_BYTES:
         # The iterate lives in ops now, and the solution comes back into r0: until then r0's
         # contents are dead (its boundary ring aside, kept here), and its pages go back to the
