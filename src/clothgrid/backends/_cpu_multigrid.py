@@ -672,6 +672,13 @@ class CpuMultigrid:
         self.nv = [lv.shape[1] for lv in levels]
         self.nodes = [lv.shape[0] * lv.shape[1] for lv in levels]
         self.mb = _MB
+        # Lines per block by level: a coarse level with few rows in more, shorter blocks, so that
+        # every thread gets one (at 1024^2 level 2 has 128 rows a parity: one block of 128 kept
+        # one of two threads idle).
+        threads = numba.get_num_threads()
+        per_thread = [-(-(nv // 2) // threads) for nv in self.nv]      # rows of a parity / threads, rounded up
+        self.mbs = [_MB if n < _PARALLEL_NODES else min(_MB, max(16, (r + 7) // 8 * 8))
+                    for n, r in zip(self.nodes, per_thread)]
         self.x = [_parity_planes(x0)]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
@@ -743,30 +750,30 @@ class CpuMultigrid:
     def smooth(self, level: int, reverse: bool = False) -> None:
         """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
-        scr = self._scr[xe.dtype]
+        scr, mb = self._scr[xe.dtype], self.mbs[level]
         for p in ((1, 0) if reverse else (0, 1)):
             own, other = (xe, xo) if p == 0 else (xo, xe)
             b = be if p == 0 else bo
             if level == 0 and self.unit0 is not None:
                 ee, eo, nn = self.unit0
-                _pick("_relax5u", self.nodes[level])(own, other, b, (ee, eo)[p], nn, p, nv, self._has_b, self.mb,
+                _pick("_relax5u", self.nodes[level])(own, other, b, (ee, eo)[p], nn, p, nv, self._has_b, mb,
                                                      scr)
             elif level == 0 and not self.nine0:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
-                                                    p, nv, self._has_b, self.mb, scr)
+                                                    p, nv, self._has_b, mb, scr)
             elif self.sep[level]:
                 cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo = st
                 q = 1 - p
                 md, mu, kd, ku = (mde, mdo), (mue, muo), (kde, kdo), (kue, kuo)
                 _pick("_relax9s", self.nodes[level])(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
-                                                     mu[q], ku[q], p, nv, self.mb, scr)
+                                                     mu[q], ku[q], p, nv, mb, scr)
             else:
                 Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
                 q = 1 - p
                 _pick("_relax9", self.nodes[level])(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
                                                     (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
-                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, self.mb, scr)
+                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, mb, scr)
 
     def restrict(self, level: int) -> None:
         """``b[l+1] = P^T (b[l] - A x[l])`` from the even rows (the odd rows' residual is zero
