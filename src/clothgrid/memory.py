@@ -21,9 +21,9 @@ solver:
 
 The estimate printed before a solve is the larger of the solve's peak (``outputs=False``: what
 :func:`clothgrid.generate` holds) and the outputs' (the grid, uv and quads of an output file,
-one block of quality measurements). Measured (``benchmarks/bench_speed.py --memory``, 4096^2,
-paper weights, a 2D piece): ``generate``'s resident peak 0.69 GB above the interpreter's, estimate
-0.67 GiB.
+one block of quality measurements). Measured (``benchmarks/bench_speed.py --memory 4096``: a fresh
+process, paper weights, the 2D T-shirt front): ``generate``'s resident peak 0.69 GB above the
+interpreter's (0.86 GB in all), estimate 0.67 GB.
 """
 
 from __future__ import annotations
@@ -72,11 +72,11 @@ def multigrid_bytes(nu: int, nv: int, coords: int = 3, separable: bool = False) 
     n = nu * nv
     grid = 24 * n
     planes = 8 * coords * n
-    coarse = hierarchy_bytes(nu, nv, coords, separable=True) - planes
-    extra = 0 if separable else 16 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - coarse
+    held = hierarchy_bytes(nu, nv, coords, separable=True) - planes          # coarse levels and scratch
+    extra = 0 if separable else 16 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
     if grid >= DISCARD_MIN_BYTES:
-        return max(grid + planes, planes + coarse) + extra
-    return grid + planes + coarse + extra
+        return max(grid + planes, planes + held) + extra
+    return grid + planes + held + extra
 
 
 def estimate_bytes(solver: str, nu: int, nv: int, *, coords: int = 3, separable: bool = False,
