@@ -278,3 +278,28 @@ def test_pieces_in_coordinate_planes(rng, plane):
     assert max_rel_error(g.points, ref, b.size) <= TOL
     other = 3 - sum(plane)
     assert np.all(g.points[..., other] == 0.0)
+
+
+@pytest.mark.parametrize("weights", ["paper", "uniform"])
+@pytest.mark.parametrize("shape", [(37, 29), (64, 65), (5, 6)])
+@pytest.mark.parametrize("has_rhs", [False, True])
+def test_unit_stencil_kernels_match_the_general_ones(rng, weights, shape, has_rhs):
+    """The paper's and uniform weights run level 0 from its 1D factors (``_relax5u``,
+    ``_restrict5u``, ``_max_step5u``): the same sweeps, restriction and bound as the 2D stencil."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+
+    nu, nv = shape
+    levels = build_hierarchy(make_weights(weights, nu, nv))
+    x0 = rng.standard_normal((nu, nv, 2))
+    rhs = rng.standard_normal((nu - 2, nv - 2, 2)) if has_rhs else None
+    unit, plain = CpuMultigrid(levels, x0, rhs), CpuMultigrid(levels, x0, rhs)
+    plain.unit0 = None
+    assert unit.unit0 is not None
+    for ops in (unit, plain):
+        ops.smooth(0)
+        ops.restrict(0)
+        ops.smooth(0, reverse=True)
+    assert np.allclose(unit.solution(), plain.solution(), rtol=1e-12, atol=1e-12 * np.abs(plain.solution()).max())
+    for a, b in zip(unit.b[1], plain.b[1]):
+        assert np.allclose(a, b, rtol=1e-5, atol=1e-6 * (np.abs(b).max() + 1e-30))
+    assert unit.max_step() == pytest.approx(plain.max_step(), rel=1e-12)
