@@ -17,6 +17,12 @@ For each size (the bundled T-shirt front, resampled to ``n x n``, ``tol = 2^-12`
 
 Each row: seconds (best of ``--repeat``), ``x floor`` (seconds / floor) and a ratio to its
 baseline (the direct solve, or the length solve for the fold-free rows).
+
+``--cpu-time`` adds rows measured on one thread in CPU time (``time.process_time``): the floor and
+the multigrid solve alone (``solvers.solve`` on a fresh copy of the initial grid). On a shared
+machine whose load is above its cores, two threads' wall times swing by 2-10x between runs (a
+descheduled thread stalls each parallel region), and the floor, one short parallel region,
+swings most; one thread's CPU time is the figure that compares across runs.
 """
 
 from __future__ import annotations
@@ -59,6 +65,73 @@ def sweep_floor(b, n: int, sweeps: int) -> float:
     return best(lambda: _sweep(r, out, wu, wv), sweeps)[1]
 
 
+def cpu_rows(b, n: int, repeat: int, sweeps: int, row) -> None:
+    """The floor and the multigrid solves on one thread, in CPU time (``--cpu-time``)."""
+    import numba
+
+    from clothgrid.backends import get_backend
+    from clothgrid.backends._cpu_kernels import _sweep
+    from clothgrid.initial import initial_grid
+    from clothgrid.solvers import Problem, solve
+
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        w = make_weights("paper", n, n)
+        wu, wv = np.ascontiguousarray(w.wu), np.ascontiguousarray(w.wv)
+        r = initial_grid(b, "tfi")
+        out = r.copy()
+        _sweep(r, out, wu, wv)
+
+        def cpu(fn, k):
+            ts = []
+            for _ in range(k):
+                t = time.process_time()
+                res = fn()
+                ts.append(time.process_time() - t)
+            return res, min(ts)
+
+        floor = cpu(lambda: _sweep(r, out, wu, wv), sweeps)[1]
+        row("floor, 1 thread, CPU time", floor, "1 (floor)", floor)
+        for weights in ("paper", "uniform"):
+            ww = make_weights(weights, n, n)
+            res, sec = cpu(lambda: solve(Problem(r.copy(), ww, b.size, overwrite=True), "multigrid",
+                                         backend=get_backend("cpu"), tol=TOL)[1], repeat)
+            row(f"multigrid solve, {weights} weights, 1 thread, CPU time (bound {res.error_estimate:.2g}, "
+                f"{res.iterations} V-cycles)", sec, "", floor)
+    finally:
+        numba.set_num_threads(threads)
+
+
+MEMORY_CHILD = """
+import resource, sys, time
+import clothgrid
+base = clothgrid.load_boundary(sys.argv[1])
+clothgrid.generate(base.resampled(33, 33), solver="multigrid")      # imports and kernels, not per node
+def rss():
+    with open("/proc/self/status") as f:
+        return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmRSS"))
+before = rss()
+t = time.perf_counter()
+g = clothgrid.generate(base, nodes=sys.argv[2], solver="multigrid")
+wall = time.perf_counter() - t
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+i = g.info
+print(wall, i["solve_seconds"], i["iterations"], i["error_estimate"], peak, before, i["memory_estimate"])
+"""
+
+
+def memory_row(piece: Path, n: int) -> None:
+    """``generate`` at ``n x n`` in a fresh process: time, peak resident memory, the estimate (``--memory``)."""
+    out = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(piece), f"{n}x{n}"], check=True,
+                         capture_output=True, text=True).stdout.split()
+    wall, solve, cycles, bound, peak, before, est = (float(x) for x in out)
+    print(f"| {n}^2 | generate, paper weights, fresh process: {wall:.2f} s (solve {solve:.2f} s, {cycles:.0f} V-cycles, "
+          f"bound {bound:.2g}); peak resident {peak / 1e9:.3f} GB, {(peak - before) / 1e9:.3f} GB above the "
+          f"interpreter's; estimate {est / 1e9:.3f} GB ({(est / (peak - before) - 1) * 100:+.0f} %) | {solve:.3g} | | |",
+          flush=True)
+
+
 def cli_time(piece: Path, n: int, repeat: int, extra: list[str]) -> float:
     exe = Path(sys.executable).with_name("clothgrid")
     head = [str(exe)] if exe.exists() else [sys.executable, "-m", "clothgrid"]
@@ -77,6 +150,10 @@ def main() -> None:
     ap.add_argument("--foldfree-max", type=int, default=256)
     ap.add_argument("--no-direct", action="store_true", help="skip SciPy's direct solve (ratios then n/a)")
     ap.add_argument("--no-cli", action="store_true")
+    ap.add_argument("--cpu-time", action="store_true", help="also one thread's CPU time: floor and solves")
+    ap.add_argument("--only-solves", action="store_true", help="skip the generate, fold-free and CLI rows")
+    ap.add_argument("--memory", type=int, nargs="*", default=[], metavar="N",
+                    help="also generate at N x N in a fresh process: peak resident memory against the estimate")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}, numpy {np.__version__}, "
           f"clothgrid {clothgrid.__version__}, load {os.getloadavg()[0]:.2f}; piece {args.piece.name}\n")
@@ -89,8 +166,8 @@ def main() -> None:
         b = base.resampled(n, n)
         floor = sweep_floor(b, n, args.sweeps)
 
-        def row(what: str, sec: float, ratio: str = "") -> None:
-            print(f"| {n}^2 | {what} | {sec:.4g} | {sec / floor:.1f} | {ratio} |", flush=True)
+        def row(what: str, sec: float, ratio: str = "", base: float | None = None) -> None:
+            print(f"| {n}^2 | {what} | {sec:.4g} | {sec / (base or floor):.1f} | {ratio} |", flush=True)
 
         row("floor: one fused Jacobi sweep (x, y, z, Numba)", floor, "1 (floor)")
         direct = None
@@ -106,6 +183,10 @@ def main() -> None:
             ok = "" if g.info["error_estimate"] <= TOL else " NOT CONVERGED"
             row(f"multigrid solve, {weights} weights (bound {g.info['error_estimate']:.2g}{ok}, "
                 f"{g.info['iterations']} V-cycles)", sec, f"direct / this {direct / sec:.0f}x" if direct else "")
+        if args.cpu_time:
+            cpu_rows(b, n, args.repeat, args.sweeps, row)
+        if args.only_solves:
+            continue
         # the fold-free rows use the command line's default weights (uniform): with the paper's, the
         # T-shirt front folds 6864 cells at 1024^2 and relax falls back to every interior node
         length, t_len = best(lambda: clothgrid.generate(b, weights="uniform"), args.repeat)
@@ -123,6 +204,8 @@ def main() -> None:
                 sec = cli_time(args.piece, n, args.repeat if n <= 512 or extra else 1, extra)
                 row(f"`clothgrid generate ... -o g.npz`, {what}, subprocess", sec,
                     f"direct / this {direct / sec:.1f}x" if direct else "")
+    for n in args.memory:
+        memory_row(args.piece, n)
     print(f"\nload at the end: {os.getloadavg()[0]:.2f}")
 
 

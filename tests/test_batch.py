@@ -40,7 +40,7 @@ GOOD = {  # file -> pieces written at 2 cm
 }
 PARTIAL = "partial.svg"          # 3 pieces gridded, a bow-tie outline fails (written by _collection)
 PARTIAL_SVG = """<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="100mm" viewBox="0 0 400 100">
-<path id="a" d="M 0,0 L 100,0 L 100,60 L 0,60 Z"/><path id="bow" d="M 150,0 L 250,60 L 250,0 L 150,60 Z"/>
+<path id="a" d="M 0,0 L 100,0 L 100,60 L 0,60 Z"/><path id="bow" d="M 150,0 L 250,60 L 250,0 L 150,40 Z"/>
 <path id="b" d="M 260,0 L 320,0 L 320,60 L 260,60 Z"/><path id="c" d="M 330,0 L 390,0 L 360,50 Z"/></svg>"""
 OPTS = GridOptions(edge_length="2cm")
 SRC = str(Path(__file__).parents[1] / "src")

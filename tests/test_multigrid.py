@@ -213,6 +213,55 @@ def test_memory_estimate_covers_multigrid():
     assert estimate_bytes("fdm", 4096, 4096) > estimate_bytes("multigrid", 4096, 4096) > estimate_bytes("jacobi", 4096, 4096)
 
 
+def test_discard_gives_whole_pages_back_and_keeps_the_array_usable():
+    import mmap
+    import sys
+
+    from clothgrid.memory import discard
+
+    a = np.full(3 * mmap.PAGESIZE + 100, 7.0)
+    released = discard(a)
+    if not sys.platform.startswith("linux"):
+        assert released == 0
+        return
+    assert released > 0 and released % mmap.PAGESIZE == 0
+    assert np.count_nonzero(a == 0.0) * 8 == released and np.all((a == 0.0) | (a == 7.0))
+    a[:] = 2.0                                    # written again: ordinary memory
+    assert np.all(a == 2.0)
+    assert discard(a[::2]) == 0                   # not contiguous: nothing done
+
+
+@pytest.mark.parametrize("weights", ["paper", "uniform", "random"])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_solve_that_gives_memory_back_is_the_same_solve(rng, monkeypatch, weights, dim):
+    """From ``DISCARD_MIN_BYTES`` on, the solve's own grid and the coarse levels give their pages
+    back (4096^2); forced here at a small size, the grid, the bound and the cycles are unchanged,
+    and the error is within the bound of an exact solve."""
+    import clothgrid.memory as memory
+    import clothgrid.solvers.multigrid as mg
+
+    nu, nv = 41, 37
+    sides = smooth_quad_sides(rng, nu, nv)
+    if dim == 3:
+        sides = [np.c_[s, 0.1 * np.sin(s[:, 0])] for s in sides]
+    b = clothgrid.Boundary.from_sides(*sides)
+    w = (rng.uniform(0.5, 2.0, (nu - 1, nv)), rng.uniform(0.5, 2.0, (nu, nv - 1))) if weights == "random" else weights
+    plain = clothgrid.generate(b, solver="multigrid", weights=w)
+    monkeypatch.setattr(memory, "DISCARD_MIN_BYTES", 0)
+    monkeypatch.setattr(mg, "DISCARD_MIN_BYTES", 0)
+    freed = []
+    real = memory.discard
+    monkeypatch.setattr(memory, "discard", lambda a: freed.append(a.nbytes) or real(a))
+    monkeypatch.setattr(mg, "discard", memory.discard)
+    g = clothgrid.generate(b, solver="multigrid", weights=w)
+    assert len(freed) > 2                        # the grid, then the coarse levels' arrays
+    assert np.array_equal(g.points, plain.points)
+    assert g.info["error_estimate"] == plain.info["error_estimate"] and g.info["iterations"] == plain.info["iterations"]
+    ww = make_weights(w, nu, nv)
+    ref = exact_solution(boundary_grid(b), ww.wu, ww.wv)
+    assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"] <= TOL
+
+
 @pytest.mark.parametrize("plane", [(0, 2), (1, 2), (0, 1)])
 def test_pieces_in_coordinate_planes(rng, plane):
     """Only the coordinates with boundary data are solved (here two of three, in any order)."""
@@ -229,3 +278,28 @@ def test_pieces_in_coordinate_planes(rng, plane):
     assert max_rel_error(g.points, ref, b.size) <= TOL
     other = 3 - sum(plane)
     assert np.all(g.points[..., other] == 0.0)
+
+
+@pytest.mark.parametrize("weights", ["paper", "uniform"])
+@pytest.mark.parametrize("shape", [(37, 29), (64, 65), (5, 6)])
+@pytest.mark.parametrize("has_rhs", [False, True])
+def test_unit_stencil_kernels_match_the_general_ones(rng, weights, shape, has_rhs):
+    """The paper's and uniform weights run level 0 from its 1D factors (``_relax5u``,
+    ``_restrict5u``, ``_max_step5u``): the same sweeps, restriction and bound as the 2D stencil."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+
+    nu, nv = shape
+    levels = build_hierarchy(make_weights(weights, nu, nv))
+    x0 = rng.standard_normal((nu, nv, 2))
+    rhs = rng.standard_normal((nu - 2, nv - 2, 2)) if has_rhs else None
+    unit, plain = CpuMultigrid(levels, x0, rhs), CpuMultigrid(levels, x0, rhs)
+    plain.unit0 = None
+    assert unit.unit0 is not None
+    for ops in (unit, plain):
+        ops.smooth(0)
+        ops.restrict(0)
+        ops.smooth(0, reverse=True)
+    assert np.allclose(unit.solution(), plain.solution(), rtol=1e-12, atol=1e-12 * np.abs(plain.solution()).max())
+    for a, b in zip(unit.b[1], plain.b[1]):
+        assert np.allclose(a, b, rtol=1e-5, atol=1e-6 * (np.abs(b).max() + 1e-30))
+    assert unit.max_step() == pytest.approx(plain.max_step(), rel=1e-12)

@@ -167,7 +167,10 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
                          "use functional 'length' (or 'auto', which keeps the length grid of a curved piece)")
     name, need, device_need = _plan(be, nu, nv, solver, weights, stop, boundary.dim)
     on_device = be.solvers
-    say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(need)} of memory")
+    separable = isinstance(weights, str) or (isinstance(weights, Weights) and weights.factors is not None)
+    own = estimate_bytes(name, nu, nv, coords=2 if boundary.dim == 2 else 3, separable=separable, outputs=False)
+    say(f"{nu}x{nv} grid, solver {name}: about {format_bytes(own)} of memory ({format_bytes(need)} with "
+        "the outputs)")
     if on_device:
         say(f"backend {be.name}: {be.summary()}; about {format_bytes(device_need)} of device memory")
     w = make_weights(weights, nu, nv, k)
@@ -184,7 +187,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         "iterations": int(res.iterations), "error_estimate": float(res.error_estimate),
         "error_bound": bool(res.bound), "converged": bool(res.converged), "seconds": seconds,
         "solve_seconds": solve_seconds,
-        "nodes": nu * nv, "shape": [nu, nv], "memory_estimate": estimate_bytes(name, nu, nv),
+        "nodes": nu * nv, "shape": [nu, nv], "memory_estimate": own,
     }
     if res.extra:
         info.update(res.extra)
@@ -214,6 +217,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
 
 def _check_finite(points: np.ndarray, who: str) -> None:
     """No non-finite coordinate may reach an output: raise InputError if the grid has one."""
+    if np.isfinite(points.min()) and np.isfinite(points.max()):   # NaN and inf show there: no temporaries
+        return
     ok = np.isfinite(points)
     if not ok.all():
         i, j = (int(x) for x in np.argwhere(~ok.all(axis=-1))[0][:2])
@@ -241,7 +246,7 @@ def _plan(be, nu: int, nv: int, solver: str, weights, stop: str, dim: int, *, ke
     if on_device:  # the device's texture size and memory, before anything is allocated (SizeError)
         device_need = be.check_size(nu, nv, name, estimate_bytes(name, nu, nv),
                                     coords=2 if dim == 2 else 3, separable=separable)
-    need = check_memory(name, nu, nv, kept=kept, what=what)
+    need = check_memory(name, nu, nv, kept=kept, what=what, coords=2 if dim == 2 else 3, separable=separable)
     if name == "jacobi" and not separable and stop == "error":  # the bound's barrier takes one direct solve
         need = max(need, check_memory("direct", nu, nv, kept=kept, what=what))
     return name, need, device_need

@@ -12,12 +12,18 @@ solver:
 - ``direct``: the sparse LU factors, whose fill on an ``N``-node grid was
   measured at ``N (6.5 log2 N - 52)`` entries, about 24 bytes each at peak;
 - ``jacobi``: one extra grid;
-- ``multigrid``: the float64 iterate and float32 coarse levels (about as many
-  nodes again), 68 bytes per node for three coordinates (48 with separable
-  weights, whose coarse stencils are 1D factors).
+- ``multigrid``: the solve's phases (:func:`multigrid_bytes`): the grid (24 bytes a node) and
+  the float64 iterate's parity planes (8 a coordinate) while the one is copied into the other;
+  the planes and the float32 coarse levels (8 a coordinate) during the cycles, the grid's pages
+  given back from :data:`DISCARD_MIN_BYTES` on (:func:`discard`); the planes and the grid while
+  the solution is written back, the coarse levels' pages given back. Weights without a
+  separable form add their arrays (16 bytes a node) and the stencils (56).
 
-Measured: ``clothgrid generate tshirt_front.json --nodes 4096x4096 --solver
-multigrid -o g.npz`` peaked at 1.78 GB (estimate 2.5 GB).
+The estimate printed before a solve is the larger of the solve's peak (``outputs=False``: what
+:func:`clothgrid.generate` holds) and the outputs' (the grid, uv and quads of an output file,
+one block of quality measurements). Measured (``benchmarks/bench_speed.py --memory 4096``: a fresh
+process, paper weights, the 2D T-shirt front): ``generate``'s resident peak 0.69 GB above the
+interpreter's (0.86 GB in all), estimate 0.67 GB.
 
 The memory available is the system's (``MemAvailable``) or, when the process
 runs under a resource limit (``ulimit -v``: ``RLIMIT_AS``; ``ulimit -d``:
@@ -35,7 +41,7 @@ from typing import NamedTuple
 from .errors import SizeError
 
 __all__ = ["available_bytes", "system_available_bytes", "limit_headroom", "Headroom", "estimate_bytes", "check_memory",
-           "format_bytes", "FIT_FRACTION", "KEPT_BYTES_PER_NODE"]
+           "format_bytes", "discard", "FIT_FRACTION", "KEPT_BYTES_PER_NODE", "multigrid_bytes", "DISCARD_MIN_BYTES"]
 
 PIPELINE_BYTES_PER_NODE = 80
 #: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
@@ -43,6 +49,8 @@ KEPT_BYTES_PER_NODE = 72
 #: a grid fits when its estimate is at most this fraction of the available memory
 FIT_FRACTION = 0.9
 QUALITY_BYTES_PER_CELL = 200
+#: a solve's own grid of at least this size gives its pages back while the solver holds the iterate
+DISCARD_MIN_BYTES = 128 << 20
 
 
 def available_bytes() -> int:
@@ -123,12 +131,49 @@ def system_available_bytes() -> int:
         return 1 << 62
 
 
-def estimate_bytes(solver: str, nu: int, nv: int) -> int:
-    """Peak memory, in bytes, to generate an ``nu x nv`` grid with ``solver``."""
+def multigrid_bytes(nu: int, nv: int, coords: int = 3, separable: bool = False) -> int:
+    """Peak bytes of a multigrid solve of an ``nu x nv`` grid with ``coords`` coordinates, its own grid included.
+
+    The largest of its three phases (module docstring); weights without a separable form add
+    their arrays throughout.
+    """
+    from .multigrid_levels import hierarchy_bytes
+
+    n = nu * nv
+    grid = 24 * n
+    planes = 8 * coords * n
+    held = hierarchy_bytes(nu, nv, coords, separable=True) - planes          # coarse levels and scratch
+    extra = 0 if separable else 16 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
+    if grid >= DISCARD_MIN_BYTES:
+        return max(grid + planes, planes + held) + extra
+    return grid + planes + held + extra
+
+
+def estimate_bytes(solver: str, nu: int, nv: int, *, coords: int = 3, separable: bool = False,
+                   outputs: bool = True) -> int:
+    """Peak memory, in bytes, to generate an ``nu x nv`` grid with ``solver``.
+
+    Parameters
+    ----------
+    solver : str
+        ``multigrid``, ``fdm``, ``direct`` or ``jacobi``.
+    nu, nv : int
+        Nodes.
+    coords : int, optional
+        Coordinates solved (2 for a planar piece); ``multigrid`` only.
+    separable : bool, optional
+        Weights with a separable form (the paper's, uniform); ``multigrid`` only.
+    outputs : bool, optional
+        Also the outputs' peak: the grid, uv and quads of an output file and a block of quality
+        measurements (the whole command); without it, what :func:`clothgrid.generate` holds.
+    """
     n = nu * nv
     m_u, m_v = max(nu - 2, 1), max(nv - 2, 1)
     from .quality import BLOCK_CELLS
 
+    after = PIPELINE_BYTES_PER_NODE * n + QUALITY_BYTES_PER_CELL * min(n, BLOCK_CELLS) if outputs else 0
+    if solver == "multigrid":
+        return int(max(multigrid_bytes(nu, nv, coords, separable), after))
     total = PIPELINE_BYTES_PER_NODE * n + QUALITY_BYTES_PER_CELL * min(n, BLOCK_CELLS)
     if solver == "fdm":
         total += 16 * (m_u**2 + m_v**2) + 48 * n
@@ -137,10 +182,6 @@ def estimate_bytes(solver: str, nu: int, nv: int) -> int:
         total += int(24 * fill) + 60 * n
     elif solver == "jacobi":
         total += 24 * n
-    elif solver == "multigrid":
-        from .multigrid_levels import hierarchy_bytes
-
-        total += hierarchy_bytes(nu, nv)
     return int(total)
 
 
@@ -156,7 +197,7 @@ def format_bytes(b: float, digits: int = 3) -> str:
 
 
 def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
-                 kept: int = 0, what: str = "") -> int:
+                 kept: int = 0, what: str = "", coords: int = 3, separable: bool = False) -> int:
     """Raise :class:`SizeError` if the grid would not fit; return the estimate.
 
     A grid fits when its estimate (plus ``kept``: bytes already held that the
@@ -166,9 +207,9 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
     The message gives the numbers of that rule: what is needed, what is
     available and the 90 % of it a solve may take; when a resource limit
     (``ulimit -v``) is what leaves that little, the limit and what the process
-    maps already.
+    maps already. ``coords`` and ``separable`` as for :func:`estimate_bytes`.
     """
-    need = estimate_bytes(solver, nu, nv)
+    need = estimate_bytes(solver, nu, nv, coords=coords, separable=separable)
     have = available_bytes() if available is None else available
     limit = limit_headroom() if available is None else None
     total = need + max(int(kept), 0)
@@ -191,3 +232,46 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
                         f"{have / scale:.4g} {unit_of} available{source} is {FIT_FRACTION * have / scale:.4g} "
                         f"{unit_of}: {hint}")
     return need
+
+
+def discard(a) -> int:
+    """Give the memory pages of ``a``'s buffer back to the system; its contents then read as zero.
+
+    For an array whose contents are dead but which must stay allocated, e.g. the grid a solve
+    writes its solution into (:attr:`clothgrid.solvers.problem.Problem.overwrite`): while the solver
+    holds the iterate in its own layout, the grid costs no resident memory (400 MB at 4096^2).
+    Only whole pages inside the buffer are released (the partial first and last pages keep their
+    contents). Linux only (``madvise(MADV_DONTNEED)`` on a private anonymous mapping, which
+    NumPy's large arrays are); elsewhere, or for a non-contiguous array, nothing happens.
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        A C-contiguous array that owns its memory or views all of it.
+
+    Returns
+    -------
+    int
+        Bytes released (0 where nothing was done).
+    """
+    import sys
+
+    if not sys.platform.startswith("linux") or not a.flags.c_contiguous or a.nbytes == 0:
+        return 0
+    import ctypes
+    import mmap
+
+    page = mmap.PAGESIZE
+    addr = a.ctypes.data
+    start = -(-addr // page) * page
+    end = (addr + a.nbytes) // page * page
+    if end <= start:
+        return 0
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.madvise.argtypes = (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int)
+        if libc.madvise(ctypes.c_void_p(start), ctypes.c_size_t(end - start), 4) != 0:   # MADV_DONTNEED
+            return 0
+    except (OSError, AttributeError):
+        return 0
+    return end - start

@@ -215,15 +215,20 @@ def build_hierarchy(weights: Weights, min_rows: int = 3) -> list[Level]:
     return levels
 
 
-def hierarchy_bytes(nu: int, nv: int, ncoords: int = 3) -> int:
-    """Memory the CPU multigrid holds for an ``nu x nv`` grid, beyond the problem.
+def hierarchy_bytes(nu: int, nv: int, ncoords: int = 3, separable: bool = False) -> int:
+    """Memory the CPU multigrid holds for an ``nu x nv`` grid, beyond the problem's grid and weights.
 
-    The level-0 iterate (float64, ``ncoords``) and the coarser levels (about
-    ``nu * nv`` nodes in all): 5 float32 stencil arrays plus iterate and
-    right-hand side of ``ncoords`` each.
+    The level-0 iterate as parity planes (float64, ``8 ncoords`` bytes a node); the coarser levels
+    (about ``nu * nv`` nodes in all) with iterate and right-hand side in float32 (``8 ncoords``);
+    for weights without a separable form also the stencils: level 0's edge weights split by row
+    parity (16) and five float32 coarse stencil arrays, formed and split (40); and the line
+    solves' per-thread scratch (3 KB a column and thread).
     """
+    import os
+
     n = nu * nv
-    return 8 * ncoords * n + 4 * (5 + 2 * ncoords) * n
+    scratch = 3072 * (os.cpu_count() or 1) * nu       # the line solves' factors: 2 x 128 lines, float64 and float32
+    return 16 * ncoords * n + (0 if separable else 56 * n) + scratch
 
 
 def coarsen(level: Level, dtype: type = np.float32) -> Level:

@@ -62,7 +62,7 @@ def _line_range(nv, p):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
+def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb, scr):
     """Level 0: solve the interior rows of parity ``p`` exactly along ``i``, ``mb`` rows a block."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
@@ -73,8 +73,8 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb          # own rows
         ta, tz = m0 + ob, m0 + ob + nb   # rows below, in the other parity
-        g = np.empty((nu, mb))
-        iv = np.empty((nu, mb))
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
         g[0] = 0.0
         for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, ta:tz], No[i, a:z]
@@ -102,7 +102,53 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
+def _relax5u(xo, xt, bo, eo, nn, p, nv, has_b, mb, scr):
+    """:func:`_relax5` for a unit-stencil level 0 (the paper's and uniform weights): ``E[i, j] = e[j]``
+    and ``N[i, j] = nn[i]``, given as the own rows' ``eo`` and the columns' ``nn`` (1D, contiguous).
+
+    The same line solves with two coefficient loads less per node and contiguous ones: about 1.8x
+    faster than reading the stride-0 views of the 2D arrays (1024^2, one thread).
+    """
+    k, nu = xo.shape[0], xo.shape[1]
+    ob = 0 if p == 1 else -1
+    m_lo, m_hi = _line_range(nv, p)
+    nblk = (m_hi - m_lo + mb - 1) // mb if m_hi > m_lo else 0
+    for blk in numba.prange(nblk):
+        m0 = m_lo + blk * mb
+        nb = min(mb, m_hi - m0)
+        a, z = m0, m0 + nb
+        ta, tz = m0 + ob, m0 + ob + nb
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
+        g[0] = 0.0
+        e = eo[a:z]
+        for i in range(1, nu - 1):
+            ni = nn[i]
+            gp, gi, ivi = g[i - 1], g[i], iv[i]
+            for q in range(nb):
+                d = 2.0 * (e[q] + ni) - e[q] * gp[q]
+                ivi[q] = 1.0 / d
+                gi[q] = e[q] * ivi[q]
+            for c in range(k):
+                t = xt[c]
+                tlo, thi, xp, xi = t[i, ta:tz], t[i, ta + 1:tz + 1], xo[c, i - 1, a:z], xo[c, i, a:z]
+                if has_b:
+                    bi = bo[c, i, a:z]
+                    for q in range(nb):
+                        xi[q] = (bi[q] + ni * (tlo[q] + thi[q]) + e[q] * xp[q]) * ivi[q]
+                else:
+                    for q in range(nb):
+                        xi[q] = (ni * (tlo[q] + thi[q]) + e[q] * xp[q]) * ivi[q]
+        for i in range(nu - 2, 0, -1):
+            gi = g[i]
+            for c in range(k):
+                xi, xn = xo[c, i, a:z], xo[c, i + 1, a:z]
+                for q in range(nb):
+                    xi[q] += gi[q] * xn[q]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb, scr):
     """Coarse levels: the same line solves for a 9-point stencil."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
@@ -113,8 +159,8 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb
         ta, tz = m0 + ob, m0 + ob + nb
-        g = np.empty((nu, mb), dtype=xo.dtype)
-        iv = np.empty((nu, mb), dtype=xo.dtype)
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
         g[0] = 0.0
         for i in range(1, nu - 1):     # factorise and eliminate forward, all coordinates at once
             ci, elo, ehi = Co[i, a:z], Eo[i - 1, a:z], Eo[i, a:z]
@@ -144,7 +190,7 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb):
+def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb, scr):
     """Coarse levels of separable weights: :func:`_relax9` with the stencil formed on the fly.
 
     The stencil is ``Ku (x) M + Du (x) K`` (:class:`~clothgrid.multigrid_levels.Separable`):
@@ -160,10 +206,9 @@ def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb):
         nb = min(mb, m_hi - m0)
         a, z = m0, m0 + nb
         ta, tz = m0 + ob, m0 + ob + nb
-        g = np.empty((nu, mb), dtype=xo.dtype)
-        iv = np.empty((nu, mb), dtype=xo.dtype)
-        nlo = np.empty(mb, dtype=xo.dtype)
-        nhi = np.empty(mb, dtype=xo.dtype)
+        tid = numba.get_thread_id()
+        g, iv = scr[tid, 0], scr[tid, 1]
+        nlo, nhi = g[nu], iv[nu]
         g[0] = 0.0
         md, mu, kd, ku, mt, kt = mdo[a:z], muo[a:z], kdo[a:z], kuo[a:z], mut[ta:tz], kut[ta:tz]
         for i in range(1, nu - 1):
@@ -213,88 +258,166 @@ def _zero_rows(i, a, b, c, d):
     d[:, i, :] = 0.0
 
 
+# Restriction: the residual of one column ``i`` is formed in a contiguous row of the
+# per-thread scratch ``rows`` (``row[J]``, coarse row J = fine row 2J, zero at J = 0 and
+# nc - 1), then stored by J's parity in two strided loops; the coarse corrections are
+# zeroed, and the right-hand sides written once (no zero-fill first).
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco):
+def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco, rows):
     """Coarse right-hand side from level 0's even rows (the odd rows' residual is zero
     after pre-smoothing); coarse row J is fine row 2J, stored by J's parity."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = bce.shape[2] + bco.shape[2]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
     for i in numba.prange(nu):
-        _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
             continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
+        elo, ehi, nlo, nhi = Ee[i - 1, 1:nc - 1], Ee[i, 1:nc - 1], No[i, 0:nc - 2], Ne[i, 1:nc - 1]
         for c in range(k):
-            for J in range(1, nc - 1):
-                r = _res5(xe, xo, be, Ee, Ne, No, c, i, J, -1, has_b)
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+            xm, x0, xp = xe[c, i - 1, 1:nc - 1], xe[c, i, 1:nc - 1], xe[c, i + 1, 1:nc - 1]
+            tlo, thi = xo[c, i, 0:nc - 2], xo[c, i, 1:nc - 1]
+            r = row[1:nc - 1]
+            for q in range(nc - 2):
+                r[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                        + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+            if has_b:
+                bi = be[c, i, 1:nc - 1]
+                for q in range(nc - 2):
+                    r[q] += bi[q]
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco):
+def _restrict5u(xe, xo, be, ee, nn, has_b, bce, bco, xce, xco, rows):
+    """:func:`_restrict5` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``, see
+    :func:`_relax5u`); ``ee`` the even rows' ``e``."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = bce.shape[2] + bco.shape[2]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
     for i in numba.prange(nu):
-        _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
             continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
+        e, ni = ee[1:nc - 1], nn[i]
+        for c in range(k):
+            xm, x0, xp = xe[c, i - 1, 1:nc - 1], xe[c, i, 1:nc - 1], xe[c, i + 1, 1:nc - 1]
+            tlo, thi = xo[c, i, 0:nc - 2], xo[c, i, 1:nc - 1]
+            r = row[1:nc - 1]
+            for q in range(nc - 2):
+                r[q] = e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+            if has_b:
+                bi = be[c, i, 1:nc - 1]
+                for q in range(nc - 2):
+                    r[q] += bi[q]
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco, rows):
+    k, nu = xe.shape[0], xe.shape[1]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
+    for i in numba.prange(nu):
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
+            continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
         for c in range(k):
             x = xe[c]
             t = xo[c]
             for J in range(1, nc - 1):
                 m = J
                 mb = m - 1
-                r = (be[c, i, m] - Ce[i, m] * x[i, m] + Ee[i - 1, m] * x[i - 1, m] + Ee[i, m] * x[i + 1, m]
-                     + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
-                     + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
-                     + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+                row[J] = (be[c, i, m] - Ce[i, m] * x[i, m] + Ee[i - 1, m] * x[i - 1, m] + Ee[i, m] * x[i + 1, m]
+                          + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
+                          + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
+                          + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco, xce, xco):
+def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco, xce, xco, rows):
     """:func:`_restrict9` for a separable level (the stencil formed on the fly, see :func:`_relax9s`)."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = bce.shape[2] + bco.shape[2]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
     for i in numba.prange(nu):
-        _zero_rows(i, bce, bco, xce, xco)
-        if i == 0 or i == nu - 1:
+        xce[:, i, :] = 0.0
+        xco[:, i, :] = 0.0
+        if i == 0 or i == nu - 1 or nc < 3:
+            bce[:, i, :] = 0.0
+            bco[:, i, :] = 0.0
             continue
+        row = rows[numba.get_thread_id()]
+        row[0] = 0.0
+        row[nc - 1] = 0.0
         cl, cr, kk, dd = cu[i - 1], cu[i], kud[i], du[i]
+        n = nc - 2
+        md, mu, kd, ku, mo, ko = mde[1:nc - 1], mue[1:nc - 1], kde[1:nc - 1], kue[1:nc - 1], muo[0:n], kuo[0:n]
         for c in range(k):
-            x = xe[c]
-            t = xo[c]
-            for J in range(1, nc - 1):
-                m = J
-                mb = m - 1
-                r = (be[c, i, m] - (kk * mde[m] + dd * kde[m]) * x[i, m]
-                     + mde[m] * (cl * x[i - 1, m] + cr * x[i + 1, m])
-                     - (kk * muo[mb] + dd * kuo[mb]) * t[i, mb] - (kk * mue[m] + dd * kue[m]) * t[i, mb + 1]
-                     + mue[m] * (cr * t[i + 1, mb + 1] + cl * t[i - 1, mb + 1])
-                     + muo[mb] * (cl * t[i - 1, mb] + cr * t[i + 1, mb]))
-                if J % 2 == 0:
-                    bce[c, i, J // 2] = r
-                else:
-                    bco[c, i, J // 2] = r
+            bi = be[c, i, 1:nc - 1]
+            xm, x0, xp = xe[c, i - 1, 1:nc - 1], xe[c, i, 1:nc - 1], xe[c, i + 1, 1:nc - 1]
+            tm_lo, t0_lo, tp_lo = xo[c, i - 1, 0:n], xo[c, i, 0:n], xo[c, i + 1, 0:n]
+            tm_hi, t0_hi, tp_hi = xo[c, i - 1, 1:n + 1], xo[c, i, 1:n + 1], xo[c, i + 1, 1:n + 1]
+            r = row[1:nc - 1]
+            for q in range(n):
+                r[q] = (bi[q] - (kk * md[q] + dd * kd[q]) * x0[q]
+                        + md[q] * (cl * xm[q] + cr * xp[q])
+                        - (kk * mo[q] + dd * ko[q]) * t0_lo[q] - (kk * mu[q] + dd * ku[q]) * t0_hi[q]
+                        + mu[q] * (cr * tp_hi[q] + cl * tm_hi[q])
+                        + mo[q] * (cl * tm_lo[q] + cr * tp_lo[q]))
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(nce):
+                oe[K] = row[2 * K]
+            for K in range(nco):
+                oo[K] = row[2 * K + 1]
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _prolong(xe, xce, xco):
     """Add the coarse correction to the even rows (odd rows are re-solved next)."""
     k, nu = xe.shape[0], xe.shape[1]
-    nc = xce.shape[2] + xco.shape[2]
+    nce, nco = xce.shape[2], xco.shape[2]
+    nc = nce + nco
     for i in numba.prange(1, nu - 1):
         for c in range(k):
-            for J in range(1, nc - 1):
-                if J % 2 == 0:
-                    xe[c, i, J] += xce[c, i, J // 2]
-                else:
-                    xe[c, i, J] += xco[c, i, J // 2]
+            x, ce, co = xe[c, i], xce[c, i], xco[c, i]
+            for K in range(1, (nc - 2) // 2 + 1):      # J = 2K <= nc - 2
+                x[2 * K] += ce[K]
+            for K in range(0, (nc - 3) // 2 + 1):      # J = 2K + 1 <= nc - 2
+                x[2 * K + 1] += co[K]
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -412,6 +535,48 @@ def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
+    """:func:`_max_step5` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``,
+    see :func:`_relax5u`); ``rows`` per-thread scratch of at least ``nv // 2 + 1``."""
+    k, nu = xe.shape[0], xe.shape[1]
+    rowmax = np.zeros(nu)
+    for i in numba.prange(1, nu - 1):
+        best = 0.0
+        s2 = rows[numba.get_thread_id()]
+        ni = nn[i]
+        for p in range(2):
+            m_lo, m_hi = _line_range(nv, p)
+            n = m_hi - m_lo
+            if n <= 0:
+                continue
+            ob = 0 if p == 1 else -1
+            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
+            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+            e = (ee if p == 0 else eo)[a:z]
+            for q in range(n):
+                s2[q] = 0.0
+            for c in range(k):
+                x, t = xown[c], xoth[c]
+                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
+                if has_b:
+                    bi = (be if p == 0 else bo)[c, i, a:z]
+                    for q in range(n):
+                        r = bi[q] + e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+                        s2[q] += r * r
+                else:
+                    for q in range(n):
+                        r = e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+                        s2[q] += r * r
+            for q in range(n):
+                d = 2.0 * (e[q] + ni)
+                v = s2[q] / (d * d)
+                if v > best:
+                    best = v
+        rowmax[i] = best
+    return np.sqrt(rowmax.max())
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_grid(x, xe, xo):
     """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""
     nu, nv, k = x.shape
@@ -466,8 +631,9 @@ def _serial(kernel):
 
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
-            for name in ("_relax5", "_relax9", "_relax9s", "_restrict5", "_restrict9", "_restrict9s", "_prolong",
-                         "_max_step5", "_restrict5_full", "_restrict_rhs", "_prolong_full", "_merge_grid")}
+            for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
+                         "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict_rhs",
+                         "_prolong_full", "_merge_grid")}
 
 
 def _pick(name: str, nodes: int):
@@ -506,6 +672,13 @@ class CpuMultigrid:
         self.nv = [lv.shape[1] for lv in levels]
         self.nodes = [lv.shape[0] * lv.shape[1] for lv in levels]
         self.mb = _MB
+        # Lines per block by level: a coarse level with few rows in more, shorter blocks, so that
+        # every thread gets one (at 1024^2 level 2 has 128 rows a parity: one block of 128 kept
+        # one of two threads idle).
+        threads = numba.get_num_threads()
+        per_thread = [-(-(nv // 2) // threads) for nv in self.nv]      # rows of a parity / threads, rounded up
+        self.mbs = [_MB if n < _PARALLEL_NODES else min(_MB, max(16, (r + 7) // 8 * 8))
+                    for n, r in zip(self.nodes, per_thread)]
         self.x = [_parity_planes(x0)]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
@@ -526,8 +699,21 @@ class CpuMultigrid:
                 self.b = [_parity_planes(np.zeros(x0.shape))]
         else:
             self.st = [_split(fine.E) + _split(fine.N)]   # Ee, Eo, Ne, No
+        # Unit-stencil level 0 (E, N stride-0 views: E[i, j] = e[j], N[i, j] = nn[i]): its 1D factors.
+        self.unit0 = None
+        if not self.nine0 and fine.E.strides[0] == 0 and fine.N.strides[1] == 0 and x0.shape[0] > 2:
+            e = np.ascontiguousarray(fine.E[0], dtype=np.float64)
+            self.unit0 = (np.ascontiguousarray(e[0::2]), np.ascontiguousarray(e[1::2]),
+                          np.ascontiguousarray(fine.N[:, 0], dtype=np.float64))
         self.sep = [False]
         dt = np.float32
+        # The line solves' scratch (Thomas factors of one block of rows per thread), allocated
+        # once: a fresh 1-2 MB array per block and sweep cost page faults, up to half a sweep's time.
+        # Every level has the finest level's columns.
+        nthreads = numba.config.NUMBA_NUM_THREADS
+        self._scr = {np.dtype(t): np.empty((nthreads, 2, x0.shape[0] + 1, self.mb), dtype=t)
+                     for t in (np.float64, np.float32)}
+        self._rows = np.empty((nthreads, x0.shape[1] + 2))   # restriction's residual rows, per thread
         for lv in levels[1:]:
             nu, nv = lv.shape
             self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
@@ -564,42 +750,50 @@ class CpuMultigrid:
     def smooth(self, level: int, reverse: bool = False) -> None:
         """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
+        scr, mb = self._scr[xe.dtype], self.mbs[level]
         for p in ((1, 0) if reverse else (0, 1)):
             own, other = (xe, xo) if p == 0 else (xo, xe)
             b = be if p == 0 else bo
-            if level == 0 and not self.nine0:
+            if level == 0 and self.unit0 is not None:
+                ee, eo, nn = self.unit0
+                _pick("_relax5u", self.nodes[level])(own, other, b, (ee, eo)[p], nn, p, nv, self._has_b, mb,
+                                                     scr)
+            elif level == 0 and not self.nine0:
                 Ee, Eo, Ne, No = st
                 _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
-                                                    p, nv, self._has_b, self.mb)
+                                                    p, nv, self._has_b, mb, scr)
             elif self.sep[level]:
                 cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo = st
                 q = 1 - p
                 md, mu, kd, ku = (mde, mdo), (mue, muo), (kde, kdo), (kue, kuo)
                 _pick("_relax9s", self.nodes[level])(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
-                                                     mu[q], ku[q], p, nv, self.mb)
+                                                     mu[q], ku[q], p, nv, mb, scr)
             else:
                 Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
                 q = 1 - p
                 _pick("_relax9", self.nodes[level])(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
                                                     (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
-                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, self.mb)
+                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, mb, scr)
 
     def restrict(self, level: int) -> None:
         """``b[l+1] = P^T (b[l] - A x[l])`` from the even rows (the odd rows' residual is zero
         after pre-smoothing); ``x[l+1] = 0``."""
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
-        if level == 0 and not self.nine0:
+        if level == 0 and self.unit0 is not None:
+            _pick("_restrict5u", self.nodes[level])(xe, xo, be, self.unit0[0], self.unit0[2], self._has_b,
+                                                    bce, bco, xce, xco, self._rows)
+        elif level == 0 and not self.nine0:
             Ee, _, Ne, No = st
-            _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco)
+            _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco, self._rows)
         elif self.sep[level]:
             cu, kud, du, mde, _, mue, muo, kde, _, kue, kuo = st
             _pick("_restrict9s", self.nodes[level])(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo,
-                                                    bce, bco, xce, xco)
+                                                    bce, bco, xce, xco, self._rows)
         else:
             Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
             _pick("_restrict9", self.nodes[level])(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
-                                                   bce, bco, xce, xco)
+                                                   bce, bco, xce, xco, self._rows)
 
     def prolong(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
@@ -634,6 +828,10 @@ class CpuMultigrid:
             r = self._residual9()[1:-1, 1:-1]
             return float(np.max(np.linalg.norm(r, axis=-1) / C[1:-1, 1:-1, 0])) if r.size else 0.0
         (xe, xo), (be, bo) = self.x[0], self.b[0]
+        if self.unit0 is not None:
+            ee, eo, nn = self.unit0
+            return float(_pick("_max_step5u", self.nodes[0])(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
+                                                             self._rows))
         Ee, Eo, Ne, No = self.st[0]
         return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
 
@@ -660,7 +858,21 @@ class CpuMultigrid:
         return out
 
     def solution_into(self, out: np.ndarray) -> None:
-        """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides)."""
+        """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides).
+
+        First gives the coarse levels' pages back to the system when they are large
+        (:data:`clothgrid.memory.DISCARD_MIN_BYTES`): between cycles their contents are dead (every cycle, and the
+        full multigrid start, writes a coarse level's iterate and right-hand side before reading
+        them), so the released pages, which read as zero, change nothing; and the solution's
+        grid, often written here for the first time, does not add to them (268 MB at 4096^2
+        for two coordinates).
+        """
+        from ..memory import DISCARD_MIN_BYTES, discard
+
+        coarse = [a for lv in (self.x[1:] + self.b[1:]) for a in lv]
+        if sum(a.nbytes for a in coarse) >= DISCARD_MIN_BYTES:
+            for a in coarse:
+                discard(a)
         _pick("_merge_grid", self.nodes[0])(*self.x[0], out)
 
     def synchronize(self) -> None:

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..backends.protocol import Backend, MultigridOps
 from ..errors import InputError
+from ..memory import DISCARD_MIN_BYTES, discard
 from ..multigrid_levels import Level, Separable, build_hierarchy, coarse_rows
 from ..weights import Weights
 from .bounds import barrier_max
@@ -156,8 +157,19 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     if nu < 3 or nv < 3 or not active:
         return SolveResult(problem.r0.copy(), iterations=0, error_estimate=0.0, converged=True)
     levels = build_hierarchy(problem.weights)
-    ops = backend.multigrid(levels, problem.r0[..., active])
+    contiguous = active == list(range(active[0], active[-1] + 1))
+    # a view where the active coordinates are contiguous: no copy of the grid (16-24 MB at 1024^2)
+    x0 = problem.r0[..., active[0]:active[-1] + 1] if contiguous else problem.r0[..., active]
+    ops = backend.multigrid(levels, x0)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
+    ring = None
+    # (from DISCARD_MIN_BYTES on: below it, faulting the pages in again costs more time than the memory is worth)
+    if problem.overwrite and problem.r0.nbytes >= DISCARD_MIN_BYTES:
+        # The iterate lives in ops now, and the solution comes back into r0: until then r0's
+        # contents are dead (its boundary ring aside, kept here), and its pages go back to the
+        # system (400 MB at 4096^2). Inactive coordinates are zero, as the released pages read.
+        ring = _ring(problem.r0)
+        discard(problem.r0)
     setup = time.perf_counter() - t0
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
                        _barrier_solver(problem, backend, levels))
@@ -182,11 +194,12 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     t_download = time.perf_counter()
     # The inactive coordinates (zero) and the boundary nodes are r0's own.
     out = problem.r0 if problem.overwrite else problem.r0.copy()
-    contiguous = active == list(range(active[0], active[-1] + 1))
     if contiguous:   # a view: no temporary grid on the cpu and cuda backends (400 MB at 4096^2)
         ops.solution_into(out[..., active[0]:active[-1] + 1])
     else:
         out[..., active] = ops.solution()
+    if ring is not None:
+        _ring(out, ring)
     factors = [b / a for a, b in zip(steps, steps[1:]) if a > 0]
     extra = {"levels": len(levels), "setup_seconds": setup, "cycle_seconds": cycles,
              "download_seconds": time.perf_counter() - t_download,
@@ -195,6 +208,16 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     extra.update(ops.extra())   # e.g. the gl backend's pass counts and timings ({} on the cpu)
     return SolveResult(out, iterations=len(steps), error_estimate=step * zmax / problem.scale,
                        converged=step <= limit, extra=extra)
+
+
+def _ring(r: np.ndarray, put: tuple | None = None) -> tuple | None:
+    """The boundary nodes of ``r`` (copies of its four sides), or, with ``put``, write them back."""
+    sides = (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1])
+    if put is None:
+        return tuple(r[s].copy() for s in sides)
+    for s, v in zip(sides, put):
+        r[s] = v
+    return None
 
 
 def _barrier_solver(problem: Problem, backend: Backend, levels: list[Level]) -> Callable[[np.ndarray], np.ndarray]:
