@@ -6,7 +6,8 @@
 Each piece is gridded twice with the default command (``clothgrid generate FILE --piece NAME
 --plot``): once by the code in ``--before-src`` (then: the paper's weights, the length
 functional, corners by turning angle) and once by this checkout (uniform weights,
-``--functional auto``, ranked corners with darts and rounded corners recognised). Folded
+``--functional auto``, ranked corners with darts and rounded corners recognised, node counts
+on the typical grid line, outlying edges evened). Folded
 cells are red; the grid corners of the new plots are the blue dots. The folded-cell counts
 and the quality line of each run go under its picture.
 """
@@ -33,6 +34,7 @@ PIECES = [
     ("gcn_rand_JIT6TDX7XB_specification.json", "pant_b_r", "trouser back, 2 darts"),
     ("fs_wahid_layout.svg", "24", "front with a long curved dart"),
     ("fs_simon_collarstandbend.svg", "205", "collar stand, rounded corners"),
+    ("astm_GLX4802S19_AAMA.DXF", "GLX4802S19SLL_42", "long sleeve (few long edges)"),
 ]
 
 
