@@ -227,21 +227,24 @@ def _bottom_first(pts: np.ndarray) -> int:
     return k_best
 
 
+def _panel_outline(lay: _Layout) -> tuple[np.ndarray, list[int]]:
+    """The panel's counter-clockwise outline points and the outline index of each loop item's start."""
+    starts, parts, count = [], [], 0
+    for e, rev in lay.ccw:
+        pts = lay.polys[e][0][::-1] if rev else lay.polys[e][0]
+        starts.append(count)
+        parts.append(pts[:-1])
+        count += len(pts) - 1
+    return np.concatenate(parts), starts
+
+
 def _choose_corners(lay: _Layout, given: Sequence[Any] | None) -> None:
     """Four corners on the counter-clockwise loop: panel vertices, or edge middles if too few."""
     from .patterns import choose_corners
     from .patterns.piece import piece_from_polygon
 
     spec, ccw = lay.spec, lay.ccw
-    starts = []        # outline index of each ccw item's start
-    parts = []
-    count = 0
-    for e, rev in ccw:
-        pts = lay.polys[e][0][::-1] if rev else lay.polys[e][0]
-        starts.append(count)
-        parts.append(pts[:-1])
-        count += len(pts) - 1
-    outline = np.concatenate(parts)
+    outline, starts = _panel_outline(lay)
     start_vertex = [spec.edges[e].end if rev else spec.edges[e].start for e, rev in ccw]
     if given is not None and any(isinstance(c, tuple) for c in given):
         # (edge, fraction of that edge in its own direction): an SVG / DXF piece's corners
@@ -373,13 +376,7 @@ def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
     ccw = lay.ccw
     if len(ccw) < 4 or len(ccw) > 12:
         return []
-    parts, starts, count = [], [], 0
-    for e, rev in ccw:
-        pts = lay.polys[e][0][::-1] if rev else lay.polys[e][0]
-        starts.append(count)
-        parts.append(pts[:-1])
-        count += len(pts) - 1
-    outline = np.concatenate(parts)
+    outline, starts = _panel_outline(lay)
     scored = []
     for ks in itertools.combinations(range(len(ccw)), 4):
         cand = [(k, 0.0) for k in ks]
