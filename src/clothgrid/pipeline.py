@@ -69,7 +69,7 @@ class GridOptions:
     """How every grid of a run is made: the options of :func:`clothgrid.generate` and its size.
 
     ``nodes`` (``(nu, nv)``, ``N`` or ``"NUxNV"``) or ``edge_length`` (a target
-    edge length along the sides: a number in the input's units, or text with a
+    edge length, :func:`~clothgrid.patterns.nodes_for_edge_length`: a number in the input's units, or text with a
     unit such as ``"5mm"`` for pattern files) sets the size; with neither, a
     boundary file keeps its own point counts and a pattern piece gets 10 mm
     edges. The rest are :func:`clothgrid.generate`'s. Checked once, when made.
@@ -729,8 +729,9 @@ def generate_piece(piece: Piece, nodes: Any = None, *, edge_length: float | str 
     nodes : int or (int, int) or str, optional
         Grid size; give this or ``edge_length``.
     edge_length : float or str, optional
-        Target grid edge length along the sides: millimetres, or text with a
-        unit such as ``"5mm"`` or ``"0.25in"``. Default (neither given): 10 mm.
+        Target grid edge length (each direction's typical grid line over it:
+        :func:`~clothgrid.patterns.nodes_for_edge_length`): millimetres, or text
+        with a unit such as ``"5mm"`` or ``"0.25in"``. Default (neither given): 10 mm.
     corners, near, choice :
         Corner choice (see :func:`clothgrid.patterns.choose_corners`); default automatic.
     **kwargs :
