@@ -127,7 +127,13 @@ def corner_candidates(piece: Piece, min_turn: float = MIN_TURN_DEG) -> list[Corn
     ``min_turn`` degrees either way, and the middles of rounded corners
     (:func:`rounded_corners`; their ``turn`` is the windowed turn).
     """
+    return _candidates(piece, min_turn)[0]
+
+
+def _candidates(piece: Piece, min_turn: float) -> tuple[list[CornerCandidate], np.ndarray, np.ndarray]:
+    """:func:`corner_candidates`, the outline's turns and its windowed turns (computed once)."""
     turn = _candidate_turns(piece)
+    turns = turn
     tp = set(int(i) for i in piece.turn_points)
     v = np.asarray(piece.vertices, dtype=np.int64)
     sharp = set(int(i) for i in v[np.abs(turn[v]) >= math.radians(min_turn)]) if v.size else set()
@@ -139,9 +145,9 @@ def corner_candidates(piece: Piece, min_turn: float = MIN_TURN_DEG) -> list[Corn
         idx = np.array(sorted(rounded))
         turn[idx] = wt[idx]
     q = _quality(turn)
-    return [CornerCandidate(i, (float(piece.outline[i, 0]), float(piece.outline[i, 1])),
-                            float(math.degrees(turn[i])), i in tp, float(q[i]))
-            for i in sorted(tp | sharp | rounded)]
+    return ([CornerCandidate(i, (float(piece.outline[i, 0]), float(piece.outline[i, 1])),
+                             float(math.degrees(turn[i])), i in tp, float(q[i]))
+             for i in sorted(tp | sharp | rounded)], turns, wt)
 
 
 def _candidate_turns(piece: Piece) -> np.ndarray:
@@ -582,13 +588,12 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
                             f"corners nearest to the given points: outline indices "
                             f"{_fmt_idx(idx)} (farthest {far:.3g} mm from its point)")
 
-    cands = corner_candidates(piece, min_turn)
-    turn = turn_angles(outline)
+    cands, turn, wt = _candidates(piece, min_turn)
+    turn = turn.copy()
     for c in cands:                       # rounded corners count with their windowed turn
         turn[c.index] = math.radians(c.turn)
     q = _quality(turn)
-    darts = dart_mouths(outline, [c.index for c in cands], turn,
-                        windowed_turn(outline, round_window(outline)))
+    darts = dart_mouths(outline, [c.index for c in cands], turn, wt)
     mouths = sorted({a for a, _, _ in darts} | {b for _, _, b in darts})
     s, perimeter = _closed_arc(outline, darts)
     tps = [c.index for c in cands if c.turn_point]
