@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .errors import BoundaryError, InputError
-from .geometry import PLANAR_TOL, best_fit_plane, plane_axes
+from .geometry import PLANAR_TOL, best_fit_plane, plane_axes, roll
 from .limits import MAX_OUTLINE_POINTS, check_coordinates
 
 __all__ = ["Boundary", "resample_polyline"]
@@ -269,9 +269,9 @@ def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.nda
     with ``k < m`` (``k == m`` for a fold-back at the end of ``k``), or None.
     """
     n = len(p)
-    a, b = p, np.roll(p, -1, axis=0)
+    a, b = p, roll(p, -1)
     # adjacent segments: fold back when the turn is a reversal
-    u, w = b - a, np.roll(b - a, -1, axis=0)
+    u, w = b - a, roll(b - a, -1)
     lu = np.maximum(np.hypot(u[:, 0], u[:, 1]), _TINY)
     back = (np.abs(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]) / lu <= tol) & ((u * w).sum(axis=1) < 0)
     if back.any():
@@ -585,7 +585,7 @@ class Boundary:
         """
         origin, _, normal, _ = self._plane()
         p = self.outline() - origin
-        area = 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
+        area = 0.5 * np.cross(p, roll(p, -1)).sum(axis=0)
         return -1.0 if float(area @ normal) < 0 else 1.0
 
     @property
@@ -606,7 +606,7 @@ class Boundary:
         p3 = self.outline()
         p = (p3 - origin) @ axes.T
         # drop (near-)duplicate consecutive points: zero-length segments
-        keep = np.flatnonzero(np.linalg.norm(p - np.roll(p, 1, axis=0), axis=1) > tol)
+        keep = np.flatnonzero(np.linalg.norm(p - roll(p, 1), axis=1) > tol)
         if len(keep) < 2:
             return
         found = _find_self_intersection(p[keep], tol)

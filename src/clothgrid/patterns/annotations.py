@@ -32,6 +32,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import roll
 from .piece import Piece, PieceFailure, Pieces, Skipped, pattern_pieces
 
 __all__ = ["Pieces", "Skipped", "classify", "classified", "structure_hint", "LINES", "MIN_AREA_FRACTION"]
@@ -114,7 +115,7 @@ def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Even-odd point-in-polygon test of each point (vectorised ray casting)."""
     x, y = points[:, 0:1], points[:, 1:2]
     x0, y0 = poly[:, 0], poly[:, 1]
-    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    x1, y1 = roll(x0, -1), roll(y0, -1)
     crosses = (y0 > y) != (y1 > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         xs = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
@@ -124,7 +125,7 @@ def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
 def _dist_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Distance of each point to the closed polyline ``poly``."""
     a = poly
-    b = np.roll(poly, -1, axis=0)
+    b = roll(poly, -1)
     ab = b - a
     L2 = (ab * ab).sum(axis=1)
     L2 = np.where(L2 > 0, L2, 1.0)
@@ -157,8 +158,8 @@ def _arrow_like(p: Piece) -> bool:
     if len(p.outline) != 7 or len(p.vertices) != 7:
         return False
     q = p.outline
-    d0 = q - np.roll(q, 1, axis=0)
-    d1 = np.roll(q, -1, axis=0) - q
+    d0 = q - roll(q, 1)
+    d1 = roll(q, -1) - q
     cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
     return int((cross < 0).sum()) == 2
 

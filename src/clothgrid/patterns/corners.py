@@ -39,6 +39,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import roll
 from .piece import Piece
 
 __all__ = ["CornerCandidate", "CornerChoice", "turn_angles", "corner_candidates",
@@ -109,8 +110,8 @@ class CornerChoice:
 def turn_angles(outline: np.ndarray) -> np.ndarray:
     """Signed turn at every point of a closed outline (radians, + left / convex for CCW)."""
     p = np.asarray(outline, dtype=np.float64)
-    d_in = p - np.roll(p, 1, axis=0)
-    d_out = np.roll(p, -1, axis=0) - p
+    d_in = p - roll(p, 1)
+    d_out = roll(p, -1) - p
     cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
     dot = (d_in * d_out).sum(axis=1)
     return np.arctan2(cross, dot)

@@ -11,7 +11,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError, PiecesError
-from ..geometry import signed_area, spike_points, untie_loops
+from ..geometry import roll, signed_area, spike_points, untie_loops
 from ..limits import MAX_COORDINATE, MAX_OUTLINE_POINTS
 from .sampling import DEFAULT_REL_TOL, Primitive, loop_extent, sample_loop
 
@@ -308,7 +308,7 @@ def _self_crossing(pts: np.ndarray) -> tuple[np.ndarray, tuple[int, int, np.ndar
 
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     tol = max(CORNER_TOL * size, np.finfo(np.float64).tiny)
-    keep = np.flatnonzero(np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1) > tol)
+    keep = np.flatnonzero(np.linalg.norm(pts - roll(pts, 1), axis=1) > tol)
     if len(keep) < 3:
         return None
     found = _find_self_intersection(pts[keep], tol)
@@ -369,7 +369,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     eps = 1e-12 * size
     # drop points equal to their predecessor (cyclically), remembering where each went
     if n0:
-        gap = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1)
+        gap = np.linalg.norm(pts - roll(pts, 1), axis=1)
         keep = gap > eps
         if not keep.any():
             keep[0] = True
@@ -418,7 +418,7 @@ def piece_from_polygon(name: str, points: np.ndarray, *, vertices: np.ndarray | 
     if not abs(area) > 1e-12 * size * size:
         raise InputError(f"{label}: encloses no area (its outline runs back over itself)")
     if area < 0:                              # make it counter-clockwise, keeping point 0
-        pts = np.roll(pts[::-1], 1, axis=0)
+        pts = roll(pts[::-1], 1)
         verts, turns = _sorted_unique((n - verts) % n), _sorted_unique((n - turns) % n)
     if crossing is not None:                  # named in the final numbering ('clothgrid pieces')
         _check_simple(pts, label)
