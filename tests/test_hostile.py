@@ -582,3 +582,20 @@ def test_limits_are_documented():
         assert getattr(limits, name) > 0
     for code in ("| 129", "| 143", "| 130"):
         assert code in readme
+
+
+def test_the_convex_shortcut_of_the_self_crossing_search_is_only_taken_when_safe():
+    """A strictly convex outline that turns once and is far from degenerate cannot meet itself,
+    so the pairwise search is skipped; a pentagram (every turn to the left, but twice round), a
+    bow-tie and a sliver thinner than the touching tolerance take the full search, which finds
+    their crossings or touches."""
+    from clothgrid.patterns.piece import _clearly_convex, _self_crossing
+
+    square = np.array([[0.0, 0], [10, 0], [10, 10], [0, 10]])
+    assert _clearly_convex(square, 1e-8) and _self_crossing(square) is None
+    star = np.array([[np.cos(a), np.sin(a)] for a in np.pi / 2 + 4 * np.pi / 5 * np.arange(5)]) * 50
+    assert not _clearly_convex(star, 1e-7) and _self_crossing(star) is not None
+    bow = np.array([[0.0, 0], [10, 10], [10, 0], [0, 10]])
+    assert not _clearly_convex(bow, 1e-8) and _self_crossing(bow) is not None
+    sliver = np.array([[0.0, 0], [100, 0], [100, 1e-9], [0, 1e-9]])
+    assert not _clearly_convex(sliver, 1e-7)

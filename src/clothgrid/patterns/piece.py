@@ -311,8 +311,28 @@ def _self_crossing(pts: np.ndarray) -> tuple[np.ndarray, tuple[int, int, np.ndar
     keep = np.flatnonzero(np.linalg.norm(pts - roll(pts, 1), axis=1) > tol)
     if len(keep) < 3:
         return None
+    if _clearly_convex(pts[keep], tol):
+        return None
     found = _find_self_intersection(pts[keep], tol)
     return None if found is None else (keep, found)
+
+
+def _clearly_convex(q: np.ndarray, tol: float) -> bool:
+    """Whether the closed polygon ``q`` is strictly convex, turning once round, and far from
+    degenerate (every edge times the sine of the smallest corner angle above ``1000 tol``):
+    then no two of its segments meet, and the pairwise search is skipped (a one-rectangle
+    piece of a 10^5-piece file spent a quarter of its time in that search)."""
+    e = roll(q, -1) - q
+    f = roll(e, -1)
+    cross = e[:, 0] * f[:, 1] - e[:, 1] * f[:, 0]
+    if not ((cross > 0).all() or (cross < 0).all()):
+        return False
+    turn = np.arctan2(cross, (e * f).sum(axis=1))
+    if abs(abs(float(turn.sum())) - 2 * np.pi) > 1e-6:
+        return False
+    length = np.hypot(e[:, 0], e[:, 1])
+    sine = np.abs(cross) / (length * roll(length, -1))
+    return float(length.min()) * float(sine.min()) > 1e3 * tol
 
 
 def _check_simple(pts: np.ndarray, label: str) -> None:
