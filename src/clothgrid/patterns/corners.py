@@ -156,9 +156,13 @@ def _candidate_turns(piece: Piece) -> np.ndarray:
 
 
 def _arc(outline: np.ndarray) -> tuple[np.ndarray, float]:
-    d = np.diff(np.vstack([outline, outline[:1]]), axis=0)
+    """Arc length at each outline point from the first, and the perimeter."""
+    d = roll(outline, -1) - outline
     seg = np.hypot(d[:, 0], d[:, 1])
-    return np.concatenate([[0.0], np.cumsum(seg)[:-1]]), float(seg.sum())
+    s = np.empty_like(seg)
+    s[0] = 0.0
+    np.cumsum(seg[:-1], out=s[1:])
+    return s, float(seg.sum())
 
 
 #: Arc-length window (fraction of the perimeter, at most :data:`ROUND_WINDOW_MM`) over
