@@ -785,3 +785,9 @@ def test_open_paths_joined_only_where_two_ends_meet(tmp_path):
                           '<path class="fabric sa" d="M 0,0 L 0,100 L 100,100"/></g>'
                           '<path id="s" d="M 150,0 L 250,0 L 250,100 Z"/>')
     assert [p.name for p in read_pieces(path)] == ["s"]
+
+
+def test_open_paths_and_polylines_are_both_counted_in_the_error(tmp_path):
+    path = _svg(tmp_path, '<polyline points="0,0 50,0 50,50"/><path d="M 10 10 L 20 20"/>')
+    with pytest.raises(InputError, match=r"\(2 open paths were skipped"):
+        read_pieces(path)

@@ -213,12 +213,9 @@ def _polygon_points(el: ET.Element, m: np.ndarray, where: str) -> tuple[np.ndarr
     return pts, size > 0 and float(np.linalg.norm(pts[-1] - pts[0])) <= 1e-9 * size
 
 
-def _rect_corners(el: ET.Element, m: np.ndarray, where: str) -> np.ndarray | None:
-    """The four corners (transformed by ``m``) of a ``<rect>`` with square corners, or None
-    (rounded corners: read as path data by :func:`_shape_d`; no width or height: nothing drawn).
-
-    A polygon, not four line primitives: a file of 10^5 small rectangles is read in seconds.
-    """
+def _rect_geometry(el: ET.Element, where: str) -> tuple[float, float, float, float, float, float] | None:
+    """``(x, y, width, height, rx, ry)`` of a ``<rect>``, the radii as SVG clamps them (``auto``:
+    the other one; at most half the side), or None when it draws nothing (no width or height)."""
     w, h = _attr(el, "width", where, 0.0), _attr(el, "height", where, 0.0)
     if w <= 0 or h <= 0:
         return None
@@ -226,9 +223,22 @@ def _rect_corners(el: ET.Element, m: np.ndarray, where: str) -> np.ndarray | Non
     rx = _attr(el, "rx", where, 0.0) if rx_t not in (None, "auto") else None
     ry = _attr(el, "ry", where, 0.0) if ry_t not in (None, "auto") else None
     rx, ry = (rx if rx is not None else ry or 0.0), (ry if ry is not None else rx or 0.0)
-    if min(max(rx, 0.0), w / 2) > 0 and min(max(ry, 0.0), h / 2) > 0:
-        return None
     x, y = _attr(el, "x", where, 0.0), _attr(el, "y", where, 0.0)
+    return x, y, w, h, min(max(rx, 0.0), w / 2), min(max(ry, 0.0), h / 2)
+
+
+def _rect_corners(el: ET.Element, m: np.ndarray, where: str) -> np.ndarray | None:
+    """The four corners (transformed by ``m``) of a ``<rect>`` with square corners, or None
+    (rounded corners: read as path data by :func:`_shape_d`; no width or height: nothing drawn).
+
+    A polygon, not four line primitives: a file of 10^5 small rectangles is read in seconds.
+    """
+    g = _rect_geometry(el, where)
+    if g is None:
+        return None
+    x, y, w, h, rx, ry = g
+    if rx > 0 and ry > 0:
+        return None
     xy = np.array([[x, y], [x + w, y], [x + w, y + h], [x, y + h]])
     with np.errstate(over="ignore", invalid="ignore"):
         return xy @ m[:2, :2].T + m[:2, 2]
@@ -242,17 +252,10 @@ def _shape_d(el: ET.Element, where: str) -> str | None:
     if tag == "path":
         return el.get("d") or None
     if tag == "rect":
-        x, y = _attr(el, "x", where, 0.0), _attr(el, "y", where, 0.0)
-        w, h = _attr(el, "width", where, 0.0), _attr(el, "height", where, 0.0)
-        if w <= 0 or h <= 0:
+        g = _rect_geometry(el, where)
+        if g is None:
             return None
-        rx_t, ry_t = el.get("rx"), el.get("ry")
-        rx = _attr(el, "rx", where, 0.0) if rx_t not in (None, "auto") else None
-        ry = _attr(el, "ry", where, 0.0) if ry_t not in (None, "auto") else None
-        rx, ry = (rx if rx is not None else ry or 0.0), (ry if ry is not None else rx or 0.0)
-        rx, ry = min(max(rx, 0.0), w / 2), min(max(ry, 0.0), h / 2)
-        if rx == 0 or ry == 0:
-            return f"M{x!r},{y!r} H{x + w!r} V{y + h!r} H{x!r} Z"
+        x, y, w, h, rx, ry = g                 # rounded: square rects are _rect_corners'
         return (f"M{x + rx!r},{y!r} H{x + w - rx!r} A{rx!r},{ry!r} 0 0 1 {x + w!r},{y + ry!r} "
                 f"V{y + h - ry!r} A{rx!r},{ry!r} 0 0 1 {x + w - rx!r},{y + h!r} H{x + rx!r} "
                 f"A{rx!r},{ry!r} 0 0 1 {x!r},{y + h - ry!r} V{y + ry!r} "
@@ -470,8 +473,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             ends = np.array([p.start for p in prims] + [prims[-1].end])
                             size = float(np.hypot(*np.ptp(ends, axis=0)))
                             gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
-                            if not size > 0 or gap > 1e-9 * size:
-                                open_paths += 1
+                            if not size > 0 or gap > 1e-9 * size:      # counted once joined
                                 opened.append(_Open(prims, base, el, around, text, group))
                                 continue
                             if _drawn_line(prims, size):       # M a L b z: a line, drawn closed
@@ -520,7 +522,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
             unmade.append((piece_failure(name, exc, where), meta))
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
     unmade = [u for u in unmade if id(u) not in used]     # lines drawn closed that close an outline
-    open_paths = sum(1 for o in opened if not o.joined and not o.line)
+    open_paths += sum(1 for o in opened if not o.joined and not o.line)
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
