@@ -199,10 +199,10 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         smaller than it was where it already was, nor smaller than the grid's
         smallest angle up to :data:`FLOOR_MAX_DEG` (grid corners aside; the
         floor used is ``info["floor_deg"]``).
-    spread_ok : float
-        A grid whose edge spread is at most this is returned as it is.
     band : float
         Edges within this factor of the geometric mean edge length are left alone.
+    spread_ok : float
+        A grid whose edge spread is at most this is returned as it is.
     max_sweeps : int
         Most Gauss-Seidel sweeps.
     margin : int
@@ -215,7 +215,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     info : dict
         ``spread_before``, ``spread_after`` (longest / shortest edge),
         ``active`` (nodes that could move), ``moved`` (node moves), ``sweeps``,
-        ``seconds``.
+        ``seconds``, and ``floor_deg`` (the floor used) when it evened.
     """
     from .foldfree import _grid_copy, _with_interior, plane_frame
 
@@ -223,44 +223,42 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     R = _grid_copy(points, "even_edges")
     centre, basis = plane_frame(R, dim)
     X = np.ascontiguousarray((R - centre) @ basis.T)
-    eu = np.linalg.norm(np.diff(X, axis=0), axis=-1)
-    ev = np.linalg.norm(np.diff(X, axis=1), axis=-1)
-    lengths = np.concatenate([eu.ravel(), ev.ravel()])
-    info: dict[str, Any] = {"spread_before": float(lengths.max() / lengths.min()) if lengths.min() > 0
-                            else float("inf"), "moved": 0, "sweeps": 0, "active": 0}
-    if not lengths.min() > 0:
-        info.update(spread_after=info["spread_before"], seconds=time.perf_counter() - t0)
-        return R, info
-    if info["spread_before"] <= spread_ok:
-        info.update(spread_after=info["spread_before"], seconds=time.perf_counter() - t0)
-        return R, info
-    from .foldfree_kernels import cell_min_sine
+    lengths = _edge_lengths(X)
+    shortest = float(lengths.min())
+    spread = float(lengths.max()) / shortest if shortest > 0 else float("inf")
+    info: dict[str, Any] = {"spread_before": spread, "spread_after": spread, "moved": 0, "sweeps": 0,
+                            "active": 0}
+    if shortest > 0 and spread > spread_ok:
+        from .foldfree_kernels import cell_min_sine
 
-    scale = float(np.exp(np.log(lengths).mean()))
-    X /= scale
-    lo, hi = -math.log(band), math.log(band)
-    sines = cell_min_sine(X)
-    if sines.size > 4:
-        sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
-    smallest = math.degrees(math.asin(min(1.0, max(0.0, float(sines.min())))))
-    floor_deg = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
-    info["floor_deg"] = floor_deg
-    floor = math.sin(math.radians(floor_deg))
-    active, count = _outside(X, lo, hi, margin)
-    info["active"] = int(count)
-    if count:
-        for sweep in range(max_sweeps):
+        scale = float(np.exp(np.log(lengths).mean()))
+        X /= scale
+        lo, hi = -math.log(band), math.log(band)
+        sines = cell_min_sine(X)
+        if sines.size > 4:
+            sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
+        smallest = math.degrees(math.asin(min(1.0, max(0.0, float(sines.min())))))
+        info["floor_deg"] = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
+        floor = math.sin(math.radians(info["floor_deg"]))
+        active, count = _outside(X, lo, hi, margin)
+        info["active"] = int(count)
+        for sweep in range(max_sweeps if count else 0):
             biggest, moved = _sweep(X, lo, hi, floor, active)
             info["sweeps"] = sweep + 1
             info["moved"] += int(moved)
             if moved == 0 or biggest < 1e-4:
                 break
     if info["moved"] == 0:                 # as it was, bit for bit
-        info.update(spread_after=info["spread_before"], seconds=time.perf_counter() - t0)
+        info["seconds"] = time.perf_counter() - t0
         return R, info
     X *= scale
-    eu = np.linalg.norm(np.diff(X, axis=0), axis=-1)
-    ev = np.linalg.norm(np.diff(X, axis=1), axis=-1)
-    info["spread_after"] = float(max(eu.max(), ev.max()) / min(eu.min(), ev.min()))
+    lengths = _edge_lengths(X)
+    info["spread_after"] = float(lengths.max() / lengths.min())
     info["seconds"] = time.perf_counter() - t0
     return _with_interior(R, X, centre, basis, dim), info
+
+
+def _edge_lengths(X: np.ndarray) -> np.ndarray:
+    """The lengths of every u- and v-edge of a ``(nu, nv, d)`` grid, flat."""
+    return np.concatenate([np.linalg.norm(np.diff(X, axis=0), axis=-1).ravel(),
+                           np.linalg.norm(np.diff(X, axis=1), axis=-1).ravel()])
