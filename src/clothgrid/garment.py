@@ -406,7 +406,7 @@ def _loosen(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, e
              and lays[n].corner_method not in ("given", "pattern")]
     for name in names:
         lay = lays[name]
-        kept, method = list(lay.corners), lay.corner_method
+        kept = list(lay.corners)
         for alt in _alternatives(lay):
             lay.corners = alt
             prob = _count_problem(gs, lays, h, fixed)
@@ -418,8 +418,7 @@ def _loosen(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, e
             say(f"panel {name!r}: other grid corners (vertices {_corner_names(lay)}): the chosen ones "
                 "made the node counts conflict")
             return counts, info, prob
-        lay.corners, lay.corner_method = kept, method
-    _count_problem(gs, lays, h, fixed)
+        lay.corners = kept
     raise CountConflict(f"{gs.path}: {exc}. Loosen it by choosing other grid corners for one of "
                         "these panels (corners={'PANEL': [i, j, k, l]}, on the command line "
                         "--corners PANEL=I,J,K,L: panel vertex indices bottom-left, bottom-right, "
