@@ -160,6 +160,24 @@ class Garment:
     info: dict[str, Any]
 
     @property
+    def face_rest(self) -> np.ndarray:
+        """``(N, 2)`` the rest coordinates as seen from each face's front side (mm).
+
+        ``rest`` with ``x`` negated on the panels whose spec loop runs clockwise (``flipped`` in
+        ``info["panels"]``: GarmentCode's mirrored copies, cut with the fabric turned over). Their
+        quads are reversed to follow the spec's loop, so in ``rest`` they run clockwise; in
+        ``face_rest`` every quad and triangle runs counter-clockwise, with positive area. Lengths
+        and angles are those of ``rest`` (a mirror image). This is the ``st`` of the USD output,
+        the ``vt`` of the OBJ, and the panel shape a cloth solver such as Newton's Style3D takes its
+        rest state from (it drops a triangle of negative panel area as degenerate).
+        """
+        out = self.rest.copy()
+        flipped = [i for i, p in enumerate(self.info.get("panels", ())) if p.get("flipped")]
+        if flipped:
+            out[np.isin(self.panel, flipped), 0] *= -1.0
+        return out
+
+    @property
     def triangles(self) -> np.ndarray:
         """``(2F, 3)``: every quad cut in two triangles (same orientation), see :func:`split_quads`."""
         return split_quads(self.quads, self.rest)
@@ -656,7 +674,8 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
     ``spring_pairs``, ``spring_kind``, ``spring_kinds``, ``spring_rest_length``, ``masses`` (kg,
     with ``density``), ``length_unit`` (mm), ``up_axis`` (Y), ``info`` (JSON); with ``seams="weld"``
     also ``weld_map`` (N,), ``welded_points``, ``welded_quads``, ``welded_triangles``.
-    ``.obj``: one group per panel, ``vt`` the rest coordinates (mm) of every grid node; with
+    ``.obj``: one group per panel, ``vt`` the rest coordinates (mm) of every grid node as seen from
+    the faces' front side (:attr:`Garment.face_rest`: a flipped panel's ``x`` negated); with
     ``seams="weld"`` the welded vertices (faces still carry each panel's own ``vt``).
     USD: :func:`clothgrid.garment_usd.write_garment_usd` (needs ``usd-core``).
     """
@@ -687,14 +706,14 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
         return path
     if suffix == ".obj":
         lines = [f"# clothgrid garment: {len(g.panel_names)} panels, {len(g.stitches)} stitched node pairs; "
-                 "mm, Y up; vt = flat pattern coordinates (mm)\n"]
+                 "mm, Y up; vt = flat pattern coordinates (mm), front side up\n"]
         if seams == "weld":
             w = g.welded()
             vmap, vpts = w["map"], w["points"]
         else:
             vmap, vpts = np.arange(len(g.points)), g.points
         lines += [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in vpts.tolist()]
-        lines += [f"vt {u:.9g} {v:.9g}\n" for u, v in g.rest.tolist()]
+        lines += [f"vt {u:.9g} {v:.9g}\n" for u, v in g.face_rest.tolist()]
         for pi, name in enumerate(g.panel_names):
             lines.append(f"g {name}\n")
             for q in g.quads[g.face_panel == pi].tolist():

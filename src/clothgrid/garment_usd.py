@@ -12,7 +12,9 @@ here, when a ``.usda`` / ``.usd`` / ``.usdc`` output is asked for):
   face corner the flat pattern coordinates (mm) of that corner's grid node, in
   its panel's own frame, so a welded vertex keeps one rest position per panel
   it belongs to (the pattern rest shape a cloth solver takes its rest lengths
-  from);
+  from); seen from the faces' front side (``Garment.face_rest``: a flipped
+  panel's ``x`` negated), so every face runs counter-clockwise in ``st`` as
+  Newton's Style3D loader needs (it drops faces of negative panel area);
 - one ``UsdGeom.Subset`` per panel (family ``panel``, element type ``face``,
   partition), named after the panel (made a valid prim name);
 - stage metadata: ``metersPerUnit`` 0.001, ``upAxis`` Y; ``customData`` on the
@@ -91,7 +93,7 @@ def write_garment_usd(g: Any, path: str | Path, *, seams: str = "keep") -> Path:
     mesh.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(np.array([lo, hi], dtype=np.float32)))
     st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
                                                  UsdGeom.Tokens.faceVarying)
-    st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(g.rest[g.quads.reshape(-1)], dtype=np.float32)))
+    st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(g.face_rest[g.quads.reshape(-1)], dtype=np.float32)))
     taken: set[str] = set()
     for pi, name in enumerate(g.panel_names):
         sub = UsdGeom.Subset.Define(stage, f"/Garment/Cloth/{prim_name(name, taken)}")
