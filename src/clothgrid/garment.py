@@ -118,6 +118,7 @@ class _Layout:
     seg: dict[tuple[int, int], int] = field(default_factory=dict)    # (edge, j) -> segment id
     sequence: list[tuple[int, int, bool]] = field(default_factory=list)  # ccw from corner 0: (edge, j, forward)
     sides: list[list[int]] = field(default_factory=list)             # 4 lists of positions in sequence
+    alternatives: list[list[tuple[int, float]]] | None = None        # other corner sets, best first
 
 
 @dataclass(eq=False)
@@ -387,19 +388,38 @@ def _count_problem(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | 
 MAX_ALTERNATIVES = 12
 
 
-def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
-    """Other corner sets of a panel, at its vertices, best coarse grid first (the current one left out)."""
-    from .patterns.corners import coarse_grid, grid_score
+#: ... chosen among this many corner sets by a transfinite grid's score (no relaxation) first.
+PRE_RANKED = 3 * MAX_ALTERNATIVES
 
+
+def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
+    """Other corner sets of a panel, at its vertices, best coarse grid first (the first choice left
+    out). Every set of 4 vertices is scored on its unrelaxed transfinite grid (cheap); the best
+    :data:`PRE_RANKED` are scored again on their relaxed coarse grids. Computed once per panel."""
+    from .patterns.corners import _sides_grid, _side_points, coarse_grid, grid_score
+
+    if lay.alternatives is not None:
+        return lay.alternatives
     ccw = lay.ccw
     if len(ccw) < 4 or len(ccw) > 12:
+        lay.alternatives = []
         return []
     outline, starts = _panel_outline(lay)
-    scored = []
+    pre = []
     for ks in itertools.combinations(range(len(ccw)), 4):
         cand = [(k, 0.0) for k in ks]
         if sorted(cand) == sorted(lay.corners):
             continue
+        c = [starts[k] for k in ks]
+        try:
+            sides = [_side_points(outline, c[k], c[(k + 1) % 4]) for k in range(4)]
+            score = grid_score(_sides_grid(sides, 9, 9))
+        except (InputError, ValueError, FloatingPointError):
+            continue
+        pre.append((-score, ks))
+    pre.sort()
+    scored = []
+    for _, ks in pre[:PRE_RANKED]:
         try:
             score = grid_score(coarse_grid(outline, [starts[k] for k in ks]))
         except (InputError, ValueError, FloatingPointError):
@@ -412,6 +432,7 @@ def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
         first = _bottom_first(pts)
         ks = ks[first:] + ks[:first]
         out.append([(k, 0.0) for k in ks])
+    lay.alternatives = out
     return out
 
 
@@ -442,6 +463,116 @@ def _loosen(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, e
                         "--corners PANEL=I,J,K,L: panel vertex indices bottom-left, bottom-right, "
                         "top-right, top-left), so that other edges form its opposite sides",
                         exc.groups) from None
+
+
+def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
+                cache: dict[Any, dict[str, Any]]) -> dict[str, Any]:
+    """Sample one panel's boundary at its segments' node counts and grid it (``generate`` keeps the
+    boundary fixed). Node ids are the panel's own (``i * nv + j``). Cached by corners and counts."""
+    from .generate import generate
+    from .quality import quality
+
+    key = (lay.spec.name, tuple(lay.corners), tuple(tuple(lay.fracs[e]) for e in sorted(lay.fracs)),
+           tuple(int(counts[lay.seg[s[:2]]]) for s in lay.sequence))
+    if key in cache:
+        return cache[key]
+    loop_xy: list[np.ndarray] = []
+    seg_pos: dict[tuple[int, int], tuple[int, int]] = {}   # (edge, j) -> (loop start, count)
+    cursor = 0
+    for e, j, fwd in lay.sequence:
+        n = int(counts[lay.seg[(e, j)]])
+        fr = lay.fracs[e]
+        f = np.linspace(fr[j], fr[j + 1], n + 1)
+        if not fwd:
+            f = f[::-1]
+        xy = points_at(lay.polys[e], f)
+        loop_xy.append(xy[:-1])
+        seg_pos[(e, j)] = (cursor, n)
+        cursor += n
+    X = np.concatenate(loop_xy)
+    L = len(X)
+    side_n = [sum(int(counts[lay.seg[lay.sequence[i][:2]]]) for i in s) for s in lay.sides]
+    nu, nv = side_n[0] + 1, side_n[1] + 1
+    assert side_n[2] == nu - 1 and side_n[3] == nv - 1 and L == 2 * (nu + nv) - 4
+    bottom = X[0:nu]
+    right = X[nu - 1:nu + nv - 1]
+    top = X[nu + nv - 2:2 * nu + nv - 2][::-1]
+    left = np.vstack([X[2 * nu + nv - 3:], X[:1]])[::-1]
+    b = Boundary.from_sides(bottom, right, top, left, name=lay.spec.name)
+    grid = generate(b, None, **opts)
+    p = np.arange(L)
+    gi = np.where(p < nu - 1, p, np.where(p < nu + nv - 2, nu - 1,
+                  np.where(p < 2 * nu + nv - 3, nu - 1 - (p - (nu + nv - 2)), 0)))
+    gj = np.where(p < nu - 1, 0, np.where(p < nu + nv - 2, p - (nu - 1),
+                  np.where(p < 2 * nu + nv - 3, nv - 1, nv - 1 - (p - (2 * nu + nv - 3)))))
+    loop_node = gi * nv + gj
+    flat = grid.points.reshape(-1, 3)[:, :2]
+    # the boundary nodes are the sampled ones (generate keeps the boundary fixed)
+    drift = float(np.abs(flat[loop_node] - X).max())
+    edge_nodes, edge_fracs = {}, {}
+    for e in range(len(lay.spec.edges)):
+        nodes, fracs = [], []
+        fr = lay.fracs[e]
+        for j in range(len(fr) - 1):
+            start, n = seg_pos[(e, j)]
+            ids = loop_node[(start + np.arange(n + 1)) % L]
+            fj = np.linspace(fr[j], fr[j + 1], n + 1)
+            fwd = next(fw for ee, jj, fw in lay.sequence if ee == e and jj == j)
+            if not fwd:
+                ids = ids[::-1]
+            nodes.append(ids if j == 0 else ids[1:])
+            fracs.append(fj if j == 0 else fj[1:])
+        edge_nodes[e] = np.concatenate(nodes)
+        edge_fracs[e] = np.concatenate(fracs)
+    out = {"grid": grid, "shape": (nu, nv), "edge_nodes": edge_nodes, "edge_fracs": edge_fracs,
+           "drift": drift, "quality": quality(grid), "key": key}
+    cache[key] = out
+    return out
+
+
+def _cost(made: dict[str, dict[str, Any]]) -> tuple[int, float]:
+    """Folded cells in all, then the smallest scaled Jacobian (negated: lower is better)."""
+    folded = sum(int(m["quality"].folded) for m in made.values())
+    return folded, -min(float(m["quality"].min_scaled_jacobian) for m in made.values())
+
+
+def _unfold(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, counts: np.ndarray,
+            count_info: dict, prob: CountProblem, made: dict[str, dict[str, Any]], opts: dict[str, Any],
+            cache: dict[Any, dict[str, Any]], say: Callable[[str], None]) -> tuple:
+    """Where a panel with automatic corners keeps folded cells, try its next best corner sets (as
+    :func:`_loosen` does for a conflict): each changes the node counts (one integer program for the
+    whole garment), so when the panel alone grids better, every panel whose counts change is
+    gridded again; a set is kept when the garment's folded cells drop, or its worst corner improves
+    at equal folds (the best found is kept)."""
+    for name, lay in lays.items():
+        if int(made[name]["quality"].folded) == 0 or lay.corner_method in ("given", "pattern"):
+            continue
+        best = (_cost(made), list(lay.corners), counts, count_info, prob, made, lay.corner_method)
+        start = best[0][0]
+        for alt in _alternatives(lay):
+            lay.corners = alt
+            try:
+                p2 = _count_problem(gs, lays, h, fixed)
+                c2, i2 = solve_counts(p2)
+            except (CountConflict, InputError):
+                continue
+            own = _grid_panel(lay, c2, opts, cache)     # the panel alone first: most sets fold it too
+            if (int(own["quality"].folded), -float(own["quality"].min_scaled_jacobian)) >= (
+                    int(best[5][name]["quality"].folded), -float(best[5][name]["quality"].min_scaled_jacobian)):
+                continue
+            m2 = {n: _grid_panel(la, c2, opts, cache) for n, la in lays.items()}
+            cost = _cost(m2)
+            if cost < best[0]:
+                best = (cost, list(alt), c2, i2, p2, m2, "unfold")
+                if cost[0] == 0:
+                    break
+        cost, corners, counts, count_info, prob, made, method = best
+        lay.corners, lay.corner_method = corners, method
+        _count_problem(gs, lays, h, fixed)          # the layouts' segments for the corners kept
+        if cost[0] < start:
+            say(f"panel {name!r}: other grid corners (vertices {_corner_names(lay)}): {start} folded "
+                f"cells -> {cost[0]}")
+    return counts, count_info, prob, made
 
 
 # --------------------------------------------------------------------------- the garment
@@ -505,8 +636,7 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         A malformed spec; :class:`~clothgrid.garment_counts.CountConflict` when
         no node counts exist (the message names the conflicting constraints).
     """
-    from .generate import generate
-    from .quality import quality, sim_figures
+    from .quality import sim_figures
 
     say = progress or (lambda _m: None)
     t_start = time.perf_counter()
@@ -553,7 +683,16 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
     say(f"node counts: {len(prob.targets)} segments, {count_info['constraints']} equalities, "
         f"MILP {count_info['seconds']:.3f} s")
 
-    # sample, grid, place
+    # sample and grid every panel; then, where a panel folds, other corners (same as a conflict)
+    opts = {"weights": "uniform", "functional": "auto", **generate_options}
+    t1 = time.perf_counter()
+    cache: dict[Any, dict[str, Any]] = {}
+    made = {name: _grid_panel(lay, counts, opts, cache) for name, lay in lays.items()}
+    counts, count_info, prob, made = _unfold(gs, lays, h, fixed, counts, count_info, prob, made, opts,
+                                             cache, say)
+    t_grid = time.perf_counter() - t1
+
+    # place and assemble
     names = list(lays)
     grids, pts3, rest, panel_idx, quads, face_panel = [], [], [], [], [], []
     shapes: list[tuple[int, int]] = []
@@ -561,59 +700,13 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
     edge_nodes: dict[tuple[str, int], np.ndarray] = {}
     edge_fracs: dict[tuple[str, int], np.ndarray] = {}
     per_panel: list[dict[str, Any]] = []
-    opts = {"weights": "uniform", "functional": "auto", **generate_options}
-    t_grid = 0.0
     for pi, name in enumerate(names):
-        lay = lays[name]
-        loop_xy: list[np.ndarray] = []
-        seg_pos: dict[tuple[int, int], tuple[int, int]] = {}   # (edge, j) -> (loop start, count)
-        cursor = 0
-        for e, j, fwd in lay.sequence:
-            n = int(counts[lay.seg[(e, j)]])
-            fr = lay.fracs[e]
-            f = np.linspace(fr[j], fr[j + 1], n + 1)
-            if not fwd:
-                f = f[::-1]
-            xy = points_at(lay.polys[e], f)
-            loop_xy.append(xy[:-1])
-            seg_pos[(e, j)] = (cursor, n)
-            cursor += n
-        X = np.concatenate(loop_xy)
-        L = len(X)
-        side_n = [sum(int(counts[lay.seg[lay.sequence[i][:2]]]) for i in s) for s in lay.sides]
-        nu, nv = side_n[0] + 1, side_n[1] + 1
-        assert side_n[2] == nu - 1 and side_n[3] == nv - 1 and L == 2 * (nu + nv) - 4
-        bottom = X[0:nu]
-        right = X[nu - 1:nu + nv - 1]
-        top = X[nu + nv - 2:2 * nu + nv - 2][::-1]
-        left = np.vstack([X[2 * nu + nv - 3:], X[:1]])[::-1]
-        t1 = time.perf_counter()
-        b = Boundary.from_sides(bottom, right, top, left, name=name)
-        grid = generate(b, None, **opts)
-        t_grid += time.perf_counter() - t1
-        p = np.arange(L)
-        gi = np.where(p < nu - 1, p, np.where(p < nu + nv - 2, nu - 1,
-                      np.where(p < 2 * nu + nv - 3, nu - 1 - (p - (nu + nv - 2)), 0)))
-        gj = np.where(p < nu - 1, 0, np.where(p < nu + nv - 2, p - (nu - 1),
-                      np.where(p < 2 * nu + nv - 3, nv - 1, nv - 1 - (p - (2 * nu + nv - 3)))))
-        loop_node = gi * nv + gj + offsets[-1]
+        lay, m = lays[name], made[name]
+        grid, (nu, nv) = m["grid"], m["shape"]
+        for e, ids in m["edge_nodes"].items():
+            edge_nodes[(name, e)] = ids + offsets[-1]
+            edge_fracs[(name, e)] = m["edge_fracs"][e]
         flat = grid.points.reshape(-1, 3)[:, :2]
-        # the boundary nodes are the sampled ones (generate keeps the boundary fixed)
-        drift = float(np.abs(flat[loop_node - offsets[-1]] - X).max())
-        for e in range(len(lay.spec.edges)):
-            nodes, fracs = [], []
-            fr = lay.fracs[e]
-            for j in range(len(fr) - 1):
-                start, n = seg_pos[(e, j)]
-                ids = loop_node[(start + np.arange(n + 1)) % L]
-                fj = np.linspace(fr[j], fr[j + 1], n + 1)
-                fwd = next(fw for ee, jj, fw in lay.sequence if ee == e and jj == j)
-                if not fwd:
-                    ids = ids[::-1]
-                nodes.append(ids if j == 0 else ids[1:])
-                fracs.append(fj if j == 0 else fj[1:])
-            edge_nodes[(name, e)] = np.concatenate(nodes)
-            edge_fracs[(name, e)] = np.concatenate(fracs)
         R = euler_xyz_to_R(lay.spec.rotation)
         xyz = np.column_stack([flat, np.zeros(len(flat))]) @ R.T + lay.spec.translation
         q = grid.quads + offsets[-1]
@@ -627,15 +720,14 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         face_panel.append(np.full(len(q), pi, dtype=np.int32))
         shapes.append((nu, nv))
         offsets.append(offsets[-1] + nu * nv)
-        qual = quality(grid)
+        qual = m["quality"]
         figs = sim_figures(grid.points, h)
-        flat = flat_corners(grid.points)
         per_panel.append({"name": name, "nodes": [nu, nv], "corners": lay.corner_method,
                           "corner_vertices": _corner_names(lay), "flipped": lay.flipped,
                           "functional": grid.info.get("functional"), "folded": int(qual.folded),
-                          "flat_corners": flat,
+                          "flat_corners": flat_corners(grid.points),
                           "min_angle_deg": figs.get("min_angle_deg"), "edge_spread": figs.get("edge_spread"),
-                          "boundary_drift": drift, "seconds": grid.info.get("seconds")})
+                          "boundary_drift": m["drift"], "seconds": grid.info.get("seconds")})
         say(f"{name}: {nu} x {nv} nodes, corners {lay.corner_method}, {qual.folded} folded")
     pairs, sid = [], []
     for st in gs.stitches:
