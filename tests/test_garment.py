@@ -489,3 +489,31 @@ def test_a_panel_that_folds_gets_other_corners():
     assert moved == ["left_ftorso", "right_ftorso"]
     assert panels["left_ftorso"]["nodes"] == panels["right_ftorso"]["nodes"]
     assert any("folded cells ->" in ln and "right_ftorso" in ln for ln in lines)
+
+
+@needs_shared
+def test_fixed_counts_from_the_api_and_the_command_line(tmp_path, capsys):
+    """``fixed={(panel, edge): n}`` / ``--fix PANEL:EDGE=N`` sets a spec edge's intervals; the
+    edge sewn to it follows; unknown panels and edges are one error line (exit 2)."""
+    spec = SHARED / "gpg_skirt_4_panels_specification.json"
+    gs = read_garment_spec(spec)
+    st = gs.stitches[0]
+    free = garment(spec, edge_length="4cm")
+    n = len(free.edge_nodes[st.a]) - 1 + 3
+    g = garment(spec, edge_length="4cm", fixed={st.a: n})
+    assert len(g.edge_nodes[st.a]) == len(g.edge_nodes[st.b]) == n + 1
+    assert sum(p["folded"] for p in g.info["panels"]) == 0
+    out = tmp_path / "g.npz"
+    arg = f"{st.a[0]}:{st.a[1]}={n}"
+    assert main(["garment", str(spec), "-o", str(out), "--edge-length", "4cm", "--fix", arg, "-q"]) == 0
+    with np.load(out) as d:
+        assert (d["stitch_id"] == 0).sum() == n + 1
+    capsys.readouterr()
+    for bad, what in ((f"{st.a[0]}:99=3", "has no edge 99"), ("nope:0=3", "no panel named 'nope'")):
+        out2 = tmp_path / "bad.npz"
+        assert main(["garment", str(spec), "-o", str(out2), "--fix", bad, "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("clothgrid: error:") and what in err[0]
+        assert not out2.exists()
+    assert main(["garment", str(spec), "-o", str(tmp_path / "x.npz"), "--fix", "front=3"]) == 2
+    assert "PANEL:EDGE=N" in capsys.readouterr().err and not (tmp_path / "x.npz").exists()

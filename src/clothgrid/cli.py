@@ -369,8 +369,25 @@ def _add_garment_parser(sub: Any) -> None:
     p.add_argument("--corners", action="append", metavar="PANEL=I,J,K,L",
                    help="grid corners of a panel as its vertex indices (bottom-left, bottom-right, "
                         "top-right, top-left); repeatable; the way out of a node-count conflict")
+    p.add_argument("--fix", action="append", type=_fixed_count, metavar="PANEL:EDGE=N",
+                   help="fix the node intervals of a spec edge (panel name, edge index in the spec) to N; "
+                        "repeatable; the other way to loosen or steer the node counts")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
     p.set_defaults(func=_cmd_garment)
+
+
+def _fixed_count(text: str) -> tuple[tuple[str, int], int]:
+    """``PANEL:EDGE=N`` -> ``((PANEL, EDGE), N)`` (the panel name may hold colons: the last one splits)."""
+    left, sep, n = text.rpartition("=")
+    name, sep2, edge = left.rpartition(":")
+    try:
+        e, k = int(edge), int(n)
+    except ValueError:
+        e = k = -1
+    if not sep or not sep2 or not name or e < 0 or k < 1:
+        raise argparse.ArgumentTypeError(f"--fix {text!r}: expected PANEL:EDGE=N (a panel name, a spec edge "
+                                         "index >= 0, a number of intervals >= 1)")
+    return (name, e), k
 
 
 def _cmd_garment(args: argparse.Namespace) -> int:
@@ -389,7 +406,8 @@ def _cmd_garment(args: argparse.Namespace) -> int:
             raise InputError(f"output folder {str(o.parent)!r} does not exist (for {str(o)!r})")
     t0 = time.perf_counter()
     g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
-                stitches=args.stitches, progress=_progress(args.quiet))
+                fixed=dict(args.fix) if args.fix else None, stitches=args.stitches,
+                progress=_progress(args.quiet))
     written: list[Path] = []
     try:
         for o in outs:

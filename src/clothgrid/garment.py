@@ -659,6 +659,16 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
     if unknown:
         raise InputError(f"corners given for unknown panel(s) {', '.join(map(repr, unknown))}; the panels "
                          f"are {', '.join(map(repr, gs.panels))}")
+    for key, n in (fixed or {}).items():
+        pn, e = key if isinstance(key, tuple) and len(key) == 2 else (None, None)
+        if pn not in gs.panels:
+            raise InputError(f"fixed count {key!r}: no panel named {pn!r}; the panels are "
+                             f"{', '.join(map(repr, gs.panels))}")
+        ne = len(gs.panels[pn].edges)
+        if isinstance(e, bool) or not isinstance(e, int) or not 0 <= e < ne:
+            raise InputError(f"fixed count {key!r}: panel {pn!r} has no edge {e!r} (it has {ne} edges, 0..{ne - 1})")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise InputError(f"fixed count {key!r}: the number of intervals must be an integer >= 1, not {n!r}")
     lays: dict[str, _Layout] = {}
     t0 = time.perf_counter()
     for name, p in gs.panels.items():
