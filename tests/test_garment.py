@@ -27,8 +27,13 @@ from clothgrid.garment_seams import edge_polyline, fractions_of, mesh_report
 from clothgrid.patterns.garmentcode import read_garment_spec
 
 SHARED = Path(__file__).parents[2] / "shared" / "patterns"
-SPECS = sorted(SHARED.glob("g*_specification.json")) if SHARED.is_dir() else []
-needs_shared = pytest.mark.skipif(not SPECS, reason=f"no GarmentCode specs in {SHARED}")
+SHARED_SPECS = sorted(SHARED.glob("g*_specification.json")) if SHARED.is_dir() else []
+needs_shared = pytest.mark.skipif(not SHARED_SPECS, reason=f"no GarmentCode specs in {SHARED}")
+# GarmentCode's own examples (MIT, tests/data/garmentcode/README.md); standing_lapel is sewn twisted
+# in its authors' first version: test_a_twisted_seam_is_named
+GC_DATA = Path(__file__).parent / "data" / "garmentcode"
+TWISTED = GC_DATA / "standing_lapel_specification.json"
+SPECS = SHARED_SPECS + sorted(p for p in GC_DATA.glob("*_specification.json") if p != TWISTED)
 EDGE = "3cm"
 
 
@@ -48,7 +53,6 @@ def tmp_module(tmp_path_factory):
     return str(tmp_path_factory.mktemp("garments"))
 
 
-@needs_shared
 @pytest.mark.parametrize("spec", SPECS, ids=[p.name.split("_spec")[0] for p in SPECS])
 def test_every_spec_sewn_node_for_node(spec, tmp_module, capsys):
     r = _run(str(spec), tmp_module)
@@ -92,9 +96,10 @@ def test_every_spec_sewn_node_for_node(spec, tmp_module, capsys):
             k = idx[np.argmin(np.linalg.norm(r["rest"][idx] - v, axis=1))]
             assert np.linalg.norm(r["rest"][k] - v) <= 1e-9 * size      # every panel vertex is a node
             np.testing.assert_allclose(r["points"][k], R @ np.r_[v, 0.0] + p.translation, atol=1e-6 * size)
-    # grid quality as for single pieces (issue 12): no folded cell in any panel
+    # grid quality as for single pieces (issue 12): no folded cell in any panel; no twisted seam
     info = json.loads(str(r["info"]))
     assert [p["name"] for p in info["panels"] if p["folded"]] == []
+    assert not [n for n in info["notes"] if n.startswith("twisted")]
     # the welded mesh: manifold; oriented unless a stitch turns the fabric (right_wrong)
     rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
     assert rep["degenerate"] == 0 and rep["nonmanifold_edges"] == 0 and rep["nonmanifold_vertices"] == 0
@@ -517,3 +522,25 @@ def test_fixed_counts_from_the_api_and_the_command_line(tmp_path, capsys):
         assert not out2.exists()
     assert main(["garment", str(spec), "-o", str(tmp_path / "x.npz"), "--fix", "front=3"]) == 2
     assert "PANEL:EDGE=N" in capsys.readouterr().err and not (tmp_path / "x.npz").exists()
+
+
+def test_a_twisted_seam_is_named(capsys, tmp_path):
+    """GarmentCode's first ``standing_lapel`` misses ``right_wrong`` on its collar stitches: the
+    garment is still written (exit 0, every stitch node for node), welding pinches the collar, and a
+    note names the twist and the collar panels; the authors' fixed version has no such note."""
+    out = tmp_path / "lapel.npz"
+    assert main(["garment", str(TWISTED), "-o", str(out), "--edge-length", "3cm", "--seams", "weld"]) == 0
+    err = capsys.readouterr().err
+    assert "twisted seams" in err and "right_collar_back" in err
+    with np.load(out) as d:
+        notes = json.loads(str(d["info"]))["notes"]
+        m, panel = d["weld_map"], d["panel"]
+    assert any(n.startswith("twisted") and "'left_collar_front'" in n for n in notes)
+    # the pinch itself: some welded vertex holds two nodes of one collar panel
+    names = list(np.load(out)["panel_names"])
+    back = names.index("right_collar_back")
+    vs = m[panel == back]
+    assert len(np.unique(vs)) < len(vs)
+    fixed = garment(GC_DATA / "standing_lapel_fix_specification.json", edge_length="3cm")
+    assert not [n for n in fixed.info["notes"] if n.startswith("twisted")]
+    assert fixed.mesh_report()["nonmanifold_edges"] == 0

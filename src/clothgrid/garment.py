@@ -744,15 +744,52 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         pr = ordered_pairs(edge_nodes[st.a], edge_nodes[st.b], st.same_direction)
         pairs.append(pr)
         sid.append(np.full(len(pr), st.index, dtype=np.int64))
+    notes = list(gs.notes)
+    twisted = twisted_seams(gs.stitches, pairs, np.concatenate(panel_idx), names)
+    if twisted:
+        notes.append(twisted)
+        say(twisted)
     info = {"edge_length_mm": h, "length_unit": "mm", "up_axis": "Y", "spec_units": gs.units,
             "mm_per_spec_unit": gs.mm_per_unit, "counts": count_info, "panels": per_panel,
             "seconds": {"corners": t_corners, "milp": count_info["seconds"], "gridding": t_grid,
                         "total": time.perf_counter() - t_start},
-            "notes": list(gs.notes)}
+            "notes": notes}
     return Garment(gs, np.concatenate(pts3), np.concatenate(rest), np.concatenate(panel_idx), names, shapes,
                    np.asarray(offsets), np.concatenate(quads), np.concatenate(face_panel),
                    np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64),
                    np.concatenate(sid) if sid else np.zeros(0, np.int64), edge_nodes, edge_fracs, grids, info)
+
+
+def twisted_seams(stitches: Sequence[Any], pairs: Sequence[np.ndarray], panel: np.ndarray,
+                  names: Sequence[str]) -> str:
+    """A note when welding merges two nodes of one panel that no dart of that panel joins.
+
+    Nodes of one panel may weld together only through its own darts (a dart sews its legs; a
+    waistband sewn across the dart's mouth then meets both mouth nodes, which the dart has already
+    joined). Where two nodes of one panel meet otherwise, a seam is sewn the wrong way round
+    (GarmentCode's own ``standing_lapel`` spec misses ``right_wrong`` on its two collar stitches,
+    fixed in ``standing_lapel_fix``) and the welded mesh is pinched there. Returns ``""`` when none
+    does, else a line naming the panels and the stitches that meet there.
+    """
+    pairs = [np.asarray(pr, dtype=np.int64).reshape(-1, 2) for pr in pairs]
+    if not any(len(pr) for pr in pairs):
+        return ""
+    n = len(panel)
+    full = weld(n, np.concatenate(pairs))
+    dart = [pr for st, pr in zip(stitches, pairs) if st.a[0] == st.b[0] and len(pr)]
+    by_dart = weld(n, np.concatenate(dart)) if dart else np.arange(n)
+    # distinct (welded vertex, panel, dart class): more than one class per (vertex, panel) is a twist
+    trip = np.unique(np.column_stack([full, panel, by_dart]), axis=0)
+    vp, cnt = np.unique(trip[:, :2], axis=0, return_counts=True)
+    bad = vp[cnt > 1]
+    if not len(bad):
+        return ""
+    verts = set(bad[:, 0].tolist())
+    pans = sorted({names[int(i)] for i in bad[:, 1]})
+    hit = sorted({st.index for st, pr in zip(stitches, pairs) if len(pr) and verts & set(full[pr.reshape(-1)].tolist())})
+    return (f"twisted seams: welding merges nodes of one panel that no dart of it joins (panel(s) "
+            f"{', '.join(map(repr, pans))}; stitches {', '.join(map(str, hit))} meet there): a stitch "
+            "sewn the wrong way round (a missing or extra 'right_wrong'?); the welded mesh is pinched there")
 
 
 def _corner_names(lay: _Layout) -> str:
