@@ -27,7 +27,7 @@ from test_heat import _direct, _relative_residual
 
 from clothgrid.backends import cuda, gl, load_backend
 from clothgrid.cli import main
-from clothgrid.errors import BackendUnavailableError
+from clothgrid.errors import BackendUnavailableError, SizeError
 from clothgrid.heat import HeatProblem, convection, flux, solve_steady, solve_transient
 from clothgrid.heat_multigrid import HeatHierarchy, HeatSolver, Stencil5, padded, vcycle
 
@@ -266,6 +266,25 @@ def test_gl_coarsest_level_on_the_host(rng, monkeypatch):
     g = solve_steady(p, tol=1e-9, backend="gl")
     assert g.info["gl_heat_coarsest"] == "host (SuperLU)"
     assert np.abs(g.temperature - c.temperature).max() < 1e-6 * np.ptp(c.temperature)
+
+
+@needs_gl
+def test_gl_size_is_checked_before_allocating(monkeypatch):
+    from clothgrid.backends.gl import _device
+
+    monkeypatch.setattr(_device.device(), "max_size", 32)
+    with pytest.raises(SizeError, match="at most 32 texels a side"):
+        solve_steady(HeatProblem(1.0, (0.01, 0.01), cells=(40, 8), left=34), backend="gl")
+
+
+def test_cuda_size_is_checked_before_allocating(rng, monkeypatch):
+    """Without a GPU too: the check reads only the device's free memory (a fake device here)."""
+    pytest.importorskip("numba.cuda")
+    from clothgrid.backends.cuda import _device, _heat
+
+    monkeypatch.setattr(_device, "require", lambda: types.SimpleNamespace(name="Test GPU", free_memory=lambda: 10**5))
+    with pytest.raises(SizeError, match=r"heat on 40x30 cells needs about .* free on Test GPU"):
+        _heat.CudaHeatOps(hierarchy(rng, 40, 30))
 
 
 @needs_gl

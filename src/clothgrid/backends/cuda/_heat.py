@@ -19,11 +19,14 @@ from typing import Any
 
 import numpy as np
 
+from ...errors import SizeError
+from ...memory import format_bytes
+from . import _device
 from . import _heat_kernels as K
 from ._multigrid import NODE_THREADS, launch
 from ._sim import array_module, kernel_array
 
-__all__ = ["CudaHeatOps", "DENSE_COARSEST"]
+__all__ = ["CudaHeatOps", "DENSE_COARSEST", "heat_device_bytes"]
 
 #: The coarsest level is solved on the device (a dense inverse) up to this many unknowns.
 DENSE_COARSEST = 4096
@@ -39,6 +42,15 @@ class _DVec:
         self.a, self.k = a, kernel_array(a)
 
 
+def heat_device_bytes(nu: int, nv: int, coarsest: int) -> int:
+    """Bytes of device memory a solve of ``nu x nv`` cells allocates: per padded point of level 0 the
+    stencil (``we``, ``wn``, ``c0``), the line factors, the interpolation and a residual (8 * 10) and six
+    vectors (48); the coarse levels a third as much again (9-point stencil, factors, interpolation,
+    three vectors: 8 * 18 over a quarter, a sixteenth, ...); the coarsest level's dense inverse."""
+    n = (nu + 2) * (nv + 2)
+    return int(n * (80 + 48) + n * 144 // 3 + 8 * coarsest * coarsest)
+
+
 class CudaHeatOps:
     """:class:`~clothgrid.backends.protocol.HeatOps` on the GPU (float64).
 
@@ -52,9 +64,17 @@ class CudaHeatOps:
 
     def __init__(self, hierarchy: Any):
         t0 = time.perf_counter()
-        self.xp = xp = array_module()
         self.hierarchy = h = hierarchy
         self.levels = len(h.levels)
+        nu, nv = h.levels[0].shape
+        last = h.levels[-1].shape[0] * h.levels[-1].shape[1]
+        dev = _device.require()
+        need, have = heat_device_bytes(nu, nv, last if last <= DENSE_COARSEST else 0), dev.free_memory()
+        if need > 0.9 * have:
+            raise SizeError(f"heat on {nu}x{nv} cells needs about {format_bytes(need)} of device memory on backend "
+                            f"'cuda', more than the 90 % of the {format_bytes(have)} free on {dev.name} that a "
+                            "solve may take: use fewer cells or backend 'cpu'")
+        self.xp = xp = array_module()
         self.shapes = [(lev.shape[0] + 2, lev.shape[1] + 2) for lev in h.levels]
         up = lambda a: kernel_array(xp.asfortranarray(xp.asarray(np.asarray(a, np.float64))))
         f = h.fine

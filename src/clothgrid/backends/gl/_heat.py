@@ -35,7 +35,7 @@ import numpy as np
 
 from ._device import Reducer, device
 
-__all__ = ["GLHeatOps", "DENSE_COARSEST"]
+__all__ = ["GLHeatOps", "DENSE_COARSEST", "heat_texture_bytes"]
 
 #: The coarsest level is solved on the device (a dense inverse) up to this many unknowns.
 DENSE_COARSEST = 4096
@@ -72,6 +72,15 @@ def level_textures(lev: Any, fine: Any = None) -> tuple[np.ndarray, np.ndarray |
     return f32(t1), f32(t2), f32(t3)
 
 
+def heat_texture_bytes(nu: int, nv: int, coarsest: int) -> int:
+    """Bytes of textures a solve of ``nu x nv`` cells allocates: per padded point of level 0 two RGBA32F
+    stencil textures and the interpolation (48), six R32F vectors (24); the coarse levels a third as much
+    again (three stencil textures, the interpolation and two vectors per point: 72 over a quarter, a
+    sixteenth, ...); the reduction pyramid; the coarsest level's dense inverse."""
+    n = (nu + 2) * (nv + 2)
+    return int(n * (48 + 24) + n * 72 // 3 + n * 4 // 15 + 4 * coarsest * coarsest)
+
+
 class GLHeatOps:
     """:class:`~clothgrid.backends.protocol.HeatOps` on the GL device (float32).
 
@@ -88,6 +97,9 @@ class GLHeatOps:
         t0 = time.perf_counter()
         self.hierarchy = h = hierarchy
         self.levels = len(h.levels)
+        nu, nv = h.levels[0].shape
+        last = h.levels[-1].shape[0] * h.levels[-1].shape[1]
+        dev.check_size(nu + 2, nv + 2, heat_texture_bytes(nu, nv, last if last <= DENSE_COARSEST else 0))
         self.shapes = [(lev.shape[0] + 2, lev.shape[1] + 2) for lev in h.levels]
         self._objects: list = []
         self.counts = {"smooth": 0, "restrict": 0, "prolong": 0, "coarse": 0, "apply": 0, "dot": 0, "axpy": 0}
