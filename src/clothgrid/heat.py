@@ -70,7 +70,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import BackendUnavailableError, InputError, NotConvergedError
+from .errors import InputError, NotConvergedError
 from .heat_multigrid import HeatHierarchy, HeatSolver, Stencil5, numba_threads, padded
 from .weights import Weights
 
@@ -669,9 +669,11 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
     Parameters
     ----------
     problem : HeatProblem
-    backend : {"cpu", "auto"}
-        Where the multigrid runs; gl and cuda raise
-        :class:`~clothgrid.errors.BackendUnavailableError` (see the module notes).
+    backend : {"cpu", "auto", "gl", "cuda"}
+        Where the V-cycle and CG run (``auto``: the cpu). ``gl`` computes in
+        float32 and refines in float64 on the host until the float64 residual
+        meets ``tol`` (``info["refinements"]``); gl or cuda without its device
+        raises :class:`~clothgrid.errors.BackendUnavailableError` with the reason.
     tol : float
         Relative residual ``||b - A T|| / ||b||`` to reach.
     max_iter : int

@@ -301,8 +301,10 @@ def pcg(ops: Any, b: Any, x: Any, tol: float, max_iter: int, work: tuple[Any, An
 
     Stops when the relative residual ``||b - A x|| / ||b||`` is at most ``tol``: the recursion's residual
     first, then the true one recomputed from ``x`` with ``ops.residual``; the iteration restarts from ``x``
-    if they differ. ``work`` is four level-0 vectors (overwritten). ``stall``: also give up when a
-    restart did not halve the true residual (float32 arithmetic, whose residual has a floor).
+    if they differ, and gives up when a restart did not lower the true residual (the field's rounding
+    floor is above ``tol``: before, such a solve restarted until ``max_iter``). ``work`` is four
+    level-0 vectors (overwritten). ``stall``: give up unless a restart halves the true residual (float32
+    arithmetic, whose floor is high).
 
     Returns
     -------
@@ -341,7 +343,9 @@ def pcg(ops: Any, b: Any, x: Any, tol: float, max_iter: int, work: tuple[Any, An
             rz = rz_new
         ops.residual(b, x, r)                # the true residual: restart if the recursion drifted
         rel = math.sqrt(ops.dot(r, r)) / nb
-        if it == start or (stall and not rel <= 0.5 * rel_start):   # no step possible, or no progress
+        # no step possible, or a restart that did not improve the true residual (float64: at all, the
+        # rounding floor of the field; float32, ``stall``: by half): more restarts would only repeat it
+        if it == start or not rel < (0.5 if stall else 1.0) * rel_start:
             break
     return it, rel
 
