@@ -20,6 +20,11 @@ Usage::
     python benchmarks/bench_heat.py 128 512    # other sizes
     python benchmarks/bench_heat.py --pcg 256  # also FiPy's LinearPCGSolver
     python benchmarks/bench_heat.py --layers   # the layers alone (no 1e4 block layer)
+    python benchmarks/bench_heat.py --gl       # also the gl backend (float32 shaders, float64 refinement)
+
+``--gl`` adds the gl backend's wall seconds (context, upload and solve; the hierarchy is built on the
+CPU as for the cpu backend), its CG iterations and float64 refinements, and the renderer: on a machine
+without a GPU that is Mesa's llvmpipe, i.e. the shaders run on the CPU, and its times are no GPU's.
 """
 
 from __future__ import annotations
@@ -55,12 +60,12 @@ L = 0.004
 SOURCE = 2e4
 
 
-def run_clothgrid(k: np.ndarray, threads: int | None = None) -> tuple[float, np.ndarray, dict]:
+def run_clothgrid(k: np.ndarray, threads: int | None = None, backend: str = "cpu") -> tuple[float, np.ndarray, dict]:
     from clothgrid.heat import HeatProblem, solve_steady
 
     t0 = time.perf_counter()
     p = HeatProblem(k, (L, L), bottom=34, top=20, source=SOURCE)
-    res = solve_steady(p, tol=1e-8, threads=threads)
+    res = solve_steady(p, tol=1e-8, threads=threads, backend=backend)
     return time.perf_counter() - t0, res.temperature, res.info
 
 
@@ -80,19 +85,24 @@ def run_fipy(k: np.ndarray, solver: str) -> tuple[float, np.ndarray]:
     return time.perf_counter() - t0, np.asarray(T.value).reshape(n, n).T
 
 
-def main(sizes: list[int], pcg: bool = False) -> None:
+def main(sizes: list[int], pcg: bool = False, gl: bool = False) -> None:
     import fipy
     from clothgrid.heat import HeatProblem, solve_steady
 
     import numba
 
     solve_steady(HeatProblem(conductivity(64), (L, L), bottom=34, top=20), tol=1e-8)   # warm up Numba
+    renderer = ""
+    if gl:
+        warm = solve_steady(HeatProblem(conductivity(64), (L, L), bottom=34, top=20), tol=1e-8, backend="gl")
+        renderer = f"; gl: {warm.info['gl_renderer']}, OpenGL {warm.info['gl_version']}"
     print(f"fipy {fipy.__version__} (default solver {fipy.DefaultSolver.__name__}); numpy {np.__version__}; "
           f"numba {numba.__version__}, {numba.get_num_threads()} threads, OMP_WAIT_POLICY="
-          f"{os.environ.get('OMP_WAIT_POLICY')}; load average {os.getloadavg()[0]:.1f}; case {CASE}")
+          f"{os.environ.get('OMP_WAIT_POLICY')}; load average {os.getloadavg()[0]:.1f}; case {CASE}{renderer}")
     print(f"| cells | clothgrid s ({numba.get_num_threads()} threads) | clothgrid s (1 thread) | CG its | FiPy default s "
-          "| FiPy / clothgrid (all threads, 1 thread) | max dT vs FiPy (K) |" + (" FiPy PCG s | ratio |" if pcg else ""))
-    print("|---|---|---|---|---|---|---|" + ("---|---|" if pcg else ""))
+          "| FiPy / clothgrid (all threads, 1 thread) | max dT vs FiPy (K) |" + (" FiPy PCG s | ratio |" if pcg else "")
+          + (" gl s | gl CG its (refinements) | gl max dT vs FiPy (K) |" if gl else ""))
+    print("|---|---|---|---|---|---|---|" + ("---|---|" if pcg else "") + ("---|---|---|" if gl else ""))
     for n in sizes:
         k = conductivity(n)
         tc, Tc, info = run_clothgrid(k)
@@ -103,6 +113,9 @@ def main(sizes: list[int], pcg: bool = False) -> None:
         if pcg:
             tp, _ = run_fipy(k, "pcg")
             row += f" {tp:.2f} | {tp / tc:.1f}x |"
+        if gl:
+            tg, Tg, ginfo = run_clothgrid(k, backend="gl")
+            row += f" {tg:.3f} | {ginfo['iterations']} ({ginfo['refinements']}) | {np.abs(Tg - Tf).max():.1e} |"
         print(row, flush=True)
 
 
@@ -111,4 +124,4 @@ if __name__ == "__main__":
     pcg = "--pcg" in args
     if "--layers" in args:
         CASE = "layers"
-    main([int(a) for a in args if not a.startswith("--")] or [256, 1024], pcg)
+    main([int(a) for a in args if not a.startswith("--")] or [256, 1024], pcg, "--gl" in args)

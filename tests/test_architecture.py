@@ -32,8 +32,8 @@ import pytest
 
 import clothgrid
 from clothgrid.backends import BACKENDS, REGISTRY, get_backend, load_backend
-from clothgrid.backends.protocol import (BACKEND_MEMBERS, JACOBI_OPERATIONS, MULTIGRID_OPERATIONS, Backend,
-                                         JacobiSweeper, MultigridOps)
+from clothgrid.backends.protocol import (BACKEND_MEMBERS, HEAT_OPERATIONS, JACOBI_OPERATIONS, MULTIGRID_OPERATIONS,
+                                         Backend, HeatOps, JacobiSweeper, MultigridOps)
 from clothgrid.errors import InputError
 from clothgrid.solvers import SOLVERS
 
@@ -45,10 +45,12 @@ DATA_MEMBERS = {"name", "solvers"}
 
 def test_the_protocol_names_what_the_solvers_use():
     assert {"name", "solvers", "require", "available", "describe", "summary", "check_size", "device_bytes",
-            "array_module", "residual", "max_step", "multigrid", "jacobi_sweeper"} == set(BACKEND_MEMBERS)
+            "array_module", "residual", "max_step", "multigrid", "jacobi_sweeper", "heat_ops"} == set(BACKEND_MEMBERS)
     assert {"smooth", "restrict", "prolong", "restrict_full", "prolong_full", "max_step", "solution",
             "solution_into", "synchronize", "extra"} == set(MULTIGRID_OPERATIONS)
     assert {"sweeps", "result", "extra", "close"} == set(JACOBI_OPERATIONS)
+    assert {"vector", "upload", "download", "copy", "dot", "apply", "residual", "axpy", "xpay", "bind", "smooth",
+            "restrict", "coarse_solve", "prolong", "extra", "release"} == set(HEAT_OPERATIONS)
 
 
 def test_the_registry():
@@ -110,7 +112,7 @@ def test_jacobi_where_it_does_not_run():
 # --- the operations classes ------------------------------------------------------------------------------
 
 def _ops_class(module: str, cls: str) -> type:
-    if module.endswith("cuda._multigrid") and importlib.util.find_spec("numba.cuda") is None:
+    if ".cuda." in module and importlib.util.find_spec("numba.cuda") is None:
         pytest.skip("numba.cuda is not installed")
     return getattr(importlib.import_module(module), cls)
 
@@ -125,6 +127,20 @@ def test_multigrid_ops_classes_define_every_operation(module, cls):
     for m in MULTIGRID_OPERATIONS:
         _assert_accepts(getattr(ops, m), getattr(MultigridOps, m), f"{cls}.{m}", bound=True)
     assert list(inspect.signature(ops).parameters)[:3] == ["levels", "x0", "rhs"]
+
+
+@pytest.mark.parametrize("module, cls", [("clothgrid.backends._cpu_heat", "CpuHeatOps"),
+                                         ("clothgrid.backends.gl._heat", "GLHeatOps"),
+                                         ("clothgrid.backends.cuda._heat", "CudaHeatOps")])
+def test_heat_ops_classes_define_every_operation(module, cls):
+    """The heat solver's operations (clothgrid.heat_multigrid drives them on every backend)."""
+    ops = _ops_class(module, cls)
+    missing = [m for m in HEAT_OPERATIONS if not callable(getattr(ops, m, None))]
+    assert not missing, f"{cls} lacks {missing}"
+    for m in HEAT_OPERATIONS:
+        _assert_accepts(getattr(ops, m), getattr(HeatOps, m), f"{cls}.{m}", bound=True)
+    assert isinstance(ops.precise, bool)
+    assert list(inspect.signature(ops).parameters)[:1] == ["hierarchy"]
 
 
 @pytest.mark.parametrize("module, cls", [("clothgrid.backends.cpu", "HostJacobi"),
@@ -148,6 +164,10 @@ def test_cpu_instances_satisfy_the_protocols(rng):
     assert isinstance(ops, MultigridOps) and ops.extra() == {} and ops.synchronize() is None
     sweeper = cpu.jacobi_sweeper(Problem(rng.standard_normal((9, 7, 3)), w, 1.0))
     assert isinstance(sweeper, JacobiSweeper) and sweeper.extra() == {}
+    from clothgrid.heat_multigrid import HeatHierarchy, Stencil5
+
+    heat = cpu.heat_ops(HeatHierarchy(Stencil5.from_weights(np.ones((10, 9)), np.ones((11, 8)))))
+    assert isinstance(heat, HeatOps) and heat.extra() == {} and heat.release() is None
 
 
 def _assert_accepts(impl, proto, what: str, bound: bool) -> None:
@@ -279,7 +299,8 @@ def test_the_stages_are_layered():
 def test_imports_run_one_way():
     """hierarchy and its kernel: below both; backends: below the solvers (they import the hierarchy)."""
     g = import_graph()
-    for low in ("clothgrid.multigrid_levels", "clothgrid._galerkin"):
+    for low in ("clothgrid.multigrid_levels", "clothgrid._galerkin", "clothgrid.heat_multigrid",
+                "clothgrid._heat_kernels"):
         up = sorted(t for t in g[low] if _under(t, "clothgrid.backends", "clothgrid.solvers"))
         assert not up, f"{low} imports {up}"
     assert g["clothgrid._galerkin"] == set()

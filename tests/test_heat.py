@@ -12,7 +12,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from clothgrid.cli import main
-from clothgrid.errors import BackendUnavailableError, InputError
+from clothgrid.errors import InputError
 from clothgrid.heat import HeatProblem, convection, flux, parse_side, solve_steady, solve_transient
 
 
@@ -119,8 +119,8 @@ def test_energy_balance_at_steady_state(rng):
     assert flows["bottom"] == pytest.approx(150.0 * 0.02)
 
 
-def _direct(p: HeatProblem) -> np.ndarray:
-    """Independent assembly (SciPy sparse, the same finite volumes) and a direct solve."""
+def _system(p: HeatProblem) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Independent assembly (SciPy sparse, the same finite volumes): ``A`` and ``b`` over the cells, row-major."""
     nx, ny = p.cells
     dx, dy = p.spacing
     k = p.k
@@ -149,7 +149,19 @@ def _direct(p: HeatProblem) -> np.ndarray:
         b[sl] += g * s.value
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny,) * 2)
     A = A + sp.diags(diag.ravel())
-    return spla.spsolve(A.tocsc(), b.ravel()).reshape(nx, ny)
+    return A.tocsr(), b.ravel()
+
+
+def _direct(p: HeatProblem) -> np.ndarray:
+    """The independent assembly's direct solve."""
+    A, b = _system(p)
+    return spla.spsolve(A.tocsc(), b).reshape(p.cells)
+
+
+def _relative_residual(p: HeatProblem, T: np.ndarray) -> float:
+    """``||b - A T|| / ||b||`` of the independent assembly, float64."""
+    A, b = _system(p)
+    return float(np.linalg.norm(b - A @ T.ravel()) / np.linalg.norm(b))
 
 
 @pytest.mark.parametrize("case", ["blocks", "fabric", "inclusion-insulated-v"])
@@ -200,16 +212,41 @@ def test_black_box_multigrid_bounds_the_iterations_on_1e4_blocks():
 @pytest.mark.parametrize("sides", [dict(bottom=34, top=20), dict(left=34, right=20)])
 def test_cells_100_times_wider_than_tall(sides):
     """Strong coupling along y: the line smoother must solve along it (the problem is oriented so), else
-    red-black points took 300 iterations and lines across it 500+. Measured: 6 with the temperature fixed
-    on the strong axis's sides, 70 on the weak axis's (the grid solver's semi-coarsening: 24 and 8)."""
+    red-black points took 300 iterations and lines across it 500+. Measured: 4 with the temperature fixed
+    on the strong axis's sides, 6 on the weak axis's (Dendy's pointwise interpolation: 6 and 70; the grid
+    solver's semi-coarsening: 24 and 8)."""
     rng = np.random.default_rng(1)
     k = 10 ** rng.uniform(-1, 1, size=(128, 128))
     p = HeatProblem(k, (0.01, 0.0001), source=1e3, **sides)
     res = solve_steady(p, tol=1e-10, max_iter=300)
     assert res.info["converged"]
-    assert res.info["iterations"] <= (15 if "bottom" in sides else 120), res.info
+    assert res.info["iterations"] <= 15, res.info
     ref = _direct(p)
     assert np.abs(res.temperature - ref).max() < 1e-6 * np.ptp(ref)
+
+
+@pytest.mark.parametrize("aspect", [25, 50, 200])
+@pytest.mark.parametrize("sides", [dict(left=34, right=20), dict(bottom=34, top=20), dict(left=34, top="h=10,T=20")])
+def test_stretched_cells_with_random_conductivity_bound_the_iterations(rng, aspect, sides):
+    """Cells ``aspect`` times wider than tall (or taller than wide), fresh random ``k`` per cell over two
+    decades or in blocks over four: the odd rows' interpolation from their line operator keeps CG at
+    3-12 iterations (measured over seeds, 96^2, tol 1e-10; Dendy's pointwise weights took 44-70 with the
+    temperature fixed on the weak axis's sides, i.e. left and right here)."""
+    n = 64
+    if rng.random() < 0.5:
+        k = 10 ** rng.uniform(-1, 1, size=(n, n))
+    else:
+        k = np.repeat(np.repeat(10 ** rng.uniform(-2, 2, size=(n // 8, n // 8)), 8, 0), 8, 1)
+    size = (0.01, 0.01 / aspect) if rng.random() < 0.5 else (0.01 / aspect, 0.01)
+    p = HeatProblem(k, size, source=1e3, **sides)
+    # 1e-8: with cells 200 times wider and k over four decades the conductances span 1e8 and a float64 field's
+    # relative residual can stop near 5e-10 (its rounding floor; the solve then stops, not converged)
+    res = solve_steady(p, tol=1e-8, max_iter=300, error_bound=True)
+    assert res.info["converged"] and res.info["iterations"] <= 15, res.info
+    # the answer: within its guaranteed bound of an independent direct solve. No fixed fraction of the
+    # temperature is a measure here: at 1e-8 these systems (conductances over 1e8) leave errors up to 5e-4
+    # of the largest temperature (measured over seeds), and their range can be 0.02 K of 34 C
+    assert np.abs(res.temperature - _direct(p)).max() <= res.info["error_bound"] < np.inf
 
 
 def test_error_bound_holds():
@@ -231,8 +268,8 @@ def test_inputs_are_checked(tmp_path):
         parse_side("h=10")
     with pytest.raises(InputError, match="heat capacity"):
         solve_transient(HeatProblem(1.0, (1, 1), cells=(4, 4), left=1), dt=1, steps=1)
-    with pytest.raises(BackendUnavailableError, match="cpu backend only"):
-        solve_steady(HeatProblem(1.0, (1, 1), cells=(4, 4), left=1), backend="gl")
+    with pytest.raises(InputError, match="unknown backend 'nope'"):
+        solve_steady(HeatProblem(1.0, (1, 1), cells=(4, 4), left=1), backend="nope")
     assert parse_side("h=10,T=20") == convection(10, 20) and parse_side("q=0") == flux(0)
 
 
@@ -312,7 +349,6 @@ def test_cli_transient(tmp_path):
     (["--conductivity", "nofile.npy", "--left", "34"], "no such file"),
     (["--conductivity", "1", "--cells", "4x4"], "needs a side"),
     (["--conductivity", "1", "--cells", "4x4", "--left", "h=3"], "invalid side"),
-    (["--conductivity", "1", "--cells", "4x4", "--left", "34", "--backend", "gl"], "cpu backend only"),
     (["--conductivity", "1", "--cells", "4x4", "--left", "34", "--dt", "1"], "both --dt and --steps"),
 ])
 def test_cli_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys, args, message):

@@ -236,7 +236,8 @@ def _add_heat_parser(sub: Any) -> None:
         description="Heat conduction on a rectangle of cells, SI units: -div(k grad T) = q (steady) or "
                     "rho c dT/dt = div(k grad T) + q (with --dt and --steps). Finite volumes with the "
                     "harmonic mean of the cells' conductivity on each face, solved by conjugate gradients "
-                    "preconditioned with clothgrid's multigrid. A field is a number, a .npy array of shape "
+                    "preconditioned with a black-box multigrid V-cycle, on the cpu, an OpenGL device (gl) or "
+                    "a CUDA GPU (cuda). A field is a number, a .npy array of shape "
                     "(nx, ny) (index [i, j], i along x), or a grayscale image mapped to a range (top row: "
                     "top side). Sides not named are insulated. See docs/heat.md.")
     h.add_argument("--conductivity", required=True, metavar="K",
@@ -273,7 +274,10 @@ def _add_heat_parser(sub: Any) -> None:
     h.add_argument("--error-bound", action="store_true",
                    help="steady: also compute a guaranteed bound on the temperature error (one more solve)")
     h.add_argument("--backend", choices=BACKENDS, default="cpu",
-                   help="where the multigrid runs: cpu only for heat (gl and cuda exit 2: docs/heat.md)")
+                   help="where the V-cycle and CG run: cpu (Numba, float64; auto is the cpu), gl (OpenGL "
+                        "shaders through headless EGL, float32, refined until the float64 residual on the host "
+                        "meets --tol) or cuda (numba.cuda kernels on CuPy arrays, float64); exit 2 with the "
+                        "reason where the device is missing (docs/heat.md)")
     h.add_argument("--threads", type=_positive_int, metavar="N",
                    help="Numba threads for the solve (default: all cores; 1 can be faster on a busy machine)")
     h.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
@@ -322,9 +326,12 @@ def _cmd_heat(args: argparse.Namespace) -> int:
     info, T = res.info, res.temperature
     flows = res.heat_flows()
     bound = f", error bound {info['error_bound']:.2e} K" if "error_bound" in info else ""
+    where = "" if info["backend"] == "cpu" else (
+        f" on {info['backend']}" + (f" (float32, {info['refinements']} float64 refinements)" if "refinements" in info
+                                    else ""))
     print(f"heat: {T.shape[0]} x {T.shape[1]} cells, T {T.min():.6g} to {T.max():.6g} C; "
-          f"{info['iterations']} CG iterations, relative residual {info['residual']:.2e} (tol {info['tol']:.1e})"
-          f"{bound}, {info['seconds']:.3f} s")
+          f"{info['iterations']} CG iterations{where}, relative residual {info['residual']:.2e} "
+          f"(tol {info['tol']:.1e}){bound}, {info['seconds']:.3f} s")
     print("heat in (W per metre depth): " + ", ".join(f"{k} {v:.6g}" for k, v in flows.items())
           + f"; sum {sum(flows.values()):.3g}")
     written: list[Path] = []

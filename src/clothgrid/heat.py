@@ -43,9 +43,15 @@ needs 10-16 (docs/heat.md). The grid is oriented so that the line smoother
 solves along the direction of the stronger coupling (``info["transposed"]``).
 
 Time steps are implicit, backward Euler or Crank-Nicolson, with the mass
-``rho c dx dy / dt`` on the diagonal of level 0. The multigrid runs on the CPU
-only: the gl and cuda backends supply the grid solver's multigrid, not this
-one (docs/heat.md says what running there would take).
+``rho c dx dy / dt`` on the diagonal of level 0.
+
+Backends (``backend=``): ``cpu`` (Numba, float64; ``auto`` is the cpu),
+``gl`` (fragment and compute shaders on float32 textures through headless EGL;
+iterative refinement with the residual in float64 on the host) and ``cuda``
+(numba.cuda kernels on CuPy arrays, float64). The hierarchy is built on the CPU
+for all three and uploaded; the V-cycle and conjugate gradients are the same
+functions (:mod:`clothgrid.heat_multigrid`) driving each backend's
+:class:`~clothgrid.backends.protocol.HeatOps`.
 
 Stopping: the relative residual ``||b - A T|| / ||b||`` (2-norm), recomputed
 from the final temperature in float64, must be at most ``tol`` for
@@ -64,8 +70,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import BackendUnavailableError, InputError, NotConvergedError
-from .heat_multigrid import HeatMultigrid, Stencil5, numba_threads, padded, pcg
+from .errors import InputError, NotConvergedError
+from .heat_multigrid import HeatHierarchy, HeatSolver, Stencil5, numba_threads, padded
 from .weights import Weights
 
 __all__ = ["Side", "temperature", "flux", "convection", "INSULATED", "parse_side", "load_field", "HeatProblem",
@@ -421,15 +427,17 @@ class HeatProblem:
 
 
 class _Operator:
-    """``A + diag(shift)`` of a problem on one orientation, with its black-box multigrid hierarchy.
+    """``A + diag(shift)`` of a problem on one orientation, with its black-box multigrid hierarchy and the
+    backend's operations on it.
 
     ``transpose`` swaps x and y so that ``v``, along which the multigrid's
     line smoother solves, is the direction of the stronger coupling
     (:func:`_transpose_for`). ``scale`` multiplies the conductances (0.5 for
-    Crank-Nicolson).
+    Crank-Nicolson). ``backend``: the backend module (:func:`_backend`).
     """
 
-    def __init__(self, weights: Weights, shift: np.ndarray | None, transpose: bool, scale: float = 1.0):
+    def __init__(self, weights: Weights, shift: np.ndarray | None, transpose: bool, scale: float = 1.0,
+                 backend: Any = None):
         wu, wv = weights.wu * scale, weights.wv * scale
         if transpose:
             wu, wv = wv.T.copy(), wu.T.copy()
@@ -437,20 +445,42 @@ class _Operator:
         self.shift = None if shift is None else (shift.T.copy() if transpose else shift)
         self.stencil = Stencil5.from_weights(wu, wv, self.shift)
         self.shape = self.stencil.shape
-        self._mg: HeatMultigrid | None = None
+        self.backend = backend
+        self.refinements = 0
+        self._mg: HeatHierarchy | None = None
+        self._solver: HeatSolver | None = None
 
     @property
-    def multigrid(self) -> HeatMultigrid:
-        """The hierarchy, built on first use."""
+    def multigrid(self) -> HeatHierarchy:
+        """The hierarchy, built on first use (on the CPU, whatever the backend)."""
         if self._mg is None:
-            self._mg = HeatMultigrid(self.stencil)
+            self._mg = HeatHierarchy(self.stencil)
         return self._mg
+
+    @property
+    def solver(self) -> HeatSolver:
+        """The backend's operations on the hierarchy, made on first use."""
+        if self._solver is None:
+            if self.backend is None:
+                self.backend = _backend("cpu")
+            self._solver = HeatSolver(self.backend.heat_ops(self.multigrid), self.stencil)
+        return self._solver
+
+    def extra(self) -> dict[str, Any]:
+        """The backend's keys for the info (``{}`` on the cpu)."""
+        return {} if self._solver is None else self._solver.ops.extra()
+
+    def close(self) -> None:
+        """Free the backend's device objects."""
+        if self._solver is not None:
+            self._solver.close()
+            self._solver = None
 
     def orient(self, a: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(a.T) if self.transpose else a
 
     def apply(self, p: np.ndarray) -> np.ndarray:
-        """``(A + shift) p`` for an interior array ``p``."""
+        """``(A + shift) p`` for an interior array ``p`` (host, float64)."""
         return self.stencil.apply(padded(p))[1:-1, 1:-1]
 
     def diagonal(self) -> np.ndarray:
@@ -458,13 +488,15 @@ class _Operator:
 
 
 def _pcg(op: _Operator, b: np.ndarray, x: np.ndarray, tol: float, max_iter: int) -> tuple[np.ndarray, int, float]:
-    """Preconditioned CG on ``op x = b`` from ``x`` (:func:`clothgrid.heat_multigrid.pcg`).
+    """Preconditioned CG on ``op x = b`` from ``x`` on the operator's backend
+    (:meth:`clothgrid.heat_multigrid.HeatSolver.solve`).
 
     Returns ``(x, iterations, relative residual ||b - A x|| / ||b||)`` (the
-    residual recomputed from ``x`` at the end).
+    residual recomputed from ``x`` at the end: float64 on the host for gl).
     """
     xp = padded(x)
-    it, rel = pcg(op.multigrid, padded(b), xp, tol, max_iter)
+    it, rel, steps = op.solver.solve(padded(b), xp, tol, max_iter)
+    op.refinements += steps
     return xp[1:-1, 1:-1].copy(), it, rel
 
 
@@ -485,16 +517,11 @@ def _error_bound(op: _Operator, b: np.ndarray, x: np.ndarray, max_iter: int) -> 
 
 
 def _backend(name: str) -> Any:
+    """The backend module heat runs on: ``auto`` is the cpu (a device is used when asked for by name);
+    an unknown name raises InputError, a device that cannot be used BackendUnavailableError (the reason)."""
     from .backends import get_backend
 
-    if name not in ("auto", "cpu"):
-        from .backends import load_backend
-
-        load_backend(name)   # an unknown name raises its usual InputError
-        raise BackendUnavailableError(
-            f"heat runs on the cpu backend only, not {name!r}: its black-box multigrid (operator-dependent "
-            "interpolation, Numba kernels) has no gl or cuda implementation yet (docs/heat.md)")
-    return get_backend("cpu")
+    return get_backend("cpu" if name == "auto" else name)
 
 
 def _transpose_for(weights: Weights) -> bool:
@@ -642,9 +669,11 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
     Parameters
     ----------
     problem : HeatProblem
-    backend : {"cpu", "auto"}
-        Where the multigrid runs; gl and cuda raise
-        :class:`~clothgrid.errors.BackendUnavailableError` (see the module notes).
+    backend : {"cpu", "auto", "gl", "cuda"}
+        Where the V-cycle and CG run (``auto``: the cpu). ``gl`` computes in
+        float32 and refines in float64 on the host until the float64 residual
+        meets ``tol`` (``info["refinements"]``); gl or cuda without its device
+        raises :class:`~clothgrid.errors.BackendUnavailableError` with the reason.
     tol : float
         Relative residual ``||b - A T|| / ||b||`` to reach.
     max_iter : int
@@ -669,17 +698,21 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
         raise InputError("a steady problem needs a side with a fixed temperature or convection: with every side "
                          "insulated or at a fixed flux the temperature is not determined")
     tol = _check_tol(tol)
-    _backend(backend)
+    be = _backend(backend)
     with numba_threads(threads):
         t0 = time.perf_counter()
         weights, ring, rhs = problem.system()
         transpose = _transpose_for(weights)
-        op = _Operator(weights, None, transpose)
-        b = op.orient(rhs) + _ring_load(op, ring)
-        x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
-        info = _info(problem, op, it, rel, tol, backend="cpu")
-        if error_bound:
-            info["error_bound"] = _error_bound(op, b, x, max_iter)
+        op = _Operator(weights, None, transpose, backend=be)
+        try:
+            b = op.orient(rhs) + _ring_load(op, ring)
+            x, it, rel = _pcg(op, b, np.zeros_like(b), tol, max_iter)
+            info = _info(problem, op, it, rel, tol)
+            if error_bound:
+                info["error_bound"] = _error_bound(op, b, x, max_iter)
+            info.update(op.extra())
+        finally:
+            op.close()
         info["seconds"] = time.perf_counter() - t0
         T = op.orient(x)
         res = HeatResult(T, *problem.centres(), problem, info)
@@ -710,13 +743,19 @@ def _ring_load(op: _Operator, ring: np.ndarray) -> np.ndarray:
     return load
 
 
-def _info(problem: HeatProblem, op: _Operator, it: int, rel: float, tol: float, backend: str) -> dict[str, Any]:
+def _info(problem: HeatProblem, op: _Operator, it: int, rel: float, tol: float) -> dict[str, Any]:
     import numba
 
-    return {"solver": "pcg-multigrid", "backend": backend, "iterations": int(it), "residual": float(rel),
+    name = op.backend.name
+    precise = op.solver.ops.precise
+    info = {"solver": "pcg-multigrid", "backend": name, "iterations": int(it), "residual": float(rel),
             "tol": float(tol), "converged": bool(rel <= tol), "levels": len(op.multigrid),
-            "transposed": bool(op.transpose), "threads": numba.get_num_threads(), "cells": list(problem.cells), "size_m": list(problem.size),
-            "sides": {s: str(getattr(problem, s)) for s in SIDES}}
+            "transposed": bool(op.transpose), "threads": numba.get_num_threads(), "cells": list(problem.cells),
+            "size_m": list(problem.size), "sides": {s: str(getattr(problem, s)) for s in SIDES},
+            "precision": "float64" if precise else "float32 (device), float64 residual (host)"}
+    if not precise:
+        info["refinements"] = op.refinements
+    return info
 
 
 def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any = 20.0,
@@ -759,7 +798,7 @@ def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any
         raise InputError(f"steps must be an integer >= 1, not {steps!r}")
     steps = int(steps)
     tol = _check_tol(tol)
-    _backend(backend)
+    be = _backend(backend)
     with numba_threads(threads):
         t0 = time.perf_counter()
         T = np.broadcast_to(load_field(initial, name="initial temperature", shape=problem.cells, positive=False),
@@ -768,35 +807,39 @@ def solve_transient(problem: HeatProblem, *, dt: float, steps: int, initial: Any
         transpose = _transpose_for(weights)
         m = problem.mass() / dt
         half = scheme == "crank-nicolson"
-        op = _Operator(weights, m, transpose, scale=0.5 if half else 1.0)
+        op = _Operator(weights, m, transpose, scale=0.5 if half else 1.0, backend=be)
         steady = Stencil5.from_weights(op.wu, op.wv)   # A alone (halved), for the explicit half of Crank-Nicolson
         mo = op.orient(m)
         load = op.orient(rhs) + _ring_load(op, ring) * (2.0 if half else 1.0)   # ring load of the unscaled A
-        x = op.orient(T).copy()
-        total, worst = 0, 0.0
-        times, history = ([0.0], [T.copy()]) if save_every else (None, None)
-        every = progress_every or max(1, steps // 10)
-        t_batch = time.perf_counter()
-        for n in range(1, steps + 1):
-            b = mo * x + load
-            if half:
-                b -= steady.apply(padded(x))[1:-1, 1:-1]   # (M/dt - A/2) T_n + b, op = M/dt + A/2
-            x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
-            total += it
-            worst = max(worst, rel)
-            if rel > tol and not allow_unconverged:
-                raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
-                                        f"after {it} iterations")
-            if save_every and n % save_every == 0:
-                times.append(n * dt)
-                history.append(op.orient(x).copy())
-            if progress and (n % every == 0 or n == steps):
-                progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
-                         f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
-                t_batch = time.perf_counter()
-        info = _info(problem, op, total, worst, tol, backend="cpu")
-        info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
-        info["residual_note"] = "largest relative residual over the steps"
+        try:
+            x = op.orient(T).copy()
+            total, worst = 0, 0.0
+            times, history = ([0.0], [T.copy()]) if save_every else (None, None)
+            every = progress_every or max(1, steps // 10)
+            t_batch = time.perf_counter()
+            for n in range(1, steps + 1):
+                b = mo * x + load
+                if half:
+                    b -= steady.apply(padded(x))[1:-1, 1:-1]   # (M/dt - A/2) T_n + b, op = M/dt + A/2
+                x, it, rel = _pcg(op, b, x.copy(), tol, max_iter)
+                total += it
+                worst = max(worst, rel)
+                if rel > tol and not allow_unconverged:
+                    raise NotConvergedError(f"heat: step {n}: the relative residual {rel:.2e} is above tol {tol:.1e} "
+                                            f"after {it} iterations")
+                if save_every and n % save_every == 0:
+                    times.append(n * dt)
+                    history.append(op.orient(x).copy())
+                if progress and (n % every == 0 or n == steps):
+                    progress(f"heat: step {n}/{steps}, t = {n * dt:.4g} s, {total} CG iterations so far, "
+                             f"T {x.min():.4g} to {x.max():.4g} C, {time.perf_counter() - t_batch:.2f} s")
+                    t_batch = time.perf_counter()
+            info = _info(problem, op, total, worst, tol)
+            info.update(op.extra())
+            info.update(scheme=scheme, dt=dt, steps=steps, time=steps * dt, seconds=time.perf_counter() - t0)
+            info["residual_note"] = "largest relative residual over the steps"
+        finally:
+            op.close()
         out = op.orient(x)
         return HeatResult(out, *problem.centres(), problem, info,
                           times=None if times is None else np.asarray(times),

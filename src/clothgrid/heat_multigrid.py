@@ -1,4 +1,4 @@
-"""The heat solver's multigrid: black-box multigrid (Dendy) as a preconditioner of conjugate gradients.
+"""The heat solver's multigrid: black-box multigrid as a preconditioner of conjugate gradients.
 
 :mod:`clothgrid.heat` solves ``(A + diag(shift)) T = b`` for the 5-point
 finite-volume operator of per-edge conductances. Conductivity jumps of 10^4
@@ -7,12 +7,16 @@ cycle on them); this hierarchy follows the jumps:
 
 - **full coarsening** (coarse point ``I`` is fine point ``2 I`` along both
   axes), down to a coarsest level of at most 256 unknowns (or one row or
-  column: a long thin grid) solved directly (SciPy's SuperLU);
+  column: a long thin grid) solved directly (SciPy's SuperLU on the CPU, a
+  dense inverse on a device);
 - **operator-dependent interpolation** (Dendy 1982, "Black box multigrid"):
-  a fine point's weights come from its own row of the operator, collapsed
-  across the other axis, so a correction is interpolated in proportion to
-  the conductances it flows through: across an interface of 10^4 it is flat
-  on the conducting side and carries the jump on the insulating one;
+  a fine point's weights come from the operator, so a correction is
+  interpolated in proportion to the conductances it flows through: across an
+  interface of 10^4 it is flat on the conducting side and carries the jump on
+  the insulating one. Points between coarse points along ``u`` take theirs
+  from their line's operator (Schaffer's collapse, :func:`clothgrid._heat_kernels.interpolation`),
+  which keeps strongly stretched cells with random conductivities at 6-10
+  iterations (Dendy's pointwise weights: 44-70);
 - **Galerkin coarse operators** ``A_c = P^T A P`` (9 points), restriction
   ``P^T``;
 - **zebra line Gauss-Seidel along v** (``j``: the lines are contiguous in
@@ -24,9 +28,20 @@ cycle on them); this hierarchy follows the jumps:
   than tall red-black point Gauss-Seidel took 300 iterations, lines 6; on
   isotropic cells both take the same iterations at about the same cost.
 
-All kernels are Numba (:mod:`clothgrid._heat_kernels`), on padded float64
-arrays ``(nu + 2, nv + 2)`` with the unknowns inside a zero ring. This module
-imports neither :mod:`clothgrid.backends` nor :mod:`clothgrid.solvers`.
+The hierarchy (:class:`HeatHierarchy`: interpolation weights, Galerkin
+products, the line solves' factors, the coarsest level's factorisation) is
+data, built once on the CPU with the Numba kernels of
+:mod:`clothgrid._heat_kernels`. The V-cycle (:func:`vcycle`) and conjugate
+gradients (:func:`pcg`; :func:`refine`, mixed-precision iterative refinement
+around it, for a float32 device) are written once, against the operations of
+:class:`~clothgrid.backends.protocol.HeatOps` that each backend supplies
+(``Backend.heat_ops``): the cpu backend's Numba kernels
+(:mod:`clothgrid.backends._cpu_heat`), the gl backend's shaders and the cuda
+backend's kernels. :class:`HeatSolver` holds the operations and their work
+vectors for the solves of one operator. Arrays are padded ``(nu + 2, nv + 2)``
+with the unknowns inside a zero ring. This module imports neither
+:mod:`clothgrid.backends` nor :mod:`clothgrid.solvers` (the backend's
+operations are handed to it).
 """
 
 from __future__ import annotations
@@ -40,10 +55,15 @@ import numpy as np
 
 from . import _heat_kernels as K
 
-__all__ = ["Stencil5", "HeatMultigrid", "pcg", "padded", "numba_threads"]
+__all__ = ["Stencil5", "HeatLevel", "HeatHierarchy", "HeatSolver", "vcycle", "pcg", "refine", "padded",
+           "numba_threads", "COARSEST_POINTS", "INNER_TOL"]
 
 #: A level with at most this many unknowns (or fewer than 2 rows or columns) is solved directly (SuperLU).
 COARSEST_POINTS = 256
+#: Relative residual a float32 inner solve of :func:`refine` is asked for at least (its own float32
+#: residual). Measured on the benchmark's cases at 256^2 and 512^2 on llvmpipe (CG iterations in all to
+#: 1e-8): 1e-3 12-15, 3e-4 12-14, 1e-4 13-17, 1e-5 15-17; a float32 field stops improving near 1e-6.
+INNER_TOL = 3e-4
 
 
 @contextmanager
@@ -133,20 +153,31 @@ class Stencil5:
 
 
 @dataclass
-class _Level:
+class HeatLevel:
+    """One level of the hierarchy (host float64 arrays, padded).
+
+    Attributes
+    ----------
+    shape : (int, int)
+        ``(nu, nv)`` unknowns.
+    S : numpy.ndarray or None
+        ``(nu + 2, nv + 2, 9)`` 9-point stencil (coarse levels); None on level 0, whose operator is the
+        hierarchy's :class:`Stencil5` (flux form).
+    P : numpy.ndarray or None
+        ``(nu + 2, nv + 2, 4)`` interpolation from the next coarser level (None on the coarsest).
+    cp, im : numpy.ndarray
+        ``(nu + 2, nv + 2)`` the line solves' Thomas factors (eliminated super-diagonal, inverse pivots).
+    """
+
     shape: tuple[int, int]
-    S: np.ndarray | None                  # 9-point stencil (coarse levels); level 0 uses the Stencil5
-    P: np.ndarray | None = None           # interpolation from the next coarser level
-    x: np.ndarray = field(init=False, repr=False)
-    b: np.ndarray = field(init=False, repr=False)
-    r: np.ndarray = field(init=False, repr=False)
-    cp: np.ndarray = field(init=False, repr=False)     # the line solves' factors (line_factors)
+    S: np.ndarray | None
+    P: np.ndarray | None = None
+    cp: np.ndarray = field(init=False, repr=False)
     im: np.ndarray = field(init=False, repr=False)
-    dp: np.ndarray = field(init=False, repr=False)     # and their scratch
 
     def __post_init__(self) -> None:
         nu, nv = self.shape
-        self.x, self.b, self.r, self.cp, self.im, self.dp = (np.zeros((nu + 2, nv + 2)) for _ in range(6))
+        self.cp, self.im = np.zeros((nu + 2, nv + 2)), np.zeros((nu + 2, nv + 2))
 
 
 def _sparse(S: np.ndarray) -> Any:
@@ -168,8 +199,8 @@ def _sparse(S: np.ndarray) -> Any:
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nu * nv,) * 2)
 
 
-class HeatMultigrid:
-    """Black-box multigrid hierarchy of a 5-point operator, and one V(1,1) cycle as a preconditioner.
+class HeatHierarchy:
+    """Black-box multigrid hierarchy of a 5-point operator, built on the CPU (data for any backend).
 
     Parameters
     ----------
@@ -178,11 +209,17 @@ class HeatMultigrid:
     coarsest_points : int
         Coarsen while a level has more unknowns than this (and at least two
         rows and columns).
+
+    Attributes
+    ----------
+    fine : Stencil5
+    levels : list of HeatLevel
+        Finest first.
     """
 
     def __init__(self, fine: Stencil5, coarsest_points: int = COARSEST_POINTS):
         self.fine = fine
-        self.levels: list[_Level] = [_Level(fine.shape, None)]
+        self.levels: list[HeatLevel] = [HeatLevel(fine.shape, None)]
         S = None
         while True:
             nu, nv = self.levels[-1].shape
@@ -191,11 +228,11 @@ class HeatMultigrid:
             S = fine.nine() if S is None else S
             ncu, ncv = nu // 2, nv // 2
             P = np.empty((nu + 2, nv + 2, 4))
-            K.interpolation(S, ncu, ncv, P)
+            K.interpolation(S, ncu, ncv, P, np.empty((3, nu + 2, nv + 2)))
             Sc = np.empty((ncu + 2, ncv + 2, 9))
             K.galerkin(S, P, Sc)
             self.levels[-1].P = P
-            self.levels.append(_Level((ncu, ncv), Sc))
+            self.levels.append(HeatLevel((ncu, ncv), Sc))
             S = Sc
         none = np.zeros((1, 1))
         for lev in self.levels:
@@ -203,103 +240,209 @@ class HeatMultigrid:
                 K.line_factors(np.zeros((1, 1, 9)), fine.we, fine.wn, fine.d, True, lev.cp, lev.im)
             else:
                 K.line_factors(lev.S, none, none, none, False, lev.cp, lev.im)
-        from scipy.sparse.linalg import splu
-
-        last = self.levels[-1]
-        # SuperLU rather than a dense inverse: LAPACK/BLAS calls would start OpenBLAS's threads, which
-        # contend with Numba's (docs/heat.md); a banded LU is also right for a long thin coarsest level
-        self._lu = splu(_sparse(fine.nine() if last.S is None else last.S).tocsc())
+        self._lu: Any = None
 
     def __len__(self) -> int:
         return len(self.levels)
 
-    def _smooth(self, l: int, pre: bool) -> None:
-        """Zebra line Gauss-Seidel along ``v``: from zero, even lines then odd (pre-smoothing), or odd
-        then even (post-smoothing, the adjoint)."""
-        lev = self.levels[l]
-        for colour in ((0, 1) if pre else (1, 0)):
-            first = pre and colour == 0
-            if l == 0:
-                f = self.fine
-                K.lines5(f.we, f.wn, lev.b, lev.x, colour, lev.cp, lev.im, lev.dp, first)
-            else:
-                K.lines9(lev.S, lev.b, lev.x, colour, lev.cp, lev.im, lev.dp, first)
+    def coarsest_stencil(self) -> np.ndarray:
+        """The coarsest level's 9-point stencil (level 0's, in 9-point form, when it is the only level)."""
+        last = self.levels[-1]
+        return self.fine.nine() if last.S is None else last.S
 
-    def precondition(self, r: np.ndarray, z: np.ndarray) -> None:
-        """``z = M r``: one V(1,1) cycle from zero on ``A z = r`` (padded arrays; ``z`` is overwritten).
+    @property
+    def coarse_lu(self) -> Any:
+        """SciPy's SuperLU factorisation of the coarsest level (made on first use).
 
-        The zebra sweeps end (pre-smoothing) with the odd lines solved, so the residual is computed and
-        restricted from the even rows only; they start (post-smoothing) with the odd lines, so the
-        correction is interpolated to the even rows only.
+        SuperLU rather than a dense inverse on the CPU: LAPACK/BLAS calls would start OpenBLAS's threads,
+        which contend with Numba's (docs/heat.md); a banded LU is also right for a long thin coarsest level.
         """
-        top = self.levels[0]
-        top.b, top.x = r, z
-        last = len(self.levels) - 1
-        for l in range(last):
-            lev, nxt = self.levels[l], self.levels[l + 1]
-            self._smooth(l, True)
-            if l == 0:
-                f = self.fine
-                K.residual5(f.we, f.wn, f.c0, lev.b, lev.x, lev.r, 2, 2)
-            else:
-                K.residual9(lev.S, lev.b, lev.x, lev.r, 2, 2)
-            K.restrict_even(lev.P, lev.r, nxt.b)
-        coarse = self.levels[last]
-        nu, nv = coarse.shape
-        rhs = coarse.b[1:-1, 1:-1].reshape(-1)
-        coarse.x.fill(0.0)
-        coarse.x[1:-1, 1:-1] = self._lu.solve(rhs).reshape(nu, nv)
-        for l in range(last - 1, -1, -1):
-            K.prolong_add_even(self.levels[l].P, self.levels[l + 1].x, self.levels[l].x)
-            self._smooth(l, False)
+        if self._lu is None:
+            from scipy.sparse.linalg import splu
+
+            self._lu = splu(_sparse(self.coarsest_stencil()).tocsc())
+        return self._lu
+
+    def coarse_inverse(self) -> np.ndarray:
+        """The coarsest level's inverse as a dense float64 ``(n, n)`` array (``n = nu * nv``, row-major
+        ``(i, j)``), for a device that solves the coarsest level by one matrix-vector product; symmetric."""
+        last = self.levels[-1]
+        n = last.shape[0] * last.shape[1]
+        inv = self.coarse_lu.solve(np.eye(n))
+        return 0.5 * (inv + inv.T)
 
 
-def pcg(mg: HeatMultigrid, b: np.ndarray, x: np.ndarray, tol: float, max_iter: int) -> tuple[int, float]:
-    """Conjugate gradients on ``A x = b`` preconditioned by ``mg``'s V-cycle, from ``x`` (updated in place).
+# --------------------------------------------------------------------------- the algorithms, once
 
-    ``b`` and ``x`` are padded ``(nu + 2, nv + 2)`` (ring zero). Stops when
-    the relative residual ``||b - A x|| / ||b||`` is at most ``tol``: the
-    recursion's residual first, then the true one recomputed from ``x``; the
-    iteration restarts from ``x`` if they differ.
+
+def vcycle(ops: Any, r: Any, z: Any) -> None:
+    """``z = M r``: one V(1,1) cycle from zero on ``A z = r``, driven through ``ops``
+    (:class:`~clothgrid.backends.protocol.HeatOps`; ``z`` is overwritten).
+
+    The zebra sweeps end (pre-smoothing) with the odd lines solved, so a backend's ``restrict`` may form
+    and restrict the residual from the even rows only; they start (post-smoothing) with the odd lines, so
+    ``prolong`` may interpolate the correction to the even rows only.
+    """
+    ops.bind(r, z)
+    last = ops.levels - 1
+    for level in range(last):
+        ops.smooth(level, True)
+        ops.restrict(level)
+    ops.coarse_solve()
+    for level in range(last - 1, -1, -1):
+        ops.prolong(level)
+        ops.smooth(level, False)
+
+
+def pcg(ops: Any, b: Any, x: Any, tol: float, max_iter: int, work: tuple[Any, Any, Any, Any],
+        stall: bool = False) -> tuple[int, float]:
+    """Conjugate gradients on ``A x = b`` preconditioned by :func:`vcycle`, from ``x`` (updated in place),
+    on the vectors of ``ops`` (:class:`~clothgrid.backends.protocol.HeatOps`).
+
+    Stops when the relative residual ``||b - A x|| / ||b||`` is at most ``tol``: the recursion's residual
+    first, then the true one recomputed from ``x`` with ``ops.residual``; the iteration restarts from ``x``
+    if they differ, and gives up when a restart did not lower the true residual (the field's rounding
+    floor is above ``tol``: before, such a solve restarted until ``max_iter``). ``work`` is four
+    level-0 vectors (overwritten). ``stall``: give up unless a restart halves the true residual (float32
+    arithmetic, whose floor is high).
 
     Returns
     -------
     iterations : int
     residual : float
-        The true relative residual of the returned ``x``.
+        The true relative residual of the returned ``x`` (in the backend's arithmetic).
     """
-    f = mg.fine
-    nb = math.sqrt(K.dot(b, b))
+    r, z, p, q = work
+    nb = math.sqrt(ops.dot(b, b))
     if nb == 0.0:
-        x.fill(0.0)
+        ops.copy(x, b)                      # x = b = 0
         return 0, 0.0
-    r, z, p, q = (np.zeros_like(b) for _ in range(4))
-    K.residual5(f.we, f.wn, f.c0, b, x, r)
-    rel = math.sqrt(K.dot(r, r)) / nb
+    ops.residual(b, x, r)
+    rel = math.sqrt(ops.dot(r, r)) / nb
     it = 0
     while rel > tol and it < max_iter:
-        start = it
-        mg.precondition(r, z)
-        p[...] = z
-        rz = K.dot(r, z)
+        start, rel_start = it, rel
+        vcycle(ops, r, z)
+        ops.copy(p, z)
+        rz = ops.dot(r, z)
         while it < max_iter:
-            pq = K.apply5_dot(f.we, f.wn, f.c0, p, q)
+            pq = ops.apply(p, q)
             if not pq > 0:
                 break
             alpha = rz / pq
-            rr = K.update_xr(x, r, p, q, alpha)
+            rr = ops.axpy(x, r, p, q, alpha)
             it += 1
             rel = math.sqrt(rr) / nb
             if rel <= tol:
                 break
-            mg.precondition(r, z)
-            rz_new = K.dot(r, z)
+            vcycle(ops, r, z)
+            rz_new = ops.dot(r, z)
             if not rz_new > 0:
                 break
-            K.update_p(p, z, rz_new / rz)
+            ops.xpay(p, z, rz_new / rz)
             rz = rz_new
-        K.residual5(f.we, f.wn, f.c0, b, x, r)      # the true residual: restart if the recursion drifted
-        rel = math.sqrt(K.dot(r, r)) / nb
-        if it == start:                              # no step possible (breakdown): give up
+        ops.residual(b, x, r)                # the true residual: restart if the recursion drifted
+        rel = math.sqrt(ops.dot(r, r)) / nb
+        # no step possible, or a restart that did not improve the true residual (float64: at all, the
+        # rounding floor of the field; float32, ``stall``: by half): more restarts would only repeat it
+        if it == start or not rel < (0.5 if stall else 1.0) * rel_start:
             break
     return it, rel
+
+
+def refine(solver: "HeatSolver", b: np.ndarray, x: np.ndarray, tol: float, max_iter: int) -> tuple[int, float, int]:
+    """Mixed-precision iterative refinement: ``x += e`` with ``A e = r`` solved by :func:`pcg` on a
+    float32 device, ``r = b - A x`` recomputed in float64 on the host after each solve.
+
+    Each inner solve asks for ``max(tol ||b|| / ||r||, INNER_TOL)`` of its (unit-scaled) right-hand side.
+    Stops when the float64 relative residual is at most ``tol``, after ``max_iter`` inner iterations in
+    all, or when an inner solve no longer halves it (its float32 arithmetic has reached its floor).
+
+    Returns
+    -------
+    iterations : int
+        Inner PCG iterations, all solves.
+    residual : float
+        ``||b - A x|| / ||b||`` of the returned ``x``, float64 on the host.
+    refinements : int
+        Inner solves.
+    """
+    ops, f = solver.ops, solver.fine
+    nb = math.sqrt(K.dot(b, b))
+    if nb == 0.0:
+        x.fill(0.0)
+        return 0, 0.0, 0
+    r, e, zero = np.zeros_like(b), np.zeros_like(b), np.zeros_like(b)
+    K.residual5(f.we, f.wn, f.c0, b, x, r)
+    rel = math.sqrt(K.dot(r, r)) / nb
+    it = steps = 0
+    vb, vx, *work = solver.vectors()
+    while rel > tol and it < max_iter:
+        s = rel * nb
+        rb = ops.upload(r * (1.0 / s), vb)
+        ve = ops.upload(zero, vx)
+        k, _ = pcg(ops, rb, ve, min(0.5, max(tol / rel, INNER_TOL)), max_iter - it, tuple(work), stall=True)
+        it += k
+        steps += 1
+        ops.download(ve, e)
+        x_old = x.copy()
+        x += s * e
+        K.residual5(f.we, f.wn, f.c0, b, x, r)
+        new = math.sqrt(K.dot(r, r)) / nb
+        if not new < rel:                    # worse: keep the previous iterate, and stop
+            x[...] = x_old
+            K.residual5(f.we, f.wn, f.c0, b, x, r)
+            break
+        progress, rel = new < 0.5 * rel, new
+        if k == 0 or not progress:
+            break
+    return it, rel, steps
+
+
+class HeatSolver:
+    """A backend's :class:`~clothgrid.backends.protocol.HeatOps` for one operator, with its work vectors.
+
+    Parameters
+    ----------
+    ops : HeatOps
+        From the backend's ``heat_ops(hierarchy)``.
+    fine : Stencil5
+        The operator on the host (float64): the residual of :func:`refine`.
+    """
+
+    def __init__(self, ops: Any, fine: Stencil5):
+        self.ops, self.fine = ops, fine
+        self._vectors: list[Any] | None = None
+
+    def vectors(self) -> list[Any]:
+        """Six level-0 vectors of the backend (right-hand side, iterate and :func:`pcg`'s four), made once."""
+        if self._vectors is None:
+            self._vectors = [self.ops.vector() for _ in range(6)]
+        return self._vectors
+
+    def solve(self, b: np.ndarray, x: np.ndarray, tol: float, max_iter: int) -> tuple[int, float, int]:
+        """Solve ``A x = b`` to the relative residual ``tol``, from ``x``; ``b`` and ``x`` are padded host
+        float64 arrays, ``x`` is updated in place.
+
+        Where the backend computes in float64 (``ops.precise``: cpu, cuda) this is :func:`pcg` on its
+        vectors; on a float32 device (gl) it is :func:`refine`, whose residual is float64 on the host.
+
+        Returns
+        -------
+        (iterations, relative residual, refinements)
+            ``refinements``: float32 inner solves (0 where the backend is float64).
+        """
+        ops = self.ops
+        if not ops.precise:
+            return refine(self, b, x, tol, max_iter)
+        vb, vx, *work = self.vectors()
+        bv = ops.upload(b, vb)
+        xv = ops.upload(x, vx)
+        it, rel = pcg(ops, bv, xv, tol, max_iter, tuple(work))
+        ops.download(xv, x)
+        return it, rel, 0
+
+    def close(self) -> None:
+        """Free what the operations hold on a device (a no-op on the cpu)."""
+        self._vectors = None
+        self.ops.release()

@@ -25,11 +25,14 @@ from ..multigrid_levels import Level
 from ..weights import interior_diagonal
 from .protocol import ProblemData
 
-if TYPE_CHECKING:   # annotations only: the operations' module loads on first use (Numba)
+if TYPE_CHECKING:   # annotations only: the operations' modules load on first use (Numba)
+    from ..heat_multigrid import HeatHierarchy
+    from ._cpu_heat import CpuHeatOps
     from ._cpu_multigrid import CpuMultigrid
 
 __all__ = ["name", "solvers", "require", "available", "describe", "summary", "device_bytes", "check_size",
-           "array_module", "sweep", "max_step", "residual", "multigrid", "jacobi_sweeper", "HostJacobi"]
+           "array_module", "sweep", "max_step", "residual", "multigrid", "jacobi_sweeper", "heat_ops",
+           "HostJacobi"]
 
 name = "cpu"
 #: Solvers that run on a device: none. Every solver runs on the host, and ``auto`` picks by size
@@ -129,6 +132,14 @@ def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> HostJacobi:
     Every sweep's step is known at once (:func:`sweep` returns it), so ``stop`` changes nothing here.
     """
     return HostJacobi(problem)
+
+
+def heat_ops(hierarchy: HeatHierarchy) -> CpuHeatOps:
+    """The heat solver's operations (:class:`~clothgrid.backends.protocol.HeatOps`) on host arrays: the
+    Numba kernels of :mod:`clothgrid._heat_kernels`, float64."""
+    from ._cpu_heat import CpuHeatOps
+
+    return CpuHeatOps(hierarchy)
 
 
 class HostJacobi:

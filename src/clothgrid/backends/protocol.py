@@ -7,7 +7,8 @@ where it is a function, callable. Solvers never probe a backend with
 backend's ``describe`` returns ``{}``, its ``check_size`` checks nothing on a
 device). The objects a backend's factories return satisfy
 :class:`MultigridOps` (``multigrid``) and :class:`JacobiSweeper`
-(``jacobi_sweeper``), every operation present.
+(``jacobi_sweeper``) and :class:`HeatOps` (``heat_ops``, the heat solver's), every
+operation present.
 
 The backends are found by name through the registry of
 :mod:`clothgrid.backends` (:data:`~clothgrid.backends.REGISTRY`), loaded on
@@ -23,15 +24,18 @@ the multigrid hierarchy that :meth:`Backend.multigrid` takes is plain data from
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..multigrid_levels import Level
 from ..weights import Weights
 
-__all__ = ["Backend", "MultigridOps", "JacobiSweeper", "ProblemData", "members", "BACKEND_MEMBERS",
-           "MULTIGRID_OPERATIONS", "JACOBI_OPERATIONS"]
+if TYPE_CHECKING:   # annotations only: heat_multigrid loads Numba
+    from ..heat_multigrid import HeatHierarchy
+
+__all__ = ["Backend", "MultigridOps", "JacobiSweeper", "HeatOps", "ProblemData", "members", "BACKEND_MEMBERS",
+           "MULTIGRID_OPERATIONS", "JACOBI_OPERATIONS", "HEAT_OPERATIONS"]
 
 
 class ProblemData(Protocol):
@@ -132,6 +136,81 @@ class JacobiSweeper(Protocol):
 
 
 @runtime_checkable
+class HeatOps(Protocol):
+    """The operations the heat solver's V-cycle and conjugate gradients drive on a backend.
+
+    :func:`clothgrid.heat_multigrid.vcycle` and :func:`~clothgrid.heat_multigrid.pcg` are written once
+    against these; ``Backend.heat_ops(hierarchy)`` returns them for a
+    :class:`~clothgrid.heat_multigrid.HeatHierarchy` (black-box multigrid, built on the CPU: the backend
+    uploads its arrays). Vectors are the backend's own (host arrays, textures, CuPy arrays) of level 0's
+    padded shape ``(nu + 2, nv + 2)``, ring zero; the solver only passes them back.
+
+    Attributes
+    ----------
+    levels : int
+        Number of levels, finest (0) first.
+    precise : bool
+        True where the arithmetic is float64 (cpu, cuda). False on a float32 device (gl): the solver then
+        wraps :func:`~clothgrid.heat_multigrid.pcg` in float64 iterative refinement on the host
+        (:func:`~clothgrid.heat_multigrid.refine`), whose residual is what it reports.
+    """
+
+    levels: int
+    precise: bool
+
+    def vector(self) -> Any:
+        """A new level-0 vector, zero."""
+
+    def upload(self, a: np.ndarray, out: Any) -> Any:
+        """The host float64 padded array ``a`` as a vector: written into ``out`` (a vector of :meth:`vector`)
+        and returned; the cpu returns ``a`` itself."""
+
+    def download(self, v: Any, out: np.ndarray) -> None:
+        """Vector ``v`` into the host float64 padded array ``out`` (nothing where ``v`` is ``out``)."""
+
+    def copy(self, dst: Any, src: Any) -> None:
+        """``dst = src``."""
+
+    def dot(self, a: Any, b: Any) -> float:
+        """``a . b``."""
+
+    def apply(self, p: Any, q: Any) -> float:
+        """``q = A p`` (level 0, flux form); returns ``p . q``."""
+
+    def residual(self, b: Any, x: Any, r: Any) -> None:
+        """``r = b - A x`` (level 0)."""
+
+    def axpy(self, x: Any, r: Any, p: Any, q: Any, alpha: float) -> float:
+        """``x += alpha p``, ``r -= alpha q``; returns ``r . r``."""
+
+    def xpay(self, p: Any, z: Any, beta: float) -> None:
+        """``p = z + beta p``."""
+
+    def bind(self, r: Any, z: Any) -> None:
+        """Make ``r`` level 0's right-hand side and ``z`` its iterate for the next V-cycle."""
+
+    def smooth(self, level: int, pre: bool) -> None:
+        """Zebra line Gauss-Seidel along ``v`` on ``level``: from zero, even lines then odd (``pre``), or odd
+        then even (post-smoothing)."""
+
+    def restrict(self, level: int) -> None:
+        """``b[l+1] = P^T (b[l] - A_l x[l])``, right after a pre-smoothing sweep (the odd rows' residual is
+        then zero: a backend may use it)."""
+
+    def coarse_solve(self) -> None:
+        """``x = A^-1 b`` on the coarsest level."""
+
+    def prolong(self, level: int) -> None:
+        """``x[l] += P x[l+1]`` where the post-smoothing sweep reads it: at least on the even rows."""
+
+    def extra(self) -> dict[str, Any]:
+        """Keys the solve adds to its result's info (the device, pass counts); ``{}`` if none."""
+
+    def release(self) -> None:
+        """Free what the operations hold on a device (a no-op on the cpu)."""
+
+
+@runtime_checkable
 class Backend(Protocol):
     """A backend module: where the solvers' array operations run.
 
@@ -197,6 +276,10 @@ class Backend(Protocol):
         """The Jacobi sweep loop on this backend; raises :class:`~clothgrid.errors.InputError` where
         ``jacobi`` does not run."""
 
+    def heat_ops(self, hierarchy: HeatHierarchy) -> HeatOps:
+        """The heat solver's operations (:class:`HeatOps`) on this backend for a black-box multigrid
+        hierarchy built on the CPU (:class:`~clothgrid.heat_multigrid.HeatHierarchy`)."""
+
 
 def members(protocol: type) -> tuple[str, ...]:
     """The names a protocol asks for: its annotated attributes and its methods, in definition order.
@@ -221,3 +304,5 @@ BACKEND_MEMBERS = members(Backend)
 MULTIGRID_OPERATIONS = tuple(n for n in members(MultigridOps) if n != "levels")
 #: Every operation of a backend's Jacobi sweeper.
 JACOBI_OPERATIONS = members(JacobiSweeper)
+#: Every operation of a backend's heat operations (``levels`` and ``precise`` are attributes).
+HEAT_OPERATIONS = tuple(n for n in members(HeatOps) if n not in ("levels", "precise"))

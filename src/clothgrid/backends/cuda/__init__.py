@@ -34,11 +34,13 @@ from ..cpu import residual
 from ..protocol import ProblemData
 from . import _device, _sim
 
-if TYPE_CHECKING:   # annotations only: the operations' module loads on first use (numba.cuda)
+if TYPE_CHECKING:   # annotations only: the operations' modules load on first use (numba.cuda)
+    from ...heat_multigrid import HeatHierarchy
+    from ._heat import CudaHeatOps
     from ._multigrid import CudaMultigrid
 
 __all__ = ["name", "solvers", "require", "available", "on_gpu", "array_module", "info", "describe", "summary",
-           "device_bytes", "check_size", "residual", "max_step", "multigrid", "jacobi_sweeper"]
+           "device_bytes", "check_size", "residual", "max_step", "multigrid", "jacobi_sweeper", "heat_ops"]
 
 name = "cuda"
 #: Solvers that run on this backend (``auto`` picks the first).
@@ -159,3 +161,12 @@ def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> NoReturn:
     """Jacobi does not run on this backend: raises :class:`~clothgrid.errors.InputError` saying so."""
     raise InputError(f"solver 'jacobi' does not run on backend 'cuda': use one of {', '.join(solvers)} "
                      "(or backend 'cpu' or 'gl')")
+
+
+def heat_ops(hierarchy: HeatHierarchy) -> CudaHeatOps:
+    """The heat solver's operations (:class:`~clothgrid.backends.protocol.HeatOps`) on the device: the CPU's
+    kernels written for ``numba.cuda`` over CuPy arrays, float64, the hierarchy uploaded once."""
+    require()
+    from ._heat import CudaHeatOps
+
+    return CudaHeatOps(hierarchy)

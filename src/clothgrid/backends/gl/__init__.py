@@ -29,12 +29,14 @@ from ..cpu import max_step, residual
 from ..protocol import ProblemData
 
 if TYPE_CHECKING:   # annotations only: the device's modules load on first use (moderngl)
+    from ...heat_multigrid import HeatHierarchy
     from ._device import Device
+    from ._heat import GLHeatOps
     from ._jacobi import GLJacobi
     from ._multigrid import GLMultigrid
 
 __all__ = ["name", "solvers", "require", "available", "info", "describe", "summary", "check_size", "device_bytes",
-           "array_module", "residual", "max_step", "jacobi_sweeper", "multigrid"]
+           "array_module", "residual", "max_step", "jacobi_sweeper", "multigrid", "heat_ops"]
 
 name = "gl"
 #: Solvers that run on this backend (``auto`` picks the first).
@@ -132,3 +134,11 @@ def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None
     from ._multigrid import GLMultigrid
 
     return GLMultigrid(levels, x0, rhs, host_fp64=HOST_FP64)
+
+
+def heat_ops(hierarchy: HeatHierarchy) -> GLHeatOps:
+    """The heat solver's operations (:class:`~clothgrid.backends.protocol.HeatOps`) on the device: float32
+    shaders, the hierarchy uploaded once; the solver refines in float64 on the host (docs/heat.md)."""
+    from ._heat import GLHeatOps
+
+    return GLHeatOps(hierarchy)

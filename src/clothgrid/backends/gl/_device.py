@@ -22,7 +22,7 @@ from ...errors import BackendUnavailableError, SizeError
 from ...memory import available_bytes, format_bytes
 from . import _shaders
 
-__all__ = ["device", "Device", "Level0"]
+__all__ = ["device", "Device", "Level0", "Reducer"]
 
 _LOCK = threading.RLock()
 _DEVICE: "Device | None" = None
@@ -269,15 +269,17 @@ class Device:
             got = self._compute[name] = (cs, _assign_units(cs, source))
         return got
 
-    def dispatch(self, name: str, groups: int, images: dict, inputs: dict, uniforms: dict | None = None) -> None:
-        """Run compute shader ``name`` on ``groups`` work groups, then a memory barrier."""
+    def dispatch(self, name: str, groups: int | tuple[int, ...], images: dict, inputs: dict,
+                 uniforms: dict | None = None) -> None:
+        """Run compute shader ``name`` on ``groups`` work groups (a count, or counts along x, y), then a
+        memory barrier."""
         cs, units = self.compute(name)
         for unit, tex in images.items():
             tex.bind_to_image(unit, read=True, write=True)
         for key, tex in inputs.items():
             tex.use(units[key])
         _set_uniforms(cs, uniforms)
-        cs.run(groups)
+        cs.run(*groups) if isinstance(groups, tuple) else cs.run(groups)
         self.ctx.memory_barrier()
 
     # ------------------------------------------------------------------ objects and passes
@@ -326,7 +328,8 @@ def _assign_units(program, source: str) -> dict[str, int]:
 
 
 class Reducer:
-    """The max of one channel of a ``width x height`` texture, by a pyramid of 4x4 max passes."""
+    """Reductions of ``width x height`` textures to one float by a pyramid of 4x4 passes: the max of one
+    channel (non-negative values), a sum, or the dot product of two one-channel textures (float32)."""
 
     def __init__(self, dev: Device, width: int, height: int):
         self.dev = dev
@@ -337,14 +340,28 @@ class Reducer:
             tex = dev.texture(w, h, 1, "f4")
             self.levels.append((tex, dev.framebuffer(tex)))
 
-    def max(self, tex, channel: int) -> float:
-        src, ch = tex, channel
+    def _pyramid(self, first: str, inputs: dict, channel: int, rest: str) -> float:
+        name, src, ch = first, None, channel
         for out, fbo in self.levels:
-            self.dev.draw("REDUCE_MAX", fbo, {"src": src}, {"channel": ch})
-            src, ch = out, 0
+            self.dev.draw(name, fbo, inputs if src is None else {"src": src}, {"channel": ch})
+            name, src, ch = rest, out, 0
+        return float(np.frombuffer(src.read(), np.float32)[0])
+
+    def max(self, tex, channel: int) -> float:
         if not self.levels:  # a 1x1 source
             return float(np.frombuffer(tex.read(), np.float32)[channel])
-        return float(np.frombuffer(src.read(), np.float32)[0])
+        return self._pyramid("REDUCE_MAX", {"src": tex}, channel, "REDUCE_MAX")
+
+    def sum(self, tex, channel: int = 0) -> float:
+        if not self.levels:
+            return float(np.frombuffer(tex.read(), np.float32)[channel])
+        return self._pyramid("REDUCE_SUM", {"src": tex}, channel, "REDUCE_SUM")
+
+    def dot(self, a, b) -> float:
+        """``sum(a * b)`` of two one-channel textures of this reducer's size."""
+        if not self.levels:
+            return float(np.frombuffer(a.read(), np.float32)[0] * np.frombuffer(b.read(), np.float32)[0])
+        return self._pyramid("REDUCE_DOT", {"a": a, "b": b}, 0, "REDUCE_SUM")
 
     def release(self) -> None:
         for tex, fbo in self.levels:

@@ -276,3 +276,245 @@ void main() {
     o = vec4(c.xyz + d, 0.0);
 }
 """
+
+# ---------------------------------------------------------------------------------- sums
+
+# One level of the sum-reduction pyramid: each fragment sums a 4x4 block of one channel.
+REDUCE_SUM = """
+#version 430
+uniform sampler2D src;
+uniform int channel;
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy) * 4;
+    ivec2 n = textureSize(src, 0);
+    float s = 0.0;
+    for (int dy = 0; dy < 4; dy++) {
+        for (int dx = 0; dx < 4; dx++) {
+            ivec2 q = p + ivec2(dx, dy);
+            if (q.x < n.x && q.y < n.y) s += texelFetch(src, q, 0)[channel];
+        }
+    }
+    o = vec4(s);
+}
+"""
+
+# The first level of a dot product's pyramid: each fragment sums a * b over a 4x4 block (channel 0).
+REDUCE_DOT = """
+#version 430
+uniform sampler2D a;
+uniform sampler2D b;
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy) * 4;
+    ivec2 n = textureSize(a, 0);
+    float s = 0.0;
+    for (int dy = 0; dy < 4; dy++) {
+        for (int dx = 0; dx < 4; dx++) {
+            ivec2 q = p + ivec2(dx, dy);
+            if (q.x < n.x && q.y < n.y) s += texelFetch(a, q, 0).x * texelFetch(b, q, 0).x;
+        }
+    }
+    o = vec4(s);
+}
+"""
+
+# ---------------------------------------------------------------------------------- heat
+# The heat solver's black-box multigrid and conjugate gradients (clothgrid.heat_multigrid, the CPU
+# kernels in clothgrid._heat_kernels), float32. Arrays are padded: a level of nu x nv unknowns is a
+# texture of (nv + 2) x (nu + 2) texels, texel (x, y) = (j, i), the unknowns inside a ring that is
+# zero in every vector. Vectors are R32F. Stencils, per texel:
+#   level 0 (5 points, flux form):  t1 = (we[i-1,j], we[i,j], wn[i,j-1], wn[i,j])   conductances to
+#                                   i-1, i+1, j-1, j+1;  t3 = (c0, cp, im, 0)
+#   coarse levels (9 points S[k], k = 3 (di + 1) + (dj + 1) for the neighbour (i + di, j + dj)):
+#                                   t1 = (S0, S1, S2, S3), t2 = (S5, S6, S7, S8), t3 = (S4, cp, im, 0)
+# c0 is the diagonal less the couplings between unknowns; cp, im the line solves' Thomas factors
+# (the eliminated super-diagonal and the inverse pivots, computed on the CPU in float64).
+# Interpolation P (RGBA): the weights of fine point (i, j)'s parents (i/2 + a, j/2 + b), slot a + 2b.
+
+_HEAT_STENCIL = """
+uniform sampler2D t1;
+uniform sampler2D t2;
+uniform sampler2D t3;
+uniform bool nine;
+float X(ivec2 q) { return texelFetch(x, q, 0).x; }
+// A x at an unknown p: the 5-point level in flux form (c0 x + sum w (x - x_nb): the differences first,
+// as the CPU does), a 9-point level row by row
+float ax_at(ivec2 p) {
+    vec4 a = texelFetch(t1, p, 0);
+    float xc = X(p);
+    float c = texelFetch(t3, p, 0).x;
+    if (nine) {
+        vec4 e = texelFetch(t2, p, 0);
+        float s = a.x * X(p + ivec2(-1, -1)) + a.y * X(p + UM) + a.z * X(p + ivec2(1, -1)) + a.w * X(p + VM)
+                + e.x * X(p + VP) + e.y * X(p + ivec2(-1, 1)) + e.z * X(p + UP) + e.w * X(p + ivec2(1, 1));
+        return c * xc + s;
+    }
+    precise float v = c * xc;
+    v = v + a.x * (xc - X(p + UM));
+    v = v + a.y * (xc - X(p + UP));
+    v = v + a.z * (xc - X(p + VM));
+    v = v + a.w * (xc - X(p + VP));
+    return v;
+}
+float residual_at(ivec2 p) { return texelFetch(b, p, 0).x - ax_at(p); }
+"""
+
+# q = A p (has_b false, b unused) or r = b - A x (has_b) on level 0; zero on the ring.
+HEAT_AX = _HEAD + """
+uniform sampler2D x;
+uniform sampler2D b;
+uniform bool has_b;
+""" + _HEAT_STENCIL + """
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    if (on_boundary(p, textureSize(x, 0))) { o = vec4(0.0); return; }
+    o = vec4(has_b ? residual_at(p) : ax_at(p));
+}
+"""
+
+# Zebra line Gauss-Seidel along v (j): one invocation per line i = i0, i0 + 2, ... solves it exactly
+# (Thomas, precomputed factors) with the neighbour lines i -/+ 1 held (first: taken as zero, the first
+# half sweep from zero), in place on the image x (the forward pass keeps its values there).
+HEAT_LINES = _HEAD.replace("#version 430", """#version 430
+layout(local_size_x = 32) in;
+layout(r32f, binding = 0) uniform image2D x;""") + """
+uniform sampler2D b;
+uniform sampler2D t1;
+uniform sampler2D t2;
+uniform sampler2D t3;
+uniform bool nine;
+uniform bool first;
+uniform int i0;
+float X(int i, int j) { return imageLoad(x, ivec2(j, i)).x; }
+void main() {
+    ivec2 n = imageSize(x);
+    int i = i0 + 2 * int(gl_GlobalInvocationID.x);
+    if (i > n.y - 2) return;
+    int nv = n.x - 2;
+    float prev = 0.0;
+    for (int j = 1; j <= nv; j++) {
+        ivec2 p = ivec2(j, i);
+        vec4 a = texelFetch(t1, p, 0);
+        float rhs = texelFetch(b, p, 0).x;
+        float lower;
+        if (nine) {
+            if (!first) {
+                vec4 e = texelFetch(t2, p, 0);
+                rhs -= a.x * X(i - 1, j - 1) + a.y * X(i - 1, j) + a.z * X(i - 1, j + 1)
+                     + e.y * X(i + 1, j - 1) + e.z * X(i + 1, j) + e.w * X(i + 1, j + 1);
+            }
+            lower = a.w;
+        } else {
+            if (!first) rhs += a.x * X(i - 1, j) + a.y * X(i + 1, j);
+            lower = -a.z;
+        }
+        prev = (rhs - lower * prev) * texelFetch(t3, p, 0).z;
+        imageStore(x, p, vec4(prev));
+    }
+    float v = 0.0;
+    for (int j = nv; j >= 1; j--) {
+        ivec2 p = ivec2(j, i);
+        v = imageLoad(x, p).x - texelFetch(t3, p, 0).y * v;
+        imageStore(x, p, vec4(v));
+    }
+}
+"""
+
+# Restriction right after a pre-smoothing sweep that ended with the odd lines (drawn over the coarse
+# level): their residual is zero, so P^T r reads the even rows only; the residual of the three fine
+# points (2I, 2J - 1 .. 2J + 1) is formed here (no fine residual pass).
+HEAT_RESTRICT = _HEAD + """
+uniform sampler2D x;
+uniform sampler2D b;
+uniform sampler2D P;
+uniform ivec2 nc;
+""" + _HEAT_STENCIL + """
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 c = ivec2(gl_FragCoord.xy);
+    if (c.x < 1 || c.y < 1 || c.x > nc.x - 2 || c.y > nc.y - 2) { o = vec4(0.0); return; }
+    ivec2 p = 2 * c;
+    float s = residual_at(p) + texelFetch(P, p + VM, 0).z * residual_at(p + VM);
+    if (p.x + 1 <= textureSize(x, 0).x - 2) s += texelFetch(P, p + VP, 0).x * residual_at(p + VP);
+    o = vec4(s);
+}
+"""
+
+# x += P xc on the even rows i (the post-smoothing sweep starts with the odd lines, which overwrite
+# theirs), in place: one invocation per (j, even i).
+HEAT_PROLONG = """
+#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(r32f, binding = 0) uniform image2D x;
+uniform sampler2D xc;
+uniform sampler2D P;
+void main() {
+    ivec2 n = imageSize(x);
+    int j = int(gl_GlobalInvocationID.x) + 1;
+    int i = 2 * (int(gl_GlobalInvocationID.y) + 1);
+    if (j > n.x - 2 || i > n.y - 2) return;
+    ivec2 p = ivec2(j, i);
+    vec4 w = texelFetch(P, p, 0);
+    float v = imageLoad(x, p).x + w.x * texelFetch(xc, ivec2(j / 2, i / 2), 0).x
+            + w.z * texelFetch(xc, ivec2(j / 2 + 1, i / 2), 0).x;
+    imageStore(x, p, vec4(v));
+}
+"""
+
+# The coarsest level: x = A^-1 b with the dense inverse (a texture of n x n texels, row k = unknown
+# (i - 1) ncv + (j - 1), computed on the CPU in float64).
+HEAT_COARSE = _HEAD + """
+uniform sampler2D b;
+uniform sampler2D inv;
+layout(location = 0) out vec4 o;
+void main() {
+    ivec2 c = ivec2(gl_FragCoord.xy);
+    ivec2 s = textureSize(b, 0);
+    if (on_boundary(c, s)) { o = vec4(0.0); return; }
+    int ncv = s.x - 2;
+    int n = textureSize(inv, 0).x;
+    int k = (c.y - 1) * ncv + (c.x - 1);
+    float acc = 0.0;
+    for (int m = 0; m < n; m++) {
+        acc += texelFetch(inv, ivec2(m, k), 0).x * texelFetch(b, ivec2(m % ncv + 1, m / ncv + 1), 0).x;
+    }
+    o = vec4(acc);
+}
+"""
+
+# Conjugate gradients' vector updates, in place, one invocation per texel (the ring stays zero):
+# x += alpha p and r -= alpha q; p = z + beta p (copy: p = z).
+HEAT_AXPY = """
+#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(r32f, binding = 0) uniform image2D x;
+layout(r32f, binding = 1) uniform image2D r;
+uniform sampler2D p;
+uniform sampler2D q;
+uniform float alpha;
+void main() {
+    ivec2 c = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 n = imageSize(x);
+    if (c.x >= n.x || c.y >= n.y) return;
+    imageStore(x, c, vec4(imageLoad(x, c).x + alpha * texelFetch(p, c, 0).x));
+    imageStore(r, c, vec4(imageLoad(r, c).x - alpha * texelFetch(q, c, 0).x));
+}
+"""
+
+HEAT_XPAY = """
+#version 430
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(r32f, binding = 0) uniform image2D p;
+uniform sampler2D z;
+uniform float beta;
+uniform bool copy;
+void main() {
+    ivec2 c = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 n = imageSize(p);
+    if (c.x >= n.x || c.y >= n.y) return;
+    float v = texelFetch(z, c, 0).x;
+    imageStore(p, c, vec4(copy ? v : v + beta * imageLoad(p, c).x));
+}
+"""
