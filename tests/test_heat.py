@@ -364,3 +364,94 @@ def test_cli_unknown_output_format(tmp_path, capsys):
     code = main(["heat", "--size", "1x1", "--conductivity", "1", "--cells", "4x4", "--left", "1",
                  "-o", str(tmp_path / "t.obj")])
     assert code == 2 and "unknown heat output format" in capsys.readouterr().err
+
+
+# --- the cells of a gridded piece (issue 18, item 2) -----------------------------------------------------
+
+def _polar(n_r: int, n_t: int, r1: float = 0.01, r2: float = 0.02, span: float = math.pi / 2) -> np.ndarray:
+    r = np.linspace(r1, r2, n_r + 1)[:, None]
+    t = np.linspace(0.0, span, n_t + 1)[None, :]
+    return np.stack([r * np.cos(t), r * np.sin(t)], axis=-1)
+
+
+def test_a_rectangular_grid_is_the_rectangle(rng):
+    """Nodes of a rectangle's equal cells as a grid: the same temperatures as ``size=`` (random k, every
+    kind of side)."""
+    nx, ny, w, h = 24, 10, 0.012, 0.004
+    k = np.exp(rng.uniform(-3, 3, (nx, ny)))
+    q = rng.uniform(0, 1e5, (nx, ny))
+    X, Y = np.meshgrid(np.linspace(0, w, nx + 1), np.linspace(0, h, ny + 1), indexing="ij")
+    sides = dict(left=34.0, right="h=10,T=20", bottom="q=150", top=None)
+    a = solve_steady(HeatProblem(k, size=(w, h), source=q, **sides), tol=1e-12)
+    b = solve_steady(HeatProblem(k, grid=np.stack([X, Y], axis=-1), source=q, **sides), tol=1e-12)
+    np.testing.assert_allclose(b.temperature, a.temperature, rtol=0, atol=1e-9 * np.ptp(a.temperature))
+    np.testing.assert_allclose(b.x, a.x, atol=1e-15)
+    fa, fb = a.heat_flows(), b.heat_flows()
+    for key in fa:
+        assert fb[key] == pytest.approx(fa[key], rel=1e-9, abs=1e-12)
+
+
+def test_radial_conduction_in_an_annulus_sector_converges_at_second_order():
+    """A quarter annulus r = 1..2 cm (an orthogonal polar grid), T = 34 C at the inner arc (left:
+    i = 0), 20 C at the outer (right), insulated radial sides: T = T1 + (T2 - T1) ln(r/r1) / ln(r2/r1),
+    and the heat through it k (T1 - T2) (pi/2) / ln(r2/r1) per metre of depth."""
+    k, r1, r2, t1, t2 = 0.5, 0.01, 0.02, 34.0, 20.0
+    errs, flows = [], []
+    for n in (8, 16, 32):
+        res = solve_steady(HeatProblem(k, grid=_polar(n, 2 * n), left=t1, right=t2), tol=1e-12)
+        r = np.hypot(res.x, res.y)
+        exact = t1 + (t2 - t1) * np.log(r / r1) / math.log(r2 / r1)
+        errs.append(float(np.abs(res.temperature - exact).max()))
+        fl = res.heat_flows()
+        assert fl["left"] == pytest.approx(-fl["right"], rel=1e-8)           # heat in = heat out
+        flows.append(fl["left"])
+    q_exact = k * (t1 - t2) * (math.pi / 2) / math.log(r2 / r1)
+    assert errs[1] < errs[0] / 3.2 and errs[2] < errs[1] / 3.2                 # second order
+    assert errs[2] < 5e-3                                                   # 0.004 K of 14 K at 32 x 64
+    assert abs(flows[2] - q_exact) < abs(flows[0] - q_exact) and flows[2] == pytest.approx(q_exact, rel=1e-4)
+
+
+def test_heat_on_a_gridded_piece_from_the_command_line(tmp_path, capsys):
+    """``clothgrid generate`` a piece, then ``clothgrid heat --grid``: the temperatures stay between the
+    fixed ones, heat in = heat out, and the cells are the grid's; --size and --grid together, or a bad
+    grid file, are one error line each."""
+    from importlib.resources import files
+
+    src = files("clothgrid") / "data" / "tshirt_front.json"
+    g = tmp_path / "g.npz"
+    assert main(["generate", str(src), "--nodes", "17x21", "-o", str(g), "-q"]) == 0
+    out, png = tmp_path / "t.npz", tmp_path / "t.png"
+    assert main(["heat", "--grid", str(g), "--conductivity", "0.04", "--left", "34", "--right", "h=10,T=20",
+                 "-o", str(out), "-o", str(png), "-q"]) == 0
+    text = capsys.readouterr().out
+    assert "16 x 20 cells" in text
+    with np.load(out) as d:
+        T = d["temperature"]
+    assert T.shape == (16, 20) and 20.0 < T.min() and T.max() < 34.0
+    assert png.stat().st_size > 1000
+    with np.load(g) as d:
+        assert str(d["length_unit"]) == "m"                    # the bundled piece is in metres
+        pts = d["points"]
+    res = solve_steady(HeatProblem(0.04, grid=pts, left=34, right="h=10,T=20"), tol=1e-12)
+    assert res.problem.size == pytest.approx((0.5, 0.7))
+    mm = HeatProblem(0.04, grid=pts * 1000, grid_unit="mm", left=34)      # the unit scales the nodes
+    np.testing.assert_allclose(mm.geometry.area, res.problem.geometry.area, rtol=1e-12)
+    np.testing.assert_allclose(res.temperature, T, atol=1e-6)
+    fl = res.heat_flows()
+    assert fl["left"] == pytest.approx(-fl["right"], rel=1e-8)
+    for argv, what in ((["--grid", str(g), "--size", "0.1x0.1"], "one of them"),
+                       (["--grid", str(src)], "not a grid .npz")):
+        bad = tmp_path / "bad.npz"
+        assert main(["heat", *argv, "--conductivity", "1", "--left", "1", "-o", str(bad), "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("clothgrid: error:") and what in err[0]
+        assert not bad.exists()
+
+
+def test_a_folded_grid_is_refused():
+    P = _polar(4, 4)
+    P[2, 2] = P[0, 0]                                   # a node pulled across: cells of no or negative area
+    with pytest.raises(InputError, match="grid"):
+        HeatProblem(1.0, grid=np.array([[[0, 0], [0, 1]], [[0, 0], [0, 1]]], float), left=1)
+    with pytest.raises(InputError, match="one of them"):
+        HeatProblem(1.0, left=1, cells=(4, 4))

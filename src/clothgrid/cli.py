@@ -244,8 +244,13 @@ def _add_heat_parser(sub: Any) -> None:
                    help="conductivity per cell, W/(m K): a number, a .npy file or an image")
     h.add_argument("--conductivity-range", type=_range, metavar="LO,HI",
                    help="an image's conductivity at black and white")
-    h.add_argument("--size", type=_size, required=True, metavar="WxH",
-                   help="width (x) and height (y) of the rectangle in metres, e.g. 0.01x0.004")
+    h.add_argument("--size", type=_size, metavar="WxH",
+                   help="width (x) and height (y) of the rectangle in metres, e.g. 0.01x0.004 (or --grid)")
+    h.add_argument("--grid", metavar="GRID.npz",
+                   help="instead of --size: the cells of a gridded piece, a .npz of clothgrid generate (left / "
+                        "right: its i = 0 / last side, bottom / top: j = 0 / last; docs/heat.md)")
+    h.add_argument("--grid-unit", type=_length_unit, metavar="UNIT",
+                   help="the grid's length unit (default: the .npz's length_unit, else mm)")
     h.add_argument("--cells", type=parse_nodes, metavar="NXxNY",
                    help="cells along x and y (needed when every field is a number)")
     for side in ("left", "right", "bottom", "top"):
@@ -309,7 +314,8 @@ def _cmd_heat(args: argparse.Namespace) -> int:
     problem = heat.HeatProblem(
         conductivity=heat.load_field(args.conductivity, name="conductivity", value_range=args.conductivity_range,
                                      shape=args.cells),
-        size=args.size, left=args.left, right=args.right, bottom=args.bottom, top=args.top,
+        size=args.size, grid=args.grid, grid_unit=args.grid_unit,
+        left=args.left, right=args.right, bottom=args.bottom, top=args.top,
         source=heat.load_field(args.source, name="source", value_range=args.source_range, positive=False,
                                shape=args.cells),
         capacity=None if args.capacity is None else heat.load_field(

@@ -287,6 +287,93 @@ def _parse_size(size: Any) -> tuple[float, float]:
     return w, h
 
 
+def load_grid_nodes(grid: Any, unit: str | None = None) -> np.ndarray:
+    """Node coordinates ``(nu, nv, 3)`` in metres of a gridded piece.
+
+    ``grid``: an array ``(nu, nv, 2|3)`` in ``unit`` (default metres), a :class:`clothgrid.Grid`
+    (its points, in ``unit``, default mm), or the path of an ``.npz`` written by ``clothgrid
+    generate`` (its ``points`` and ``length_unit``; ``unit`` overrides; mm when it says none).
+    """
+    from .units import unit_to_mm
+
+    default = "m"
+    if isinstance(grid, (str, Path)):
+        path = Path(grid)
+        try:
+            with np.load(path, allow_pickle=False) as d:
+                pts = np.asarray(d["points"], dtype=np.float64)
+                saved = str(d["length_unit"]) if "length_unit" in d.files else ""
+        except (OSError, ValueError, KeyError) as exc:
+            raise InputError(f"{path}: not a grid .npz of clothgrid generate (points, length_unit): {exc}") from None
+        default = saved or "mm"
+    elif hasattr(grid, "points") and hasattr(grid, "shape"):
+        pts, default = np.asarray(grid.points, dtype=np.float64), "mm"
+    else:
+        try:
+            pts = np.asarray(grid, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError("the grid must be node coordinates (nu, nv, 2 or 3)") from None
+    if pts.ndim != 3 or pts.shape[2] not in (2, 3) or min(pts.shape[:2]) < 2:
+        raise InputError(f"the grid must be node coordinates (nu, nv, 2 or 3) with nu, nv >= 2, not shape "
+                         f"{pts.shape}")
+    if not np.isfinite(pts).all():
+        raise InputError("the grid has non-finite coordinates")
+    if pts.shape[2] == 2:
+        pts = np.concatenate([pts, np.zeros(pts.shape[:2] + (1,))], axis=2)
+    return pts * (unit_to_mm(unit or default, "grid unit") / 1000.0)
+
+
+@dataclass(frozen=True)
+class _CellGeometry:
+    """Finite-volume geometry of the cells of a structured grid of nodes ``(nu, nv, 3)`` (metres).
+
+    ``area`` (nx, ny) cell areas; ``centre`` (nx, ny, 3) the mean of each cell's corners;
+    ``fu`` (nx + 1, ny) lengths of the faces across u (node column ``i``, rows ``j..j+1``) and
+    ``du`` (nx + 1, ny, 2) the distances from the cell before and after each of them to the face's
+    line (perpendicular: the two-point flux of an orthogonal grid); ``fv``, ``dv`` likewise across v.
+    """
+
+    area: np.ndarray
+    centre: np.ndarray
+    fu: np.ndarray
+    du: np.ndarray
+    fv: np.ndarray
+    dv: np.ndarray
+
+    @staticmethod
+    def of(nodes: np.ndarray) -> "_CellGeometry":
+        P = nodes
+        d1, d2 = P[1:, 1:] - P[:-1, :-1], P[:-1, 1:] - P[1:, :-1]
+        area = 0.5 * np.linalg.norm(np.cross(d1, d2), axis=-1)
+        if (area <= 0).any():
+            raise InputError("the grid has cells of no area (folded or degenerate)")
+        c = 0.25 * (P[:-1, :-1] + P[1:, :-1] + P[1:, 1:] + P[:-1, 1:])
+        nx, ny = area.shape
+
+        def dist(cells: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            t = b - a
+            L = np.linalg.norm(t, axis=-1)
+            t = t / np.maximum(L, 1e-300)[..., None]
+            r = cells - a
+            perp = r - (r * t).sum(-1)[..., None] * t
+            return np.linalg.norm(perp, axis=-1)
+
+        a_u, b_u = P[:, :-1], P[:, 1:]                      # faces across u: (nx + 1, ny)
+        fu = np.linalg.norm(b_u - a_u, axis=-1)
+        du = np.zeros((nx + 1, ny, 2))
+        du[1:, :, 0] = dist(c, a_u[1:], b_u[1:])            # the cell before (i - 1) ...
+        du[:-1, :, 1] = dist(c, a_u[:-1], b_u[:-1])         # ... and after (i)
+        a_v, b_v = P[:-1, :], P[1:, :]                      # faces across v: (nx, ny + 1)
+        fv = np.linalg.norm(b_v - a_v, axis=-1)
+        dv = np.zeros((nx, ny + 1, 2))
+        dv[:, 1:, 0] = dist(c, a_v[:, 1:], b_v[:, 1:])
+        dv[:, :-1, 1] = dist(c, a_v[:, :-1], b_v[:, :-1])
+        if (du[1:-1] <= 0).any() or (dv[:, 1:-1] <= 0).any() or (du[[0, -1]].sum(-1) <= 0).any() \
+                or (dv[:, [0, -1]].sum(-1) <= 0).any():
+            raise InputError("the grid has a cell centre on one of its faces (a degenerate cell)")
+        return _CellGeometry(area, c, fu, du, fv, dv)
+
+
 @dataclass
 class HeatProblem:
     """Heat conduction on a rectangle of ``nx x ny`` equal cells (SI units).
@@ -296,8 +383,17 @@ class HeatProblem:
     conductivity : float or array_like
         ``k`` per cell, W/(m K), ``(nx, ny)`` (``[i, j]``, i along x), or a
         number (then ``cells`` gives the grid).
-    size : (float, float) or str
-        Width (x) and height (y) in metres, or ``"0.01x0.004"``.
+    size : (float, float) or str, optional
+        Width (x) and height (y) in metres, or ``"0.01x0.004"``: a rectangle of equal cells.
+    grid : array, Grid or path, optional
+        Instead of ``size``: the cells of a gridded piece (:func:`load_grid_nodes`: node coordinates
+        ``(nu, nv, 2|3)``, a :class:`clothgrid.Grid` or a ``clothgrid generate`` ``.npz``; ``grid_unit``
+        their unit). The cells are the grid's ``(nu - 1) x (nv - 1)`` quads, ``left`` / ``right`` its
+        ``i = 0`` / ``i = nu - 1`` sides, ``bottom`` / ``top`` ``j = 0`` / ``j = nv - 1``. How the geometry
+        enters: a cell's area multiplies its source and heat capacity; the conductance of a face is
+        ``L / (d_a / k_a + d_b / k_b)`` (face length ``L``, ``d`` the distance from each cell centre to
+        the face's line: the two-point flux, exact for orthogonal grids; a skewed grid's cross-diffusion
+        is left out); a fixed flux acts on the face lengths.
     left, right, bottom, top : Side, str or float, optional
         Boundary conditions (:func:`parse_side`); a side not given is insulated.
     source : float or array_like
@@ -309,7 +405,7 @@ class HeatProblem:
     """
 
     conductivity: Any
-    size: Any
+    size: Any = None
     left: Any = None
     right: Any = None
     bottom: Any = None
@@ -317,10 +413,27 @@ class HeatProblem:
     source: Any = 0.0
     capacity: Any = None
     cells: tuple[int, int] | None = None
+    grid: Any = None
+    grid_unit: str | None = None
     k: np.ndarray = field(init=False, repr=False)
+    nodes: np.ndarray | None = field(init=False, repr=False, default=None)
+    geometry: _CellGeometry | None = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
-        self.size = _parse_size(self.size)
+        if (self.size is None) == (self.grid is None):
+            raise InputError("give the rectangle's size (size=..., --size) or a gridded piece (grid=..., --grid), "
+                             "one of them")
+        if self.grid is not None:
+            self.nodes = load_grid_nodes(self.grid, self.grid_unit)
+            self.geometry = _CellGeometry.of(self.nodes)
+            gshape = self.geometry.area.shape
+            if self.cells is not None and tuple(int(c) for c in self.cells) != gshape:
+                raise InputError(f"cells {self.cells!r} do not match the grid's {gshape[0]} x {gshape[1]} cells")
+            self.cells = gshape
+            xy = self.nodes[..., :2].reshape(-1, 2)
+            self.size = tuple(float(v) for v in np.ptp(xy, axis=0))
+        else:
+            self.size = _parse_size(self.size)
         for s in SIDES:
             setattr(self, s, parse_side(getattr(self, s)))
         shape = None if self.cells is None else tuple(int(c) for c in self.cells)
@@ -341,11 +454,28 @@ class HeatProblem:
     # -- geometry
     @property
     def spacing(self) -> tuple[float, float]:
-        """``(dx, dy)``, metres."""
+        """``(dx, dy)``, metres (a rectangle's; a gridded piece: its bounding box over the cells)."""
         return self.size[0] / self.cells[0], self.size[1] / self.cells[1]
+
+    def cell_area(self) -> np.ndarray | float:
+        """Area of every cell, m^2 (a number on a rectangle)."""
+        if self.geometry is not None:
+            return self.geometry.area
+        dx, dy = self.spacing
+        return dx * dy
+
+    def side_faces(self, side: str) -> np.ndarray:
+        """Lengths of the faces along ``side``, one per boundary cell (metres)."""
+        if self.geometry is not None:
+            g = self.geometry
+            return {"left": g.fu[0], "right": g.fu[-1], "bottom": g.fv[:, 0], "top": g.fv[:, -1]}[side]
+        (nx, ny), (dx, dy) = self.cells, self.spacing
+        return np.full(ny, dy) if side in ("left", "right") else np.full(nx, dx)
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
         """``x``, ``y`` of the cell centres as ``(nx, ny)`` arrays (metres)."""
+        if self.geometry is not None:
+            return self.geometry.centre[..., 0].copy(), self.geometry.centre[..., 1].copy()
         (nx, ny), (dx, dy) = self.cells, self.spacing
         return np.meshgrid((np.arange(nx) + 0.5) * dx, (np.arange(ny) + 0.5) * dy, indexing="ij")
 
@@ -359,11 +489,18 @@ class HeatProblem:
         """Per boundary cell of ``side``: conductance to the side's ring node (W/(m K) per metre depth)."""
         (dx, dy), s = self.spacing, getattr(self, side)
         k = {"left": self.k[0], "right": self.k[-1], "bottom": self.k[:, 0], "top": self.k[:, -1]}[side]
-        normal, face = (dx, dy) if side in ("left", "right") else (dy, dx)
+        if self.geometry is not None:                   # centre-to-face distance, face length
+            g = self.geometry
+            half = {"left": g.du[0, :, 1], "right": g.du[-1, :, 0], "bottom": g.dv[:, 0, 1],
+                    "top": g.dv[:, -1, 0]}[side]
+            face = self.side_faces(side)
+        else:
+            normal, face = (dx, dy) if side in ("left", "right") else (dy, dx)
+            half = normal / 2.0
         if s.kind == "temperature":
-            return 2.0 * k * face / normal
+            return k * face / half
         if s.kind == "convection":
-            return face / (normal / (2.0 * k) + 1.0 / s.h)
+            return face / (half / k + 1.0 / s.h)
         return np.zeros_like(k)
 
     def system(self) -> tuple[Weights, np.ndarray, np.ndarray]:
@@ -382,35 +519,38 @@ class HeatProblem:
         """
         (nx, ny), (dx, dy), k = self.cells, self.spacing, self.k
         wu, wv = np.zeros((nx + 1, ny + 2)), np.zeros((nx + 2, ny + 1))
-        wu[1:-1, 1:-1] = (dy / dx) * 2.0 * k[:-1] * k[1:] / (k[:-1] + k[1:])
-        wv[1:-1, 1:-1] = (dx / dy) * 2.0 * k[:, :-1] * k[:, 1:] / (k[:, :-1] + k[:, 1:])
+        if self.geometry is not None:
+            g = self.geometry
+            wu[1:-1, 1:-1] = g.fu[1:-1] / (g.du[1:-1, :, 0] / k[:-1] + g.du[1:-1, :, 1] / k[1:])
+            wv[1:-1, 1:-1] = g.fv[:, 1:-1] / (g.dv[:, 1:-1, 0] / k[:, :-1] + g.dv[:, 1:-1, 1] / k[:, 1:])
+        else:
+            wu[1:-1, 1:-1] = (dy / dx) * 2.0 * k[:-1] * k[1:] / (k[:-1] + k[1:])
+            wv[1:-1, 1:-1] = (dx / dy) * 2.0 * k[:, :-1] * k[:, 1:] / (k[:, :-1] + k[:, 1:])
         wu[0, 1:-1] = self.boundary_conductance("left")
         wu[-1, 1:-1] = self.boundary_conductance("right")
         wv[1:-1, 0] = self.boundary_conductance("bottom")
         wv[1:-1, -1] = self.boundary_conductance("top")
         ring = np.zeros((nx + 2, ny + 2))
-        rhs = np.broadcast_to(np.asarray(self.source, dtype=np.float64) * dx * dy, (nx, ny)).copy()
-        for side, sl_ring, sl_cell, face in (("left", (0, slice(1, -1)), (0, slice(None)), dy),
-                                             ("right", (-1, slice(1, -1)), (-1, slice(None)), dy),
-                                             ("bottom", (slice(1, -1), 0), (slice(None), 0), dx),
-                                             ("top", (slice(1, -1), -1), (slice(None), -1), dx)):
+        rhs = np.broadcast_to(np.asarray(self.source, dtype=np.float64) * self.cell_area(), (nx, ny)).copy()
+        for side, sl_ring, sl_cell in (("left", (0, slice(1, -1)), (0, slice(None))),
+                                       ("right", (-1, slice(1, -1)), (-1, slice(None))),
+                                       ("bottom", (slice(1, -1), 0), (slice(None), 0)),
+                                       ("top", (slice(1, -1), -1), (slice(None), -1))):
             s = getattr(self, side)
             if s.fixes:
                 ring[sl_ring] = s.value
             else:
-                rhs[sl_cell] += s.value * face
+                rhs[sl_cell] += s.value * self.side_faces(side)
         return Weights(wu=wu, wv=wv, kind="heat"), ring, rhs
 
     def mass(self) -> np.ndarray:
         """``rho c dx dy`` per cell (J/(m K) per metre depth)."""
         if self.capacity is None:
             raise InputError("a transient solve needs the heat capacity rho c (capacity=..., --capacity)")
-        (dx, dy) = self.spacing
-        return np.broadcast_to(np.asarray(self.capacity) * dx * dy, self.cells).astype(np.float64)
+        return np.broadcast_to(np.asarray(self.capacity) * self.cell_area(), self.cells).astype(np.float64)
 
     def heat_flows(self, T: np.ndarray) -> dict[str, float]:
         """Heat flowing into the medium through each side, and from the sources (W per metre depth)."""
-        (dx, dy) = self.spacing
         out: dict[str, float] = {}
         cells = {"left": T[0], "right": T[-1], "bottom": T[:, 0], "top": T[:, -1]}
         for side in SIDES:
@@ -418,8 +558,8 @@ class HeatProblem:
             if s.fixes:
                 out[side] = float(np.sum(self.boundary_conductance(side) * (s.value - cells[side])))
             else:
-                out[side] = float(s.value * (self.size[1] if side in ("left", "right") else self.size[0]))
-        out["source"] = float(np.sum(np.broadcast_to(self.source, self.cells)) * dx * dy)
+                out[side] = float(s.value * np.sum(self.side_faces(side)))
+        out["source"] = float(np.sum(np.broadcast_to(self.source, self.cells) * self.cell_area()))
         return out
 
 
@@ -642,8 +782,13 @@ def plot_temperature(res: HeatResult, path: str | Path, *, title: str | None = N
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     T = res.temperature
-    im = ax.imshow(T.T, origin="lower", extent=(0, w * scale, 0, h * scale), cmap="inferno", aspect="equal",
-                   interpolation="nearest")
+    if res.problem.nodes is not None:               # a gridded piece: its cells as they lie
+        P = res.problem.nodes
+        im = ax.pcolormesh(P[..., 0] * scale, P[..., 1] * scale, T, cmap="inferno", shading="flat")
+        ax.set_aspect("equal")
+    else:
+        im = ax.imshow(T.T, origin="lower", extent=(0, w * scale, 0, h * scale), cmap="inferno", aspect="equal",
+                       interpolation="nearest")
     if T.shape[0] > 1 and T.shape[1] > 1 and np.ptp(T) > 0:
         cs = ax.contour(res.x * scale, res.y * scale, T, levels=isotherms, colors="white", linewidths=0.6)
         ax.clabel(cs, fontsize=6, fmt="%.3g")
