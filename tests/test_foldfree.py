@@ -137,3 +137,29 @@ def test_cli_strict_and_auto(tmp_path, capsys):
     assert "warning: 10 folded cells (first at cells (0, 0)" in err and "--functional auto" in err
     assert main(["generate", str(TIE), "-o", str(tmp_path / "x.npz"), "--functional", "bad"]) == 2
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_a_wild_outline_gets_no_more_folds_and_the_untangling_stops_when_it_stalls(tmp_path):
+    """Found by tests/test_fuzz.py: a GarmentCode waistband with one vertex moved 77 m away (its
+    circle arcs then swing round a far-off chord) ran 60 untangling rounds of every node (minutes
+    at 10 cm) and handed back 16 times the length grid's folded cells. Now every-node untangling
+    stops after ``RELAX_STALL`` rounds without fewer folded corners, and a fold-free grid with more
+    folded cells than the length grid is not kept."""
+    from clothgrid.foldfree import RELAX_ROUNDS, RELAX_STALL
+    from clothgrid.pipeline import generate_piece
+    from clothgrid.readers import read_pieces
+
+    spec = json.loads((Path(__file__).parent / "data" / "garmentcode" / "flare_skirt_specification.json")
+                      .read_text())
+    spec["pattern"]["panels"]["wb_front"]["vertices"][3] = [-7683, 0]
+    src = tmp_path / "spec.json"
+    src.write_text(json.dumps(spec))
+    piece = next(p for p in read_pieces(src) if p.name == "wb_front")
+    grid = generate_piece(piece, edge_length="60cm")
+    info = grid.info
+    assert info["folded_before"] > 0
+    assert info["folded"] == info["folded_before"] == quality(grid).folded
+    assert "foldfree_rejected" in info and info["functional"] == "length"
+    # 8 rounds on the poor cells' nodes, then every node until it stalls: far fewer than the cap
+    assert info["foldfree"]["rounds"] <= 8 + 2 * RELAX_ROUNDS
+    assert info["foldfree"]["rounds"] < 8 + 2 * RELAX_STALL + 20, info["foldfree"]

@@ -357,6 +357,41 @@ def test_self_intersecting_outlines_are_failures_in_pieces_and_generate(capsys, 
     assert sorted(p.name for p in out.iterdir()) == ["back.npz"]
 
 
+@pytest.mark.parametrize("d", ["Z", " h 50 a 10 10 0 0 1 10 10 v 40 h -60 z", "L 10 10 L 0 10 z"])
+def test_path_data_without_a_moveto_is_a_failed_piece(capsys, tmp_path, out, d):
+    """Found by tests/test_fuzz.py: path data must begin with a moveto; svgpathtools made segments
+    without a start point from it (an AttributeError traceback)."""
+    svg = _svg(tmp_path, f'<path id="front" d="{d}"/><rect id="back" x="150" y="10" width="40" height="50"/>')
+    code, err = _run(capsys, ["pieces", str(svg)])
+    assert code == 4 and "Traceback" not in err, err
+    assert "piece 'front'" in err and "must begin with a moveto" in err, err
+    svg = _svg(tmp_path, f'<path id="front" d="{d}"/>')
+    code, err = _run(capsys, _gen(svg, out, "--nodes", "9"))
+    _clean_error(code, err, out, needle="moveto")
+
+
+def test_an_error_quoting_a_bad_line_is_one_line(capsys, tmp_path, out):
+    """Found by tests/test_fuzz.py: ezdxf's message for a bad group code quotes the line with its
+    line break, which made the error two lines."""
+    src = _dxf_lines(tmp_path / "a.dxf", 3)
+    src.write_text(src.read_text().replace("ENTITIES\n0\n", "ENTITIES\n0.0\n", 1))
+    code, err = _run(capsys, ["pieces", str(src)])
+    _clean_error(code, err, out, needle="not a valid DXF")
+    assert len(err.strip().splitlines()) == 1, err
+
+
+def test_a_stitch_naming_a_panel_by_a_list_is_refused(capsys, tmp_path, out):
+    """Found by tests/test_fuzz.py: an unhashable panel name in a stitch was a TypeError."""
+    sq = [[0, 0], [50, 0], [50, 60], [0, 60]]
+    panel = {"vertices": sq, "edges": [{"endpoints": [i, (i + 1) % 4]} for i in range(4)]}
+    spec = {"pattern": {"panels": {"a": panel, "b": panel},
+                        "stitches": [[{"panel": ["a"], "edge": 0}, {"panel": "b", "edge": 2}]]}}
+    src = tmp_path / "g.json"
+    src.write_text(json.dumps(spec))
+    code, err = _run(capsys, ["garment", str(src), "-o", str(out / "g.npz")])
+    _clean_error(code, err, out, needle="no panel named ['a']")
+
+
 def test_self_intersection_search_agrees_with_all_pairs():
     from clothgrid.boundary import _find_self_intersection, _segments_intersect
 
@@ -552,8 +587,12 @@ def test_signal_while_the_command_line_imports(tmp_path, sig):
     hook.mkdir()
     (hook / "sitecustomize.py").write_text(_PAUSE_AT_NUMPY)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(hook), str(ROOT / "src")])}
+    # SIGINT at its default, as in a terminal: a shell without job control starts background
+    # commands with it ignored, and the child would inherit that (the guard leaves an ignored
+    # signal ignored, as it should)
     proc = subprocess.Popen([sys.executable, "-m", "clothgrid", "pieces", str(src)],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         line = ""
         while "PAUSED-IMPORTING-NUMPY" not in line:     # clothgrid's __init__ is importing NumPy now

@@ -644,6 +644,10 @@ def _corner_points(text: str) -> list[tuple[float, float]]:
 
 
 def _say(message: str) -> None:
+    """One ``clothgrid: ...`` line on stderr; an error's line breaks (a library's exception text
+    quoting a bad line of the input) become spaces, so that an error is one line."""
+    if message.startswith("error:"):
+        message = " ".join(message.splitlines())
     print(f"clothgrid: {message}", file=sys.stderr, flush=True)
 
 

@@ -310,6 +310,14 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
     new._quality = q_after   # measured once: pipeline.run_job reads it instead of measuring again
     new.info.update(functional="foldfree" if relaxed else "evened", folded=q_after.folded, evened=ev,
                     quality_before=q.as_dict(), seconds=time.perf_counter() - t0)
+    if q_after.folded > q.folded:
+        # a wild outline (far from any four-sided shape) where untangling made it worse: never
+        # hand back more folds than the length solve had
+        grid.info.update(foldfree=ff, foldfree_rejected=f"it left {q_after.folded} folded cells, "
+                         f"the length grid {q.folded}", seconds=time.perf_counter() - t0)
+        say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s; "
+            f"the length grid is kept")
+        return grid
     if relaxed:
         new.info["foldfree"] = ff
         say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s")

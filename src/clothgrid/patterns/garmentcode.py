@@ -426,7 +426,7 @@ def _stitch_side(side: Any, panels: dict[str, SpecPanel], what: str) -> tuple[st
     if not isinstance(side, dict) or "panel" not in side or "edge" not in side:
         raise InputError(f"{what} must be {{\"panel\": NAME, \"edge\": INDEX}}, not {side!r}")
     name, edge = side["panel"], side["edge"]
-    if name not in panels:
+    if not isinstance(name, str) or name not in panels:
         raise InputError(f"{what}: no panel named {name!r}")
     if isinstance(edge, bool) or not isinstance(edge, int) or not 0 <= edge < len(panels[name].edges):
         raise InputError(f"{what}: panel {name!r} has no edge {edge!r} (it has "

@@ -289,6 +289,8 @@ def _segment_prims(seg, m: np.ndarray) -> Primitive:
     A, t = m[:2, :2], m[:2, 2]
 
     def pt(z: complex) -> np.ndarray:
+        if z is None:                          # a segment with no current point
+            raise InputError("invalid path data (a segment with no start point)")
         return A @ [z.real, z.imag] + t
 
     if isinstance(seg, Line):
@@ -460,6 +462,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
                             raise InputError(f"{where}: {label}: invalid path data (unexpected "
                                              f"{bad!r})")
+                        if not d.lstrip().startswith(("M", "m")):
+                            raise InputError(f"{where}: {label}: invalid path data (it must begin "
+                                             f"with a moveto, M or m: {d.strip()[:20]!r})")
                         try:
                             with warnings.catch_warnings():
                                 warnings.simplefilter("ignore")
