@@ -163,3 +163,28 @@ def test_a_wild_outline_gets_no_more_folds_and_the_untangling_stops_when_it_stal
     # 8 rounds on the poor cells' nodes, then every node until it stalls: far fewer than the cap
     assert info["foldfree"]["rounds"] <= 8 + 2 * RELAX_ROUNDS
     assert info["foldfree"]["rounds"] < 8 + 2 * RELAX_STALL + 20, info["foldfree"]
+
+
+def test_the_margin_cap_keeps_the_quality_of_the_wide_margin(monkeypatch):
+    """At 512^2 an eighth of the shorter side is 64 lines; capped at ``MAX_MARGIN`` (32) the relax
+    moves under a third of the nodes and leaves the same grid quality: no fold, the same smallest
+    scaled Jacobian, about as many cells with a corner under 30 degrees."""
+    import clothgrid.foldfree as ff
+    from clothgrid.foldfree_kernels import cell_min_sine
+    from clothgrid.grid import Grid
+
+    b = clothgrid.load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
+    length = generate(b, (512, 512), weights="uniform", functional="length")
+    assert quality(length).folded > 0
+    got = {}
+    for cap in (ff.MAX_MARGIN, 10**9):
+        monkeypatch.setattr(ff, "MAX_MARGIN", cap)
+        pts, info = ff.relax(length.points, dim=length.dim)
+        q = quality(Grid.from_points(pts, info={}, dim=length.dim))
+        sines = cell_min_sine(np.ascontiguousarray(pts[..., :2]))
+        got[cap] = (info["moved"], q.folded, q.min_scaled_jacobian, int((sines < 0.5).sum()))
+    (moved, folded, sj, poor), (moved_w, folded_w, sj_w, poor_w) = got[32], got[10**9]
+    assert folded == folded_w == 0
+    assert moved < moved_w / 3
+    assert sj == pytest.approx(sj_w, abs=1e-3)
+    assert poor <= 1.1 * poor_w + 5

@@ -299,6 +299,10 @@ def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_it
 POOR_SINE = 0.34
 #: Nodes within this many grid lines of a poor cell are moved with it.
 MARGIN = 4
+#: Largest margin (grid lines) that the eighth of the shorter grid side sets: on fine grids a fold
+#: is a few cells wide, and 32 lines round it gave the same grid quality as 128 at 1024^2 (smallest
+#: scaled Jacobian, angles, folds; docs/performance.md) with a tenth of the nodes to move.
+MAX_MARGIN = 32
 #: Most untangling rounds of :func:`relax` per active set.
 RELAX_ROUNDS = 30
 #: Most Gauss-Seidel sweeps per round.
@@ -379,7 +383,8 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
 
     The energy is :func:`untangle`'s, minimised node by node (Newton steps,
     :mod:`clothgrid.foldfree_kernels`) over the interior nodes within
-    ``margin`` grid lines (at least an eighth of the shorter grid side) of a
+    ``margin`` grid lines (at least an eighth of the shorter grid side, up to
+    :data:`MAX_MARGIN`) of a
     cell that is folded or has a corner angle whose sine is below
     ``poor_sine``. Where folds remain, every interior node is untangled; then
     the active nodes are smoothed. Cost follows the size of the poor region.
@@ -430,7 +435,7 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         jmin, bad = corner_min(Xs, True)
         stats.update(untangled=bad == 0, min_corner_jacobian=float(jmin), seconds=time.perf_counter() - t0)
         return R, stats
-    m = max(nu, nv) if whole else max(margin, min(nu, nv) // 8)
+    m = max(nu, nv) if whole else max(margin, min(min(nu, nv) // 8, MAX_MARGIN))
     nodes = _active_nodes(poor, m)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
