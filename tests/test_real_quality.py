@@ -70,6 +70,51 @@ def test_sim_figures_on_a_known_grid():
     assert f["corner_cell_angles_deg"][0] == pytest.approx(45.0)
 
 
+def _sim_figures_by_angles(P: np.ndarray) -> tuple[float, float, list[float], float, float]:
+    """Every corner angle of every cell from its definition (arccos of the unit edge vectors, its
+    sign from the cell's summed normal; folded: 0), cell by cell in plain Python."""
+    nu, nv = P.shape[:2]
+    lo, hi, corners = 180.0, 0.0, {}
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            c = [P[i, j], P[i + 1, j], P[i + 1, j + 1], P[i, j + 1]]
+            n = sum(np.cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k]) for k in range(4))
+            for k in range(4):
+                a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
+                ang = np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+                if np.cross(a, b) @ n < 0:
+                    ang = 0.0
+                corners[(i, j, k)] = ang
+                if (nu - 1) * (nv - 1) > 4 and i in (0, nu - 2) and j in (0, nv - 2):
+                    continue
+                lo, hi = min(lo, ang), max(hi, ang)
+    grid = [corners[(0, 0, 0)], corners[(nu - 2, 0, 1)], corners[(nu - 2, nv - 2, 2)], corners[(0, nv - 2, 3)]]
+    edges = [np.linalg.norm(P[i + 1, j] - P[i, j]) for i in range(nu - 1) for j in range(nv)]
+    edges += [np.linalg.norm(P[i, j + 1] - P[i, j]) for i in range(nu) for j in range(nv - 1)]
+    return lo, hi, grid, min(edges), max(edges)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sim_figures_against_the_angles_cell_by_cell(seed):
+    """The Numba kernel behind sim_figures against each angle's definition on fresh grids: jittered
+    and curved (3D) grids, folded ones, 2D points, the smallest grids."""
+    rng = np.random.default_rng(seed)
+    nu, nv = (2, 2) if seed == 0 else (2, 5) if seed == 1 else rng.integers(3, 12, 2)
+    u, v = np.meshgrid(np.linspace(0, 1, nu), np.linspace(0, 2, nv), indexing="ij")
+    P = np.stack([u, v, 0.3 * np.sin(3 * u + v) * (seed % 2)], -1)
+    P[..., :2] += rng.normal(scale=0.25 / max(nu, nv) * (1 + seed % 3), size=(nu, nv, 2))
+    if seed == 4:
+        P = P[..., :2]                     # 2D points
+    f = sim_figures(P)
+    lo, hi, grid, emin, emax = _sim_figures_by_angles(np.concatenate([P, np.zeros((nu, nv, 1))], -1)
+                                                      if P.shape[-1] == 2 else P)
+    assert f["min_angle_deg"] == pytest.approx(lo, abs=1e-7)
+    assert f["max_angle_deg"] == pytest.approx(hi, abs=1e-7)
+    assert f["corner_cell_angles_deg"] == pytest.approx(grid, abs=1e-7)
+    assert f["shortest_edge"] == pytest.approx(emin, rel=1e-12)
+    assert f["edge_spread"] == pytest.approx(emax / emin, rel=1e-12)
+
+
 @needs_shared
 def test_report_json_and_a_report_that_cannot_be_written(tmp_path):
     out = tmp_path / "m"

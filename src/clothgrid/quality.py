@@ -309,37 +309,16 @@ def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[st
         ``shortest_edge``, ``longest_edge``, ``edge_spread`` (longest / shortest
         over all edges), ``shortest_vs_target`` (shortest edge / ``edge_length``).
     """
-    P = np.asarray(points, dtype=np.float64)
-    c = (P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:])
-    nc = (P.shape[0] - 1, P.shape[1] - 1)
-    amin = np.full(nc, 180.0)
-    amax = np.zeros(nc)
-    # the cell's normal: the sum of its corner cross products (for the sign of each angle)
-    normal = np.zeros(nc + (3,))
-    for k in range(4):
-        normal += np.cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k])
-    corner_angle = []
-    for k in range(4):
-        a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
-        cr = np.einsum("...k,...k->...", np.cross(a, b), normal)
-        sin = np.linalg.norm(np.cross(a, b), axis=-1) * np.sign(cr)
-        ang = np.degrees(np.arctan2(sin, np.einsum("...k,...k->...", a, b)))
-        ang = np.where(ang < 0, 0.0, ang)          # folded: 0
-        corner_angle.append(ang)
-        amin = np.minimum(amin, ang)
-        amax = np.maximum(amax, ang)
-    grid_corners = [float(corner_angle[0][0, 0]), float(corner_angle[1][-1, 0]),
-                    float(corner_angle[2][-1, -1]), float(corner_angle[3][0, -1])]
-    if nc[0] * nc[1] > 4:
-        keep = np.ones(nc, bool)
-        keep[0, 0] = keep[-1, 0] = keep[0, -1] = keep[-1, -1] = False
-        amin, amax = amin[keep], amax[keep]
-    eu = np.linalg.norm(np.diff(P, axis=0), axis=-1)
-    ev = np.linalg.norm(np.diff(P, axis=1), axis=-1)
-    lo = float(min(eu.min(), ev.min()))
-    hi = float(max(eu.max(), ev.max()))
+    from .quality_kernels import angle_and_edge_extremes
+
+    P = np.ascontiguousarray(points, dtype=np.float64)
+    if P.shape[-1] == 2:
+        P = np.concatenate([P, np.zeros(P.shape[:-1] + (1,))], axis=-1)
+    amin, amax, corners, lo, hi = angle_and_edge_extremes(P)
+    grid_corners = [float(a) for a in corners]
+    lo, hi = float(lo), float(hi)
     return {
-        "min_angle_deg": float(amin.min()), "max_angle_deg": float(amax.max()),
+        "min_angle_deg": float(amin), "max_angle_deg": float(amax),
         "corner_cell_angles_deg": grid_corners,
         "shortest_edge": lo, "longest_edge": hi,
         "edge_spread": hi / lo if lo > 0 else float("inf"),
