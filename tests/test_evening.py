@@ -74,3 +74,35 @@ def test_evening_on_a_real_sleeve(tmp_path):
     assert quality(auto).folded == 0
     assert fa["edge_spread"] < 0.6 * fl["edge_spread"]
     assert fa["min_angle_deg"] >= min(fl["min_angle_deg"], FLOOR_DEG) - 1e-9
+
+
+def test_evening_past_its_work_budget_stops_when_progress_is_slow(monkeypatch):
+    """Past ``WORK_BUDGET`` node moves the evening stops once ``CHECK_SWEEPS`` sweeps lower its energy
+    by less than ``MIN_PROGRESS``; below the budget (every real piece at the default edge length)
+    it runs as before, bit for bit. The floor holds either way."""
+    import clothgrid.evening as ev
+
+    rng = np.random.default_rng(5)
+    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
+    length = generate(b, weights="paper")
+    full, info_full = even_edges(length.points, dim=2)
+    monkeypatch.setattr(ev, "WORK_BUDGET", 10**12)           # never reached: the same as before
+    same, info_same = even_edges(length.points, dim=2)
+    assert np.array_equal(same, full) and info_same["sweeps"] == info_full["sweeps"]
+    monkeypatch.setattr(ev, "WORK_BUDGET", 1)                 # reached at once
+    monkeypatch.setattr(ev, "MIN_PROGRESS", 0.5)              # and progress counts as slow
+    short, info = even_edges(length.points, dim=2)
+    assert info["sweeps"] == ev.CHECK_SWEEPS < info_full["sweeps"]
+    floor = math.sin(math.radians(FLOOR_DEG))
+    before, after = _corner_sines(length.points), _corner_sines(short)
+    assert (np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)).all()
+
+    def energy(P):          # the evening's energy, lengths over the length grid's geometric mean
+        lengths = np.concatenate([np.linalg.norm(np.diff(P[..., :2], axis=a), axis=-1).ravel() for a in (0, 1)])
+        t = np.abs(np.log(lengths / mean))
+        return float((np.maximum(0.0, t - math.log(ev.BAND)) ** 2).sum())
+
+    P0 = length.points
+    mean = np.exp(np.mean(np.log(np.concatenate([np.linalg.norm(np.diff(P0[..., :2], axis=a), axis=-1).ravel()
+                                                  for a in (0, 1)]))))
+    assert energy(full) < energy(short) < energy(P0)

@@ -42,6 +42,35 @@ SPREAD_OK = 3.0
 BAND = 1.4
 #: Most Gauss-Seidel sweeps.
 MAX_SWEEPS = 100
+#: Once the sweeps have made :data:`WORK_BUDGET` node moves (about 0.3 s), the energy is measured
+#: every :data:`CHECK_SWEEPS` sweeps and the evening stops when it fell by less than
+#: :data:`MIN_PROGRESS` (a fraction) since the last measurement. On a large graded grid point
+#: Gauss-Seidel lowers it by about 2 % per 10 sweeps (1024^2: 100 sweeps over 101,521 nodes,
+#: 2.6 s, spread 16.8 -> 16.7), a polish not worth its time; real pieces at the default edge
+#: length stay far below the budget and are evened as before.
+WORK_BUDGET = 1_000_000
+CHECK_SWEEPS = 10
+MIN_PROGRESS = 0.05
+
+
+@njit(cache=True)
+def _energy(X, lo, hi):
+    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean)."""
+    nu, nv = X.shape[0], X.shape[1]
+    e = 0.0
+    for i in range(nu):
+        for j in range(nv):
+            for n in range(2):
+                a, b = i + (1 if n == 0 else 0), j + (1 if n == 1 else 0)
+                if a >= nu or b >= nv:
+                    continue
+                dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
+                t = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
+                if t > hi:
+                    e += (t - hi) ** 2
+                elif t < lo:
+                    e += (lo - t) ** 2
+    return e
 
 
 @njit(cache=True)
@@ -204,7 +233,9 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     spread_ok : float
         A grid whose edge spread is at most this is returned as it is.
     max_sweeps : int
-        Most Gauss-Seidel sweeps.
+        Most Gauss-Seidel sweeps; fewer on a large grid where, past
+        :data:`WORK_BUDGET` node moves, the energy falls by less than
+        :data:`MIN_PROGRESS` over :data:`CHECK_SWEEPS` sweeps.
     margin : int
         Nodes within this many grid lines of an outlying edge are moved.
 
@@ -242,12 +273,18 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         floor = math.sin(math.radians(info["floor_deg"]))
         active, count = _outside(X, lo, hi, margin)
         info["active"] = int(count)
+        energy = _energy(X, lo, hi) if count else 0.0
         for sweep in range(max_sweeps if count else 0):
             biggest, moved = _sweep(X, lo, hi, floor, active)
             info["sweeps"] = sweep + 1
             info["moved"] += int(moved)
             if moved == 0 or biggest < 1e-4:
                 break
+            if (sweep + 1) % CHECK_SWEEPS == 0:
+                now = _energy(X, lo, hi)
+                if (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - MIN_PROGRESS) * energy:
+                    break
+                energy = now
     if info["moved"] == 0:                 # as it was, bit for bit
         info["seconds"] = time.perf_counter() - t0
         return R, info
