@@ -261,6 +261,13 @@ def test_fuzz_garmentcode(doc, command):
         run_cli(args, out)
 
 
+def _pattern_args(command: str, f: Path, out: Path) -> list[str]:
+    """``pieces FILE`` or ``generate FILE`` of every piece at 10 mm into ``out``."""
+    if command == "pieces":
+        return ["pieces", str(f)]
+    return ["generate", str(f), "-o", str(out / "{piece}.npz"), "--edge-length", "10mm", "-q"]
+
+
 # the path data and attributes of an SVG, and anything in the document
 _SVG_BODY = SVG.index("<g"), SVG.rindex("</svg>")
 
@@ -271,9 +278,7 @@ def test_fuzz_svg(text, command):
     with _folders() as (src, out):
         f = src / "p.svg"
         f.write_text(text, errors="surrogatepass")
-        args = ["pieces", str(f)] if command == "pieces" else \
-            ["generate", str(f), "-o", str(out / "{piece}.npz"), "--edge-length", "10mm", "-q"]
-        run_cli(args, out)
+        run_cli(_pattern_args(command, f, out), out)
 
 
 path_commands = st.lists(st.one_of(st.sampled_from(list("MmLlHhVvCcSsQqTtAaZz")), numbers.map(repr),
@@ -289,7 +294,7 @@ def test_fuzz_svg_path_data(d, transform):
         f = src / "p.svg"
         f.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" viewBox="0 0 200 200">'
                      f'<g transform="{transform}"><path d="{d}"/></g></svg>', errors="surrogatepass")
-        run_cli(["generate", str(f), "-o", str(out / "{piece}.npz"), "--edge-length", "10mm", "-q"], out)
+        run_cli(_pattern_args("generate", f, out), out)
 
 
 _DXF_ENTITIES = DXF.index("ENTITIES"), DXF.rindex("ENDSEC")
@@ -319,9 +324,7 @@ def test_fuzz_dxf(text, command):
     with _folders() as (src, out):
         f = src / "p.dxf"
         f.write_text(text, errors="surrogatepass")
-        args = ["pieces", str(f)] if command == "pieces" else \
-            ["generate", str(f), "-o", str(out / "{piece}.npz"), "--edge-length", "10mm", "-q"]
-        run_cli(args, out)
+        run_cli(_pattern_args(command, f, out), out)
 
 
 # --------------------------------------------------------------------------- options

@@ -54,22 +54,32 @@ MIN_PROGRESS = 0.05
 
 
 @njit(cache=True)
-def _energy(X, lo, hi):
-    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean)."""
+def _edge_log_lengths(X):
+    """Log lengths of the ``(nu-1, nv)`` u-edges and the ``(nu, nv-1)`` v-edges."""
     nu, nv = X.shape[0], X.shape[1]
-    e = 0.0
+    tu = np.empty((nu - 1, nv))
+    tv = np.empty((nu, nv - 1))
     for i in range(nu):
         for j in range(nv):
-            for n in range(2):
-                a, b = i + (1 if n == 0 else 0), j + (1 if n == 1 else 0)
-                if a >= nu or b >= nv:
-                    continue
-                dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
-                t = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
-                if t > hi:
-                    e += (t - hi) ** 2
-                elif t < lo:
-                    e += (lo - t) ** 2
+            if i + 1 < nu:
+                dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
+                tu[i, j] = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
+            if j + 1 < nv:
+                dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
+                tv[i, j] = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
+    return tu, tv
+
+
+@njit(cache=True)
+def _energy(X, lo, hi):
+    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean)."""
+    e = 0.0
+    for t in _edge_log_lengths(X):
+        for v in t.ravel():
+            if v > hi:
+                e += (v - hi) ** 2
+            elif v < lo:
+                e += (lo - v) ** 2
     return e
 
 
@@ -187,17 +197,15 @@ def _outside(X, lo, hi, margin):
     """Interior nodes within ``margin`` grid lines of an edge outside the band; their count."""
     nu, nv = X.shape[0], X.shape[1]
     hot = np.zeros((nu, nv), np.bool_)
+    tu, tv = _edge_log_lengths(X)
     for i in range(nu):
         for j in range(nv):
-            for n in range(2):
-                a, b = i + (1 if n == 0 else 0), j + (1 if n == 1 else 0)
-                if a >= nu or b >= nv:
-                    continue
-                dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
-                t = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
-                if t > hi or t < lo:
-                    hot[i, j] = True
-                    hot[a, b] = True
+            if i + 1 < nu and (tu[i, j] > hi or tu[i, j] < lo):
+                hot[i, j] = True
+                hot[i + 1, j] = True
+            if j + 1 < nv and (tv[i, j] > hi or tv[i, j] < lo):
+                hot[i, j] = True
+                hot[i, j + 1] = True
     active = np.zeros((nu, nv), np.bool_)
     count = 0
     for i in range(nu):

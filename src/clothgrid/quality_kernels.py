@@ -16,38 +16,37 @@ __all__ = ["angle_and_edge_extremes"]
 
 
 @njit(cache=True, inline="always")
-def _corner(P, ia, ja, ib, jb, ic, jc, nx, ny, nz):
-    """Angle (degrees) at node a of the cell between a->b and a->c, signed by the cell normal; 0 if folded."""
+def _corner_cross(P, ia, ja, ib, jb, ic, jc):
+    """Edges a = b - a_node, b = c - a_node at node (ia, ja) of a cell: their cross product and dot."""
     ax = P[ib, jb, 0] - P[ia, ja, 0]
     ay = P[ib, jb, 1] - P[ia, ja, 1]
     az = P[ib, jb, 2] - P[ia, ja, 2]
     bx = P[ic, jc, 0] - P[ia, ja, 0]
     by = P[ic, jc, 1] - P[ia, ja, 1]
     bz = P[ic, jc, 2] - P[ia, ja, 2]
-    cx = ay * bz - az * by
-    cy = az * bx - ax * bz
-    cz = ax * by - ay * bx
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx, ax * bx + ay * by + az * bz
+
+
+@njit(cache=True, inline="always")
+def _corner(P, ia, ja, ib, jb, ic, jc, nx, ny, nz):
+    """Angle (degrees) at node a of the cell between a->b and a->c, signed by the cell normal; 0 if folded."""
+    cx, cy, cz, dot = _corner_cross(P, ia, ja, ib, jb, ic, jc)
     cr = cx * nx + cy * ny + cz * nz
     s = math.sqrt(cx * cx + cy * cy + cz * cz)
     if cr < 0:
         s = -s
     elif cr == 0:
         s = 0.0
-    ang = math.degrees(math.atan2(s, ax * bx + ay * by + az * bz))
+    ang = math.degrees(math.atan2(s, dot))
     return 0.0 if ang < 0 else ang
 
 
 @njit(cache=True, inline="always")
 def _cross_add(P, ia, ja, ib, jb, ic, jc, out):
-    ax = P[ib, jb, 0] - P[ia, ja, 0]
-    ay = P[ib, jb, 1] - P[ia, ja, 1]
-    az = P[ib, jb, 2] - P[ia, ja, 2]
-    bx = P[ic, jc, 0] - P[ia, ja, 0]
-    by = P[ic, jc, 1] - P[ia, ja, 1]
-    bz = P[ic, jc, 2] - P[ia, ja, 2]
-    out[0] += ay * bz - az * by
-    out[1] += az * bx - ax * bz
-    out[2] += ax * by - ay * bx
+    cx, cy, cz, _ = _corner_cross(P, ia, ja, ib, jb, ic, jc)
+    out[0] += cx
+    out[1] += cy
+    out[2] += cz
 
 
 # node offsets of the four corners of a cell in quad order: (i, j), (i+1, j), (i+1, j+1), (i, j+1)
