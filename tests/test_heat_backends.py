@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_heat import _direct, _relative_residual
+from test_heat import _direct, _relative_residual, _system
 
 from clothgrid.backends import cuda, gl, load_backend
 from clothgrid.cli import main
@@ -199,8 +199,13 @@ def test_gl_equals_cpu_on_fresh_fields_with_1e4_jumps(rng, case):
     info = g.info
     assert info["backend"] == "gl" and info["converged"] and info["residual"] <= tol
     assert info["precision"].startswith("float32") and info["refinements"] >= 1 and info["gl_renderer"]
-    # the reported residual is the field's: an independent float64 assembly agrees (to its own rounding, ~1 %)
-    assert _relative_residual(p, g.temperature) == pytest.approx(info["residual"], rel=0.05)
+    # the reported residual is the field's: an independent float64 assembly agrees, to 5 % plus the
+    # rounding of forming b - A T where A T nearly cancels b (a fixed 5 % failed once: 3.96e-11
+    # against 3.65e-11, a difference of 3e-12, on a field where that rounding is about 1e-12)
+    A, b = _system(p)
+    T = g.temperature.ravel()
+    rounding = 32 * np.finfo(np.float64).eps * np.linalg.norm(abs(A) @ np.abs(T) + np.abs(b)) / np.linalg.norm(b)
+    assert abs(_relative_residual(p, g.temperature) - info["residual"]) <= 0.05 * info["residual"] + rounding
     assert info["iterations"] <= c.info["iterations"] + 12, (info, c.info)
     ref = _direct(p)
     assert np.abs(g.temperature - ref).max() <= info["error_bound"] < np.inf

@@ -94,10 +94,16 @@ def _sim_figures_by_angles(P: np.ndarray) -> tuple[float, float, list[float], fl
     return lo, hi, grid, min(edges), max(edges)
 
 
+@pytest.mark.parametrize("kernel", [True, False])
 @pytest.mark.parametrize("seed", range(6))
-def test_sim_figures_against_the_angles_cell_by_cell(seed):
-    """The Numba kernel behind sim_figures against each angle's definition on fresh grids: jittered
-    and curved (3D) grids, folded ones, 2D points, the smallest grids."""
+def test_sim_figures_against_the_angles_cell_by_cell(seed, kernel, monkeypatch):
+    """Both forms behind sim_figures (the Numba kernel of large grids, NumPy on small ones) against
+    each angle's definition on fresh grids: jittered and curved (3D) grids, folded ones, 2D points,
+    the smallest grids."""
+    import importlib
+
+    cq = importlib.import_module("clothgrid.quality")      # the module (the package exports the function)
+    monkeypatch.setattr(cq, "KERNEL_CELLS", 0 if kernel else 10**12)
     rng = np.random.default_rng(seed)
     nu, nv = (2, 2) if seed == 0 else (2, 5) if seed == 1 else rng.integers(3, 12, 2)
     u, v = np.meshgrid(np.linspace(0, 1, nu), np.linspace(0, 2, nv), indexing="ij")

@@ -289,6 +289,44 @@ def line_lengths(points: np.ndarray) -> tuple[float, float]:
         return float(np.exp(np.log(lu).mean())), float(np.exp(np.log(lv).mean()))
 
 
+#: Grids of more cells than this take :mod:`clothgrid.quality_kernels` for :func:`sim_figures`
+#: (NumPy's temporaries cost about 0.75 us a cell, 0.75-1.0 s at 1024^2; the kernel 0.06 s, but
+#: importing Numba and loading it costs about 0.25 s once, more than NumPy on smaller grids).
+KERNEL_CELLS = 1 << 18
+
+
+def _angle_and_edge_extremes(P: np.ndarray) -> tuple[float, float, np.ndarray, float, float]:
+    """:func:`clothgrid.quality_kernels.angle_and_edge_extremes` in NumPy (``(nu, nv, 3)`` nodes)."""
+    c = (P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:])
+    nc = (P.shape[0] - 1, P.shape[1] - 1)
+    amin = np.full(nc, 180.0)
+    amax = np.zeros(nc)
+    # the cell's normal: the sum of its corner cross products (for the sign of each angle)
+    normal = np.zeros(nc + (3,))
+    for k in range(4):
+        normal += np.cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k])
+    corner_angle = []
+    for k in range(4):
+        a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
+        cr = np.einsum("...k,...k->...", np.cross(a, b), normal)
+        sin = np.linalg.norm(np.cross(a, b), axis=-1) * np.sign(cr)
+        ang = np.degrees(np.arctan2(sin, np.einsum("...k,...k->...", a, b)))
+        ang = np.where(ang < 0, 0.0, ang)          # folded: 0
+        corner_angle.append(ang)
+        amin = np.minimum(amin, ang)
+        amax = np.maximum(amax, ang)
+    corners = np.array([corner_angle[0][0, 0], corner_angle[1][-1, 0], corner_angle[2][-1, -1],
+                        corner_angle[3][0, -1]])
+    if nc[0] * nc[1] > 4:
+        keep = np.ones(nc, bool)
+        keep[0, 0] = keep[-1, 0] = keep[0, -1] = keep[-1, -1] = False
+        amin, amax = amin[keep], amax[keep]
+    eu = np.linalg.norm(np.diff(P, axis=0), axis=-1)
+    ev = np.linalg.norm(np.diff(P, axis=1), axis=-1)
+    return (float(amin.min()), float(amax.max()), corners, float(min(eu.min(), ev.min())),
+            float(max(eu.max(), ev.max())))
+
+
 def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[str, Any]:
     """What a cloth simulator cares about, per grid: folds, angles, edge lengths.
 
@@ -309,11 +347,13 @@ def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[st
         ``shortest_edge``, ``longest_edge``, ``edge_spread`` (longest / shortest
         over all edges), ``shortest_vs_target`` (shortest edge / ``edge_length``).
     """
-    from .quality_kernels import angle_and_edge_extremes
-
     P = np.ascontiguousarray(points, dtype=np.float64)
     if P.shape[-1] == 2:
         P = np.concatenate([P, np.zeros(P.shape[:-1] + (1,))], axis=-1)
+    if (P.shape[0] - 1) * (P.shape[1] - 1) > KERNEL_CELLS:
+        from .quality_kernels import angle_and_edge_extremes
+    else:
+        angle_and_edge_extremes = _angle_and_edge_extremes
     amin, amax, corners, lo, hi = angle_and_edge_extremes(P)
     grid_corners = [float(a) for a in corners]
     lo, hi = float(lo), float(hi)
