@@ -312,6 +312,24 @@ RELAX_SWEEPS = 60
 RELAX_STALL = 6
 
 
+#: Active sets of at least this many nodes are swept in four colours, each colour's nodes in
+#: parallel (:func:`~clothgrid.foldfree_kernels.sweep_nodes_coloured`); smaller ones, every real
+#: piece at the default edge length, in outline order as before.
+PARALLEL_NODES = 8192
+
+
+def _sweeps(Xs: np.ndarray, nodes: np.ndarray, delta2: float, sweeps: int, tol: float) -> tuple[int, float]:
+    """Node sweeps over ``nodes``: in order, or in four colours in parallel for a large set."""
+    from .foldfree_kernels import sweep_nodes, sweep_nodes_coloured
+
+    if len(nodes) < PARALLEL_NODES:
+        return sweep_nodes(Xs, nodes, delta2, sweeps, tol)
+    colour = 2 * (nodes[:, 0] & 1) + (nodes[:, 1] & 1)
+    order = np.argsort(colour, kind="stable")
+    starts = np.searchsorted(colour[order], np.arange(5)).astype(np.int64)
+    return sweep_nodes_coloured(Xs, np.ascontiguousarray(nodes[order]), starts, delta2, sweeps, tol)
+
+
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
     """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells)."""
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
@@ -347,7 +365,7 @@ def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:
 def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], rounds: int,
                   stall: int | None) -> tuple[float, int]:
     """Untangling rounds over ``nodes`` (delta by Escobar's rule) until no corner is folded."""
-    from .foldfree_kernels import corner_min, sweep_nodes
+    from .foldfree_kernels import corner_min
 
     jmin, bad = corner_min(Xs, True)
     stalled = 0
@@ -357,7 +375,7 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
         # All RELAX_SWEEPS sweeps of a round: ending a round as soon as no corner is folded
         # (tried: 1.6x faster at 1024^2) leaves worse cells and, on real pieces, folds
         # (tests/test_real_files.py: fs_wahid_layout.svg piece 4 folded).
-        done, _ = sweep_nodes(Xs, nodes, EPS * (EPS - min(jmin, 0.0)), RELAX_SWEEPS, 1e-3)
+        done, _ = _sweeps(Xs, nodes, EPS * (EPS - min(jmin, 0.0)), RELAX_SWEEPS, 1e-3)
         stats["sweeps"] += int(done)
         before = bad
         jmin, bad = corner_min(Xs, True)
@@ -414,7 +432,7 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         ``min_corner_jacobian`` (smallest ``a x b / (|a|^2 + |b|^2)``, 1/2
         for a square, grid-corner terms aside), ``seconds``, ``method``.
     """
-    from .foldfree_kernels import corner_min, sweep_nodes
+    from .foldfree_kernels import corner_min
 
     t0 = time.perf_counter()
     say = progress or (lambda _msg: None)
@@ -444,7 +462,7 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
         jmin, bad = corner_min(Xs, True)
     if bad == 0 and len(nodes):
-        done, _ = sweep_nodes(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
+        done, _ = _sweeps(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
         stats["sweeps"] += int(done)
         jmin, bad = corner_min(Xs, True)
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))

@@ -22,9 +22,9 @@ counter-clockwise, scaled so that the mean cell area is about 1.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-__all__ = ["sweep_nodes", "corner_min", "cell_min_sine"]
+__all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
 _DI = np.array([0, 1, 1, 0], dtype=np.int64)
@@ -113,6 +113,49 @@ def _node_energy(X, i, j, px, py, d4, want):
 
 
 @njit(cache=True)
+def _relax_node(X, i, j, delta2):
+    """One Newton step (line-searched) of node (i, j) on the energy of its four cells; its move."""
+    px = X[i, j, 0]
+    py = X[i, j, 1]
+    loc = 0.0                # local cell area: mean squared length of the 4 edges at the node
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        ex = X[i + di, j + dj, 0] - px
+        ey = X[i + di, j + dj, 1] - py
+        loc += 0.25 * (ex * ex + ey * ey)
+    d4 = 4.0 * delta2 * loc * loc
+    E, gx, gy, hxx, hxy, hyy = _node_energy(X, i, j, px, py, d4, True)
+    if not np.isfinite(E):
+        return 0.0
+    det = hxx * hyy - hxy * hxy
+    if hxx > 0.0 and det > 1e-30 * (hxx * hyy + 1e-300):
+        dx = -(hyy * gx - hxy * gy) / det
+        dy = -(hxx * gy - hxy * gx) / det
+    else:               # not positive definite: a gradient step scaled by the diagonal
+        sc = max(abs(hxx), abs(hyy), 1e-12)
+        dx = -gx / sc
+        dy = -gy / sc
+    # keep the step within the node's neighbourhood
+    lim = 0.0
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        ex = X[i + di, j + dj, 0] - px
+        ey = X[i + di, j + dj, 1] - py
+        lim = max(lim, np.sqrt(ex * ex + ey * ey))
+    step = np.sqrt(dx * dx + dy * dy)
+    if step > lim and step > 0.0:
+        dx *= lim / step
+        dy *= lim / step
+    t = 1.0
+    for _ls in range(12):
+        E1, _a, _b, _c, _d, _e = _node_energy(X, i, j, px + t * dx, py + t * dy, d4, False)
+        if E1 < E:
+            X[i, j, 0] = px + t * dx
+            X[i, j, 1] = py + t * dy
+            return t * np.sqrt(dx * dx + dy * dy)
+        t *= 0.5
+    return 0.0
+
+
+@njit(cache=True)
 def sweep_nodes(X, nodes, delta2, sweeps, tol):
     """Gauss-Seidel sweeps of node-wise Newton steps over ``nodes`` ((K, 2) int64).
 
@@ -126,51 +169,32 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol):
         done += 1
         big = 0.0
         for q in range(nodes.shape[0]):
-            i = nodes[q, 0]
-            j = nodes[q, 1]
-            px = X[i, j, 0]
-            py = X[i, j, 1]
-            loc = 0.0                # local cell area: mean squared length of the 4 edges at the node
-            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-                ex = X[i + di, j + dj, 0] - px
-                ey = X[i + di, j + dj, 1] - py
-                loc += 0.25 * (ex * ex + ey * ey)
-            d4 = 4.0 * delta2 * loc * loc
-            E, gx, gy, hxx, hxy, hyy = _node_energy(X, i, j, px, py, d4, True)
-            if not np.isfinite(E):
-                continue
-            det = hxx * hyy - hxy * hxy
-            if hxx > 0.0 and det > 1e-30 * (hxx * hyy + 1e-300):
-                dx = -(hyy * gx - hxy * gy) / det
-                dy = -(hxx * gy - hxy * gx) / det
-            else:               # not positive definite: a gradient step scaled by the diagonal
-                sc = max(abs(hxx), abs(hyy), 1e-12)
-                dx = -gx / sc
-                dy = -gy / sc
-            # keep the step within the node's neighbourhood
-            lim = 0.0
-            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-                ex = X[i + di, j + dj, 0] - px
-                ey = X[i + di, j + dj, 1] - py
-                lim = max(lim, np.sqrt(ex * ex + ey * ey))
-            step = np.sqrt(dx * dx + dy * dy)
-            if step > lim and step > 0.0:
-                dx *= lim / step
-                dy *= lim / step
-            t = 1.0
-            moved = False
-            for _ls in range(12):
-                E1, _a, _b, _c, _d, _e = _node_energy(X, i, j, px + t * dx, py + t * dy, d4, False)
-                if E1 < E:
-                    moved = True
-                    break
-                t *= 0.5
-            if moved:
-                X[i, j, 0] = px + t * dx
-                X[i, j, 1] = py + t * dy
-                mv = t * np.sqrt(dx * dx + dy * dy)
-                if mv > big:
-                    big = mv
+            mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2)
+            if mv > big:
+                big = mv
+        last = big
+        if big < tol:
+            break
+    return done, last
+
+
+@njit(cache=True, parallel=True)
+def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol):
+    """:func:`sweep_nodes` in four colours, the nodes of each colour in parallel.
+
+    ``nodes`` are sorted by colour ``2 (i mod 2) + (j mod 2)`` and colour ``c`` is
+    ``nodes[starts[c]:starts[c + 1]]``: a node's step reads the 8 nodes around it and
+    writes itself, so nodes of one colour (two lines apart) do not meet.
+    """
+    done = 0
+    last = 0.0
+    moves = np.zeros(nodes.shape[0])
+    for _ in range(sweeps):
+        done += 1
+        for c in range(4):
+            for q in prange(starts[c], starts[c + 1]):
+                moves[q] = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2)
+        big = moves.max() if nodes.shape[0] else 0.0
         last = big
         if big < tol:
             break
