@@ -27,7 +27,7 @@ import time
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = ["even_edges", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "SPREAD_OK"]
 
@@ -151,6 +151,37 @@ def _sines_around(X, i, j, out):
 
 
 @njit(cache=True)
+def _even_node(X, i, j, lo, hi, floor, before, after, need):
+    """One line-searched gradient step of node (i, j) that lowers its energy and keeps every corner
+    of its cells at the floor or no worse; the move, or -1.0 where it did not move."""
+    gx, gy, curv = _node_gradient(X, i, j, lo, hi)
+    g = math.sqrt(gx * gx + gy * gy)
+    if g < 1e-9:
+        return -1.0
+    e0 = _node_energy(X, i, j, lo, hi)
+    _sines_around(X, i, j, before)
+    for k in range(16):
+        need[k] = min(before[k], floor)
+    x0, y0 = X[i, j, 0], X[i, j, 1]
+    step = min(1.0 / curv, 0.25 / g) if curv > 0 else 0.25 / g
+    for _ in range(8):
+        X[i, j, 0] = x0 - step * gx
+        X[i, j, 1] = y0 - step * gy
+        ok = _node_energy(X, i, j, lo, hi) < e0
+        if ok:
+            _sines_around(X, i, j, after)
+            for k in range(16):
+                if after[k] < need[k]:
+                    ok = False
+                    break
+        if ok:
+            return step * g
+        step *= 0.5
+    X[i, j, 0], X[i, j, 1] = x0, y0
+    return -1.0
+
+
+@njit(cache=True)
 def _sweep(X, lo, hi, floor, active):
     """One Gauss-Seidel sweep over the interior nodes; the largest move, the nodes moved."""
     nu, nv = X.shape[0], X.shape[1]
@@ -160,36 +191,34 @@ def _sweep(X, lo, hi, floor, active):
         for j in range(1, nv - 1):
             if not active[i, j]:
                 continue
-            gx, gy, curv = _node_gradient(X, i, j, lo, hi)
-            g = math.sqrt(gx * gx + gy * gy)
-            if g < 1e-9:
-                continue
-            e0 = _node_energy(X, i, j, lo, hi)
-            _sines_around(X, i, j, before)
-            for k in range(16):
-                need[k] = min(before[k], floor)
-            x0, y0 = X[i, j, 0], X[i, j, 1]
-            step = min(1.0 / curv, 0.25 / g) if curv > 0 else 0.25 / g
-            for _ in range(8):
-                X[i, j, 0] = x0 - step * gx
-                X[i, j, 1] = y0 - step * gy
-                ok = _node_energy(X, i, j, lo, hi) < e0
-                if ok:
-                    _sines_around(X, i, j, after)
-                    for k in range(16):
-                        if after[k] < need[k]:
-                            ok = False
-                            break
-                if ok:
-                    d = step * g
-                    if d > biggest:
-                        biggest = d
-                    moved += 1
-                    break
-                step *= 0.5
-            else:
-                X[i, j, 0], X[i, j, 1] = x0, y0
+            d = _even_node(X, i, j, lo, hi, floor, before, after, need)
+            if d >= 0.0:
+                biggest = max(biggest, d)
+                moved += 1
     return biggest, moved
+
+
+@njit(cache=True, parallel=True)
+def _sweep_coloured(X, lo, hi, floor, active):
+    """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
+    (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet)."""
+    nu, nv = X.shape[0], X.shape[1]
+    row_big = np.zeros(nu)
+    row_moved = np.zeros(nu, np.int64)
+    for c in range(4):
+        ci, cj = c // 2, c % 2
+        rows = (nu - 2 - ci + 1) // 2
+        for r in prange(rows):
+            i = 1 + ci + 2 * r
+            before, after, need = np.empty(16), np.empty(16), np.empty(16)
+            for j in range(1 + cj, nv - 1, 2):
+                if not active[i, j]:
+                    continue
+                d = _even_node(X, i, j, lo, hi, floor, before, after, need)
+                if d >= 0.0:
+                    row_big[i] = max(row_big[i], d)
+                    row_moved[i] += 1
+    return row_big.max(), row_moved.sum()
 
 
 @njit(cache=True)
@@ -282,8 +311,11 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         active, count = _outside(X, lo, hi, margin)
         info["active"] = int(count)
         energy = _energy(X, lo, hi) if count else 0.0
+        from .foldfree import PARALLEL_NODES
+
+        sweep_once = _sweep_coloured if count >= PARALLEL_NODES else _sweep
         for sweep in range(max_sweeps if count else 0):
-            biggest, moved = _sweep(X, lo, hi, floor, active)
+            biggest, moved = sweep_once(X, lo, hi, floor, active)
             info["sweeps"] = sweep + 1
             info["moved"] += int(moved)
             if moved == 0 or biggest < 1e-4:

@@ -313,8 +313,8 @@ RELAX_STALL = 6
 
 
 #: Active sets of at least this many nodes are swept in four colours, each colour's nodes in
-#: parallel (:func:`~clothgrid.foldfree_kernels.sweep_nodes_coloured`); smaller ones, every real
-#: piece at the default edge length, in outline order as before.
+#: parallel (:func:`~clothgrid.foldfree_kernels.sweep_nodes_coloured`, and the edge evening's
+#: ``_sweep_coloured``); smaller ones, every real piece at the default edge length, in order as before.
 PARALLEL_NODES = 8192
 
 
