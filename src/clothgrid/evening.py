@@ -285,7 +285,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         ``active`` (nodes that could move), ``moved`` (node moves), ``sweeps``,
         ``seconds``, and ``floor_deg`` (the floor used) when it evened.
     """
-    from .foldfree import _grid_copy, _with_interior, plane_frame
+    from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame
 
     t0 = time.perf_counter()
     R = _grid_copy(points, "even_edges")
@@ -311,8 +311,6 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         active, count = _outside(X, lo, hi, margin)
         info["active"] = int(count)
         energy = _energy(X, lo, hi) if count else 0.0
-        from .foldfree import PARALLEL_NODES
-
         sweep_once = _sweep_coloured if count >= PARALLEL_NODES else _sweep
         for sweep in range(max_sweeps if count else 0):
             biggest, moved = sweep_once(X, lo, hi, floor, active)

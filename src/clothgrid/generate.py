@@ -307,9 +307,6 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
     q_after = quality(new)
-    new._quality = q_after   # measured once: pipeline.run_job reads it instead of measuring again
-    new.info.update(functional="foldfree" if relaxed else "evened", folded=q_after.folded, evened=ev,
-                    quality_before=q.as_dict(), seconds=time.perf_counter() - t0)
     if q_after.folded > q.folded:
         # a wild outline (far from any four-sided shape) where untangling made it worse: never
         # hand back more folds than the length solve had
@@ -318,6 +315,9 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s; "
             f"the length grid is kept")
         return grid
+    new._quality = q_after   # measured once: pipeline.run_job reads it instead of measuring again
+    new.info.update(functional="foldfree" if relaxed else "evened", folded=q_after.folded, evened=ev,
+                    quality_before=q.as_dict(), seconds=time.perf_counter() - t0)
     if relaxed:
         new.info["foldfree"] = ff
         say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s")

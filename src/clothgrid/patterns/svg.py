@@ -289,8 +289,6 @@ def _segment_prims(seg, m: np.ndarray) -> Primitive:
     A, t = m[:2, :2], m[:2, 2]
 
     def pt(z: complex) -> np.ndarray:
-        if z is None:                          # a segment with no current point
-            raise InputError("invalid path data (a segment with no start point)")
         return A @ [z.real, z.imag] + t
 
     if isinstance(seg, Line):
