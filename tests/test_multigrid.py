@@ -303,3 +303,38 @@ def test_unit_stencil_kernels_match_the_general_ones(rng, weights, shape, has_rh
     for a, b in zip(unit.b[1], plain.b[1]):
         assert np.allclose(a, b, rtol=1e-5, atol=1e-6 * (np.abs(b).max() + 1e-30))
     assert unit.max_step() == pytest.approx(plain.max_step(), rel=1e-12)
+
+
+_CACHE_CHILD = """
+import sys
+import numpy as np
+import numba
+from clothgrid.backends._cpu_multigrid import _KERNELS
+par, ser = _KERNELS["_prolong"]
+xe, xce, xco = np.zeros((1, 6, 4)), np.ones((1, 6, 2)), np.ones((1, 6, 2))
+for name in sys.argv[1:]:
+    {"par": par, "ser": ser}[name](xe, xce, xco)
+try:
+    print(numba.threading_layer())
+except ValueError:
+    print("no threads")
+"""
+
+
+def test_parallel_kernels_do_not_load_their_serial_variants_from_the_cache(tmp_path):
+    """Each kernel has a parallel and a serial variant; Numba's disk cache keys entries by
+    function name and signature, not by the parallel flag, so the two must not share a name:
+    once they did, and the parallel kernels loaded the serial code saved after them (one thread)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+
+    def child(*names):
+        return subprocess.run([sys.executable, "-c", _CACHE_CHILD, *names], env=env, check=True,
+                              capture_output=True, text=True).stdout.strip()
+
+    child("par", "ser")                     # both compiled and saved, the serial one last
+    assert child("ser") == "no threads"     # from the cache: no thread pool started
+    assert child("par") != "no threads"     # from the cache: the parallel code, which starts it

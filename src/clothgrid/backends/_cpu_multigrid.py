@@ -22,6 +22,7 @@ prolongation only adds the correction to the even rows.
 
 from __future__ import annotations
 
+import types
 from typing import Any
 
 import numba
@@ -626,8 +627,18 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
 
 
 def _serial(kernel):
-    """The same kernel compiled without threads (``prange`` runs as ``range``)."""
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(kernel.py_func)
+    """The same kernel compiled without threads (``prange`` runs as ``range``).
+
+    Compiled from a copy of the Python function named ``<name>_serial``: Numba's on-disk cache
+    names its files by the function's qualified name and line and keys them by signature, not
+    by the ``parallel`` flag, so a variant of the very same function shared the parallel
+    kernel's cache entry, and whichever was saved last was loaded for both (the parallel
+    kernels then ran on one thread).
+    """
+    f = kernel.py_func
+    g = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial", f.__defaults__, f.__closure__)
+    g.__qualname__, g.__module__, g.__doc__ = f.__qualname__ + "_serial", f.__module__, f.__doc__
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(g)
 
 
 _KERNELS = {name: (globals()[name], _serial(globals()[name]))
