@@ -27,6 +27,10 @@ from .weights import Weights
 __all__ = ["Level", "Separable", "coarse_rows", "fine_level", "galerkin_1d", "coarsen_separable", "coarsen",
            "build_hierarchy", "hierarchy_bytes"]
 
+#: Most lines the CPU multigrid's line solves take in one block (its per-thread scratch holds the
+#: factors of that many lines: :func:`hierarchy_bytes`).
+LINE_BLOCK = 512
+
 
 @dataclass
 class Separable:
@@ -222,12 +226,12 @@ def hierarchy_bytes(nu: int, nv: int, ncoords: int = 3, separable: bool = False)
     (about ``nu * nv`` nodes in all) with iterate and right-hand side in float32 (``8 ncoords``);
     for weights without a separable form also the stencils: level 0's edge weights split by row
     parity (16) and five float32 coarse stencil arrays, formed and split (40); and the line
-    solves' per-thread scratch (3 KB a column and thread).
+    solves' per-thread scratch (``12 LINE_BLOCK`` bytes a column and thread).
     """
     import os
 
     n = nu * nv
-    scratch = 3072 * (os.cpu_count() or 1) * nu       # the line solves' factors: 2 x 128 lines, float64 and float32
+    scratch = 12 * LINE_BLOCK * (os.cpu_count() or 1) * (nu + 3)   # the line solves' factors, float64 and float32
     return 16 * ncoords * n + (0 if separable else 56 * n) + scratch
 
 
