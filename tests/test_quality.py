@@ -230,3 +230,36 @@ def test_blocks_of_rows_give_the_whole_grid_measures(monkeypatch, curved):
         assert got.pop("folded_cells") == whole["folded_cells"]
         # local normals come from running sums, whose rounding depends on where a block starts
         assert got == pytest.approx({k: v for k, v in whole.items() if k != "folded_cells"}, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_planar_kernel_gives_the_numpy_measures(monkeypatch, seed):
+    """Large planar grids are measured by one Numba pass (quality_kernels.planar_measures): on fresh
+    grids with folds, a zero-length edge, a straight grid corner and a tilted plane it gives the
+    NumPy form's figures (to rounding) and the folded cells by the definition."""
+    import importlib
+
+    q = importlib.import_module("clothgrid.quality")
+    rng = np.random.default_rng([seed, 16])
+    nu, nv = rng.integers(3, 40, size=2)
+    p = plane_grid(nu, nv, shear=rng.uniform(-0.5, 0.5))
+    p[1:-1, 1:-1, :2] += rng.uniform(-0.7, 0.7, size=(nu - 2, nv - 2, 2))
+    if seed % 2:
+        p[1, 1] = p[1, 2]                       # a zero-length edge: its cells count as folded
+    if seed == 2:
+        p[0, 0] = 0.5 * (p[1, 0] + p[0, 1])     # a grid corner on a straight side (180 degrees)
+    rot = random_rotation(seed)
+    grid = Grid.from_points(p @ rot.T, dim=3)
+    normal = rot @ np.array([0.0, 0.0, 1.0])
+    monkeypatch.setattr(q, "KERNEL_CELLS", 10**12)
+    ref = quality(grid, normal=normal).as_dict()
+    monkeypatch.setattr(q, "KERNEL_CELLS", 0)
+    kernels = importlib.import_module("clothgrid.quality_kernels")
+    calls, kernel = [], kernels.planar_measures
+    monkeypatch.setattr(kernels, "planar_measures", lambda *a: calls.append(1) or kernel(*a))
+    got = quality(grid, normal=normal).as_dict()
+    assert calls, "the kernel was not used"
+    assert got.pop("folded_cells") == ref.pop("folded_cells")
+    assert got == pytest.approx(ref, rel=1e-12)
+    straight = {(0, 0)} if seed == 2 else set()   # the straight corner's cell: not folded by that corner
+    assert folds(quality(grid, normal=normal)) - straight == reference_folds(p, np.array([0.0, 0.0, 1.0])) - straight

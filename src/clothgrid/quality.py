@@ -182,21 +182,14 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
     n = _reference_normal(grid, normal, orientation)
     local = None if n is not None else (1.0 if orientation is None else float(np.sign(orientation) or 1.0))
     basis = None if n is None else plane_axes(n)              # (2, 3), e1 x e2 = n
-    # Blocks of cell rows, so temporaries stay small (a 4096^2 grid in one piece took 3.9 GB);
-    # curved pieces read LOCAL_RADIUS extra rows on each side for their local normals.
-    step = max(1, BLOCK_CELLS // (nv - 1))
-    halo = LOCAL_RADIUS if n is None else 0
-    parts = []
-    for a in range(0, nu - 1, step):
-        b = min(a + step, nu - 1)                              # cells a .. b-1
-        lo, hi = max(a - halo, 0), min(b + halo, nu - 1)
-        block = R[lo:hi + 1]
-        if basis is None:                                     # curved piece: local normals
-            X = np.ascontiguousarray(np.moveaxis(block, -1, 0))   # (3, rows, nv), component first
-        else:                                                 # planar: lengths and angles are in-plane
-            X = (basis @ block.reshape(-1, 3).T).reshape(2, hi + 1 - lo, nv)
-        parts.append(_measure(X, a - lo, b - lo, local, first=a == 0, last=b == nu - 1))
-    cells = np.concatenate([np.argwhere(p[0]) + [a, 0] for p, a in zip(parts, range(0, nu - 1, step))])
+    if basis is not None and (nu - 1) * (nv - 1) > KERNEL_CELLS:     # one pass, no temporaries
+        from .quality_kernels import planar_measures
+
+        folded, *figures = planar_measures(np.ascontiguousarray(R), np.ascontiguousarray(basis),
+                                           STRAIGHT_CORNER_SINE)
+        cells, parts = np.argwhere(folded), [(None, *(float(f) for f in figures))]
+    else:
+        cells, parts = _measure_blocks(R, basis, local, n is None)
     with np.errstate(invalid="ignore", divide="ignore"):
         spread_u = np.float64(max(p[4] for p in parts)) / np.float64(min(p[5] for p in parts))
         spread_v = np.float64(max(p[6] for p in parts)) / np.float64(min(p[7] for p in parts))
@@ -209,6 +202,28 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
         edge_spread_u=float(spread_u),
         edge_spread_v=float(spread_v),
     )
+
+
+def _measure_blocks(R: np.ndarray, basis: np.ndarray | None, local: float | None,
+                    curved: bool) -> tuple[np.ndarray, list[tuple]]:
+    """:func:`_measure` over blocks of cell rows of ``R``: the folded cells' indices, and each block's tuple."""
+    nu, nv = R.shape[:2]
+    # Blocks of cell rows, so temporaries stay small (a 4096^2 grid in one piece took 3.9 GB);
+    # curved pieces read LOCAL_RADIUS extra rows on each side for their local normals.
+    step = max(1, BLOCK_CELLS // (nv - 1))
+    halo = LOCAL_RADIUS if curved else 0
+    parts = []
+    for a in range(0, nu - 1, step):
+        b = min(a + step, nu - 1)                              # cells a .. b-1
+        lo, hi = max(a - halo, 0), min(b + halo, nu - 1)
+        block = R[lo:hi + 1]
+        if basis is None:                                     # curved piece: local normals
+            X = np.ascontiguousarray(np.moveaxis(block, -1, 0))   # (3, rows, nv), component first
+        else:                                                 # planar: lengths and angles are in-plane
+            X = (basis @ block.reshape(-1, 3).T).reshape(2, hi + 1 - lo, nv)
+        parts.append(_measure(X, a - lo, b - lo, local, first=a == 0, last=b == nu - 1))
+    cells = np.concatenate([np.argwhere(p[0]) + [a, 0] for p, a in zip(parts, range(0, nu - 1, step))])
+    return cells, parts
 
 
 #: A grid corner's own angle counts as a fold when its sine is below minus this

@@ -1,4 +1,6 @@
-"""Numba kernel of :func:`clothgrid.quality.sim_figures`: cell corner angles and edge lengths in one pass.
+"""Numba kernels of :mod:`clothgrid.quality` for large grids: :func:`~clothgrid.quality.sim_figures`'
+cell corner angles and edge lengths, and :func:`~clothgrid.quality.quality`'s measures of a planar
+grid, each in one pass.
 
 The NumPy form builds a dozen full-size temporaries (cross products, normals, angles per corner)
 and took about a second at 1024^2 nodes, more than the solve; this kernel reads each node a few
@@ -12,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["angle_and_edge_extremes"]
+__all__ = ["angle_and_edge_extremes", "planar_measures"]
 
 
 @njit(cache=True, inline="always")
@@ -137,3 +139,99 @@ def angle_and_edge_extremes(P):
         row_emin[i] = lo
         row_emax[i] = hi
     return row_amin.min(), row_amax.max(), corners, row_emin.min(), row_emax.max()
+
+
+@njit(cache=True, inline="always")
+def _planar(R, basis, i, j):
+    """Node ``(i, j)`` of ``R`` in the plane's coordinates (``basis`` ``(2, 3)``)."""
+    x = basis[0, 0] * R[i, j, 0] + basis[0, 1] * R[i, j, 1] + basis[0, 2] * R[i, j, 2]
+    y = basis[1, 0] * R[i, j, 0] + basis[1, 1] * R[i, j, 1] + basis[1, 2] * R[i, j, 2]
+    return x, y
+
+
+@njit(cache=True, inline="always")
+def _edge(R, basis, i0, j0, i1, j1):
+    """The in-plane edge from node ``(i0, j0)`` to ``(i1, j1)``: unit vector (zero if degenerate), length."""
+    x0, y0 = _planar(R, basis, i0, j0)
+    x1, y1 = _planar(R, basis, i1, j1)
+    dx, dy = x1 - x0, y1 - y0
+    length = math.sqrt(dx * dx + dy * dy)
+    if length > 0:
+        return dx / length, dy / length, length
+    return 0.0, 0.0, length
+
+
+@njit(cache=True, parallel=True)
+def planar_measures(R, basis, straight):
+    """:func:`clothgrid.quality.quality`'s measures of a planar grid in one pass.
+
+    Parameters
+    ----------
+    R : numpy.ndarray
+        ``(nu, nv, 3)`` float64 nodes.
+    basis : numpy.ndarray
+        ``(2, 3)`` orthonormal axes of the piece's plane (``e1 x e2`` its oriented normal).
+    straight : float
+        :data:`clothgrid.quality.STRAIGHT_CORNER_SINE`.
+
+    Returns
+    -------
+    folded : numpy.ndarray
+        ``(nu-1, nv-1)`` bool: a corner's sine not positive (a grid corner's below ``-straight``)
+        or a zero-length edge.
+    min_sj, max_aspect, max_deviation_deg, max_u, min_u, max_v, min_v : float
+    """
+    nu, nv = R.shape[0], R.shape[1]
+    mu, mv = nu - 1, nv - 1
+    folded = np.zeros((mu, mv), dtype=np.bool_)
+    row_sj = np.full(mu, np.inf)
+    row_aspect = np.zeros(mu)
+    row_cos = np.zeros(mu)
+    row_deg = np.zeros(mu, dtype=np.bool_)     # a degenerate cell in the row: deviation 90
+    for r in prange(mu):
+        i = np.int64(r)
+        sj_lo, asp_hi, cos_hi, deg = np.inf, 0.0, 0.0, False
+        for j in range(mv):
+            bx, by, lb = _edge(R, basis, i, j, i + 1, j)            # bottom (u-edge at j)
+            tx, ty, lt = _edge(R, basis, i, j + 1, i + 1, j + 1)    # top (u-edge at j + 1)
+            lx, ly, ll = _edge(R, basis, i, j, i, j + 1)            # left (v-edge at i)
+            rx, ry, lr = _edge(R, basis, i + 1, j, i + 1, j + 1)    # right (v-edge at i + 1)
+            bad = False
+            for k in range(4):      # corners b x l, b x r, t x r, t x l
+                ax, ay = (bx, by) if k < 2 else (tx, ty)
+                cx, cy = (lx, ly) if k == 0 or k == 3 else (rx, ry)
+                sj = ax * cy - ay * cx
+                grid_corner = ((k == 0 and i == 0 and j == 0) or (k == 1 and i == mu - 1 and j == 0)
+                               or (k == 2 and i == mu - 1 and j == mv - 1) or (k == 3 and i == 0 and j == mv - 1))
+                if grid_corner:
+                    if not sj > -straight:
+                        bad = True
+                elif not sj > 0:
+                    bad = True
+                sj_lo = min(sj_lo, sj)
+                cos_hi = max(cos_hi, abs(ax * cx + ay * cy))
+            shortest = min(min(lb, lt), min(ll, lr))
+            longest = max(max(lb, lt), max(ll, lr))
+            if not shortest > 0:
+                bad = True
+                deg = True
+                asp_hi = np.inf
+            else:
+                asp_hi = max(asp_hi, longest / shortest)
+            folded[i, j] = bad
+        row_sj[i], row_aspect[i], row_cos[i], row_deg[i] = sj_lo, asp_hi, cos_hi, deg
+    row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row; max, min of the v-edges
+    for r in prange(nu):
+        i = np.int64(r)
+        uh, ul, vh, vl = 0.0, np.inf, 0.0, np.inf
+        for j in range(nv):
+            if i + 1 < nu:
+                length = _edge(R, basis, i, j, i + 1, j)[2]
+                uh, ul = max(uh, length), min(ul, length)
+            if j + 1 < nv:
+                length = _edge(R, basis, i, j, i, j + 1)[2]
+                vh, vl = max(vh, length), min(vl, length)
+        row_u[i, 0], row_u[i, 1], row_u[i, 2], row_u[i, 3] = uh, ul, vh, vl
+    deviation = 90.0 if row_deg.any() else math.degrees(math.asin(min(row_cos.max(), 1.0)))
+    return (folded, row_sj.min(), row_aspect.max(), deviation,
+            row_u[:mu, 0].max(), row_u[:mu, 1].min(), row_u[:, 2].max(), row_u[:, 3].min())
