@@ -192,6 +192,8 @@ def test_paper_rule_is_available_and_looser(rng):
 def test_auto_picks_by_size_and_weights():
     assert choose_solver(True, 65, 65) == "fdm"
     assert choose_solver(True, 2049, 2049) == "multigrid"
+    assert choose_solver(True, 512, 512) == "fdm"
+    assert choose_solver(True, 513, 512) == "multigrid"
     assert choose_solver(False, 33, 33) == "direct"
     assert choose_solver(False, 1025, 1025) == "multigrid"
 

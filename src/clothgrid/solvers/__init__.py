@@ -27,13 +27,13 @@ __all__ = ["SOLVERS", "choose_solver", "solve", "Problem", "SolveResult"]
 SOLVERS = {"direct": solve_direct, "fdm": solve_fdm, "jacobi": solve_jacobi, "multigrid": solve_multigrid}
 
 
-# Largest grids (nodes) where the exact solvers beat multigrid on the CPU, measured
-# with benchmarks/bench_solvers.py (docs/performance.md). fdm's solve is slower
-# than multigrid's from 512x512 on (0.085 s against 0.060 s; 0.34 s against
-# 0.28 s at 1024x1024), but multigrid's first use in a process loads Numba and
-# its kernels (about 0.5 s), so for a one-shot run fdm stays ahead up to about
-# 1200x1200; at 2048x2048 multigrid takes 2.2 s and fdm 5.7 s.
-FDM_MAX_NODES = 1200 * 1200
+# Largest grids (nodes) where the exact solvers are the default on the CPU. fdm's solve is slower
+# than multigrid's from about 192x192 on (warm, 2 cores: 26 ms against 9 ms at 256x256, 99 against
+# 37 ms at 512x512, 302 against 132 ms at 1024x1024; docs/performance.md), but multigrid's first
+# use in a process loads Numba and its kernels (about 0.35 s), which a length grid of up to
+# 512x512 does not otherwise need; larger grids load Numba anyway (the quality kernel), and every
+# real pattern piece at its default edge length stays on the exact solve.
+FDM_MAX_NODES = 512 * 512
 DIRECT_MAX_NODES = 128 * 128
 
 
