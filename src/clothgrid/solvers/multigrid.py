@@ -50,13 +50,20 @@ from .bounds import barrier_max
 from .problem import Problem, SolveResult
 
 __all__ = ["Level", "Separable", "MultigridOps", "build_hierarchy", "coarse_rows", "vcycle", "fmg", "solve_multigrid",
-           "convergence_factor", "DEFAULT_MAX_CYCLES"]
+           "convergence_factor", "DEFAULT_MAX_CYCLES", "FMG_VCYCLE_LEVELS"]
 
 # V-cycles allowed by default: far more than the 3-15 a solve needs.
 DEFAULT_MAX_CYCLES = 100
 
 # Start with a full-multigrid pass (every backend supplies ``restrict_full`` and ``prolong_full``).
 FULL_MULTIGRID_START = True
+
+# The full-multigrid start takes a V-cycle on levels 1 .. FMG_VCYCLE_LEVELS and one smoothing sweep on
+# coarser ones. A V-cycle on every level cost two V-cycles' time at 1024^2 (the coarse levels keep
+# all 1024 columns, so each costs about as much per call as the next finer one); one sweep on the
+# levels below 1 gives the same cycle counts on the T-shirt front and four classic regions at
+# 1024^2 and 2048^2, the solve about 10 % faster (docs/performance.md).
+FMG_VCYCLE_LEVELS = 1
 
 
 def vcycle(ops: MultigridOps, pre: int = 1, post: int = 1, top: int = 0) -> None:
@@ -78,7 +85,8 @@ def fmg(ops: MultigridOps) -> None:
 
     The residual of the initial grid is restricted down the hierarchy, the
     coarsest level is solved exactly, and each finer level starts from the
-    interpolated coarser solution and takes one V-cycle; level 0 finally adds
+    interpolated coarser solution: levels up to :data:`FMG_VCYCLE_LEVELS` then
+    take one V-cycle, coarser ones one smoothing sweep; level 0 finally adds
     the interpolated correction and takes one smoothing sweep. Costs about one
     V-cycle and saves two to three. Uses ``restrict_full`` and ``prolong_full``.
     """
@@ -90,7 +98,10 @@ def fmg(ops: MultigridOps) -> None:
     ops.smooth(last, reverse=True)
     for lvl in range(last - 1, 0, -1):
         ops.prolong_full(lvl)
-        vcycle(ops, top=lvl)
+        if lvl <= FMG_VCYCLE_LEVELS:
+            vcycle(ops, top=lvl)
+        else:
+            ops.smooth(lvl, reverse=True)
     ops.prolong_full(0)
     # Interpolated odd rows are rough: one sweep (odd rows re-solved first) cuts the
     # first V-cycle's start by about 4x, which saves a whole cycle at 2048^2 and 4096^2.
