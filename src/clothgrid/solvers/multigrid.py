@@ -60,10 +60,12 @@ FULL_MULTIGRID_START = True
 
 # The full-multigrid start takes a V-cycle on levels 1 .. FMG_VCYCLE_LEVELS and one smoothing sweep on
 # coarser ones. A V-cycle on every level cost two V-cycles' time at 1024^2 (the coarse levels keep
-# all 1024 columns, so each costs about as much per call as the next finer one); one sweep on the
-# levels below 1 gives the same cycle counts on the T-shirt front and four classic regions at
-# 1024^2 and 2048^2, the solve about 10 % faster (docs/performance.md).
-FMG_VCYCLE_LEVELS = 1
+# all 1024 columns, so each costs about as much per call as the next finer one). With V-cycles on
+# levels 1 and 2 only, the T-shirt front and four classic regions take the same V-cycles at 1024^2
+# and 2048^2 and the solve is 8-12 % faster; at 4096^2 the paper's weights take 3 cycles (2.35 s
+# against 2.53 s), where V-cycles on level 1 alone left the third cycle's bound at 1.7x the
+# tolerance, one cycle more (docs/performance.md).
+FMG_VCYCLE_LEVELS = 2
 
 
 def vcycle(ops: MultigridOps, pre: int = 1, post: int = 1, top: int = 0) -> None:
