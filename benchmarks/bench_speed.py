@@ -188,7 +188,7 @@ def paper_jacobi_row(b, n: int, ref, row, direct: float | None) -> None:
            if ref is not None else "")
     sec = g.info["solve_seconds"]
     row(f"Jacobi, the paper's stop rule ({g.info['iterations']} sweeps{err}: not the tolerance)", sec,
-        f"direct / this {direct / sec:.2g}x" if direct else "")
+        f"direct / this {direct / sec:.0f}x" if direct else "")
 
 
 def cli_time(piece: Path, n: int, repeat: int, extra: list[str]) -> float:
