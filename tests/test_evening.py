@@ -84,7 +84,7 @@ def test_evening_past_its_work_budget_stops_when_progress_is_slow(monkeypatch):
     it runs as before, bit for bit. The floor holds either way."""
     import clothgrid.evening as ev
 
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(7)   # a piece whose spread both runs lower (some they raise: then no move is kept)
     b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
     length = generate(b, weights="paper")
     full, info_full = even_edges(length.points, dim=2)
@@ -131,3 +131,16 @@ def test_the_coloured_parallel_evening_holds_the_floor_and_lowers_the_energy_as_
     assert info_c["spread_after"] <= 1.1 * info_o["spread_after"]
     for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
         assert np.array_equal(coloured[sl], length.points[sl])
+
+
+def test_evening_never_returns_a_larger_spread():
+    """The sweeps lower an energy of the outlying edges, not the spread itself: on this piece
+    (found among 1800 fresh ones) they left it larger, 18.9 -> 19.5; the grid comes back as it was."""
+    rng = np.random.default_rng(23)
+    for _ in range(5):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
+    length = generate(b, weights="paper")
+    out, info = even_edges(length.points, dim=2)
+    assert info["rejected_spread"] > info["spread_before"] * 1.01
+    assert np.array_equal(out, length.points) and info["moved"] == 0
+    assert info["spread_after"] == info["spread_before"] == pytest.approx(sim_figures(out)["edge_spread"])

@@ -283,7 +283,9 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     info : dict
         ``spread_before``, ``spread_after`` (longest / shortest edge),
         ``active`` (nodes that could move), ``moved`` (node moves), ``sweeps``,
-        ``seconds``, and ``floor_deg`` (the floor used) when it evened.
+        ``seconds``, and ``floor_deg`` (the floor used) when it evened. The spread
+        never grows: where the sweeps left it larger, the input grid is returned,
+        ``moved`` is 0 and ``rejected_spread`` holds the spread they reached.
     """
     from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame
 
@@ -328,8 +330,15 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         return R, info
     X *= scale
     lengths = _edge_lengths(X)
-    info["spread_after"] = float(lengths.max() / lengths.min())
+    after = float(lengths.max() / lengths.min())
     info["seconds"] = time.perf_counter() - t0
+    if not after <= info["spread_before"]:
+        # The sweeps lower an energy of every outlying edge, not the spread itself: on about 1 in
+        # 400 fresh test pieces the longest or shortest edge got a little worse (18.9 -> 19.5).
+        # Then the grid is returned as it was, bit for bit.
+        info.update(rejected_spread=after, moved=0)
+        return R, info
+    info["spread_after"] = after
     return _with_interior(R, X, centre, basis, dim), info
 
 

@@ -299,8 +299,9 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         return grid
     relaxed = not (functional == "auto" and ff.get("moved", 0) == 0)
     points, ev = even_edges(points, dim=grid.dim)
+    kept = f"; kept, the sweeps reached {ev['rejected_spread']:.3g}" if "rejected_spread" in ev else ""
     say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
-        f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s)")
+        f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
     if not relaxed and ev["moved"] == 0:     # nothing poor, nothing to even: the length grid as it is
         grid.info.update(relax=ff, evened=ev)
         return grid
