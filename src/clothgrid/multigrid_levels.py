@@ -231,7 +231,7 @@ def hierarchy_bytes(nu: int, nv: int, ncoords: int = 3, separable: bool = False)
     import os
 
     n = nu * nv
-    scratch = 12 * LINE_BLOCK * (os.cpu_count() or 1) * (nu + 3)   # the line solves' factors, float64 and float32
+    scratch = 12 * LINE_BLOCK * (os.cpu_count() or 1) * (nu + 1)   # the line solves' factors, float64 and float32
     return 16 * ncoords * n + (0 if separable else 56 * n) + scratch
 
 
