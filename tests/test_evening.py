@@ -144,3 +144,14 @@ def test_evening_never_returns_a_larger_spread():
     assert info["rejected_spread"] > info["spread_before"] * 1.01
     assert np.array_equal(out, length.points) and info["moved"] == 0
     assert info["spread_after"] == info["spread_before"] == pytest.approx(sim_figures(out)["edge_spread"])
+
+
+def test_edge_lengths_kernel_is_numpys_norm_of_differences(rng):
+    """The evening's edge lengths (one Numba pass) equal NumPy's ``norm(diff(X, axis))``, bit for bit."""
+    from clothgrid.evening import _edge_lengths
+
+    for _ in range(4):
+        nu, nv = rng.integers(2, 60, size=2)
+        X = np.ascontiguousarray(rng.normal(size=(nu, nv, 2)) * 10.0 ** rng.uniform(-3, 3))
+        ref = np.concatenate([np.linalg.norm(np.diff(X, axis=a), axis=-1).ravel() for a in (0, 1)])
+        assert np.array_equal(_edge_lengths(X), ref)

@@ -342,7 +342,20 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     return _with_interior(R, X, centre, basis, dim), info
 
 
-def _edge_lengths(X: np.ndarray) -> np.ndarray:
-    """The lengths of every u- and v-edge of a ``(nu, nv, d)`` grid, flat."""
-    return np.concatenate([np.linalg.norm(np.diff(X, axis=0), axis=-1).ravel(),
-                           np.linalg.norm(np.diff(X, axis=1), axis=-1).ravel()])
+@njit(cache=True)
+def _edge_lengths(X):
+    """The lengths of every u-edge (row-major over ``(nu-1, nv)``), then every v-edge (``(nu, nv-1)``),
+    of a ``(nu, nv, 2)`` grid, flat: NumPy's ``norm(diff(X, axis))`` term by term, in one pass
+    (the NumPy form's temporaries took 45 ms at 1024^2)."""
+    nu, nv = X.shape[0], X.shape[1]
+    out = np.empty((nu - 1) * nv + nu * (nv - 1))
+    for i in range(nu - 1):
+        for j in range(nv):
+            d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+            out[i * nv + j] = math.sqrt(d0 * d0 + d1 * d1)
+    base = (nu - 1) * nv
+    for i in range(nu):
+        for j in range(nv - 1):
+            d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+            out[base + i * (nv - 1) + j] = math.sqrt(d0 * d0 + d1 * d1)
+    return out
