@@ -215,3 +215,25 @@ def test_the_coloured_parallel_sweeps_match_the_ordered_ones(monkeypatch):
     assert not np.array_equal(p_ord, p_col)                 # another order, another (as good) grid
     shifted = np.linalg.norm(p_col - length.points, axis=-1) > 1e-9 * b.size    # beyond the frame's rounding
     assert 0 < np.count_nonzero(shifted) <= moved
+
+
+def test_corner_measures_of_large_grids_run_in_parallel_with_the_same_results(rng, monkeypatch):
+    """corner_min and cell_min_sine take rows of cells in parallel from PARALLEL_CELLS cells on:
+    on fresh grids with folded and degenerate cells both forms give the same numbers, bit for bit,
+    and the fold count of the definition (corner_jacobians)."""
+    import clothgrid.foldfree_kernels as fk
+
+    for _ in range(3):
+        nu, nv = rng.integers(3, 50, size=2)
+        i, j = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
+        X = np.stack([i, j], axis=-1) + rng.uniform(-0.6, 0.6, size=(nu, nv, 2))
+        X[1, 1] = X[1, 2]                               # a zero-length edge
+        X = np.ascontiguousarray(X)
+        out = {}
+        for cells in (10**12, 0):                       # serial, then parallel
+            monkeypatch.setattr(fk, "PARALLEL_CELLS", cells)
+            out[cells] = fk.corner_min(X, False), fk.cell_min_sine(X)
+        (jmin_s, bad_s), sine_s = out[10**12]
+        (jmin_p, bad_p), sine_p = out[0]
+        assert jmin_s == jmin_p and bad_s == bad_p and np.array_equal(sine_s, sine_p)
+        assert bad_s == int((corner_jacobians(X) <= 0).sum()) > 0
