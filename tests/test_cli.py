@@ -505,6 +505,9 @@ def test_verbose_prints_where_the_time_goes(tmp_path, capsys):
         assert stage in err, stage
     assert main(["generate", str(src), "-o", str(tmp_path / "h.npz"), "-q"]) == 0
     assert "time:" not in capsys.readouterr().err
+    # multigrid's set-up (where a fresh process loads Numba) is its own figure within the solve
+    assert main(["generate", str(src), "-o", str(tmp_path / "m.npz"), "-v", "--solver", "multigrid"]) == 0
+    assert " of which set-up " in capsys.readouterr().err
 
 
 def test_timing_lines_without_proc():
