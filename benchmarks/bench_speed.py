@@ -8,7 +8,9 @@ For each size (the bundled T-shirt front, resampled to ``n x n``, ``tol = 2^-12`
 
 - **floor**: one fused Numba Jacobi sweep over x, y, z (``backends/_cpu_kernels._sweep``), the
   least a solver can do per pass over the grid (best of ``--sweeps`` runs);
-- the multigrid solve (``info["solve_seconds"]``) to the true bound, paper and uniform weights;
+- the multigrid solve (``info["solve_seconds"]``) to the true bound: paper and uniform weights, and
+  per-edge weights (four a node: a smooth field, and blocks of 10:1 jumps) including their
+  barrier solve;
 - SciPy's sparse direct solve of the same grid (the baseline the issue's ratios use);
 - two more baselines in the same run: PyAMG's smoothed aggregation (with CG) solving the same
   system to the tolerance (its loosest residual tolerance that meets it, found against the direct
@@ -191,6 +193,22 @@ def paper_jacobi_row(b, n: int, ref, row, direct: float | None) -> None:
         f"direct / this {direct / sec:.0f}x" if direct else "")
 
 
+def field_weights(n: int, kind: str):
+    """Per-edge weights (the paper's "four weights a node"): the paper's times a smooth field, or
+    times 8 x 8 blocks alternating 10 and 1 (coefficient jumps, where semi-coarsening's linear
+    interpolation converges at about 0.5 a cycle instead of 0.05-0.15)."""
+    from clothgrid.weights import Weights
+
+    pw = make_weights("paper", n, n)
+    u = np.arange(n)[:, None] / n
+    v = np.arange(n)[None, :] / n
+    if kind == "smooth":
+        f = np.exp(np.sin(6 * u) * np.cos(5 * v))
+    else:
+        f = np.where((np.floor(8 * u) + np.floor(8 * v)) % 2 == 0, 10.0, 1.0)
+    return Weights(pw.wu * 0.5 * (f[:-1] + f[1:]), pw.wv * 0.5 * (f[:, :-1] + f[:, 1:]))
+
+
 def cli_time(piece: Path, n: int, repeat: int, extra: list[str]) -> float:
     exe = Path(sys.executable).with_name("clothgrid")
     head = [str(exe)] if exe.exists() else [sys.executable, "-m", "clothgrid"]
@@ -238,13 +256,15 @@ def main() -> None:
         if not args.no_baselines:
             pyamg_row(b, n, ref, row, direct)
             paper_jacobi_row(b, n, ref, row, direct)
-        for weights in ("paper", "uniform"):
+        for weights, what in (("paper", "paper weights"), ("uniform", "uniform weights"),
+                              (field_weights(n, "smooth"), "four weights a node: paper x a smooth field e^(sin 6u cos 5v)"),
+                              (field_weights(n, "blocks"), "four weights a node: paper x 8x8 blocks of 10:1")):
             g, _ = best(lambda: clothgrid.generate(b, solver="multigrid", weights=weights), args.repeat)
             times = [clothgrid.generate(b, solver="multigrid", weights=weights).info["solve_seconds"]
                      for _ in range(args.repeat)]
             sec = min(times + [g.info["solve_seconds"]])
             ok = "" if g.info["error_estimate"] <= TOL else " NOT CONVERGED"
-            row(f"multigrid solve, {weights} weights (bound {g.info['error_estimate']:.2g}{ok}, "
+            row(f"multigrid solve, {what} (bound {g.info['error_estimate']:.2g}{ok}, "
                 f"{g.info['iterations']} V-cycles)", sec, f"direct / this {direct / sec:.0f}x" if direct else "")
         if args.cpu_time:
             cpu_rows(b, n, args.repeat, args.sweeps, row)
