@@ -749,24 +749,6 @@ class CpuMultigrid:
             else:
                 self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
 
-    def load(self, x0: np.ndarray, rhs: np.ndarray) -> None:
-        """Replace level 0's iterate and right-hand side, keeping the hierarchy's arrays.
-
-        Beyond :class:`~clothgrid.backends.protocol.MultigridOps` (cpu only): the heat solver's
-        conjugate-gradient wrapper (:mod:`clothgrid.heat`) applies one V-cycle to a new residual
-        every iteration; rebuilding the operations each time cost 20x the V-cycle. The operations
-        must have been made with a right-hand side; shapes as in the constructor.
-        """
-        if not self._has_b or x0.shape != self._shape or rhs.shape != (self._shape[0] - 2, self._shape[1] - 2,
-                                                                        self._shape[2]):
-            raise ValueError("load needs operations made with a right-hand side, and arrays of their shapes")
-        for (even, odd), a in ((self.x[0], x0), (self.b[0], None)):
-            if a is None:       # the right-hand side: zero on the boundary
-                a = np.zeros(self._shape)
-                a[1:-1, 1:-1] = rhs
-            even[...] = np.moveaxis(a[:, 0::2], 2, 0)   # NumPy copies: the threaded split kernel
-            odd[...] = np.moveaxis(a[:, 1::2], 2, 0)    # costs more in thread start-up at these sizes
-
     def smooth(self, level: int, reverse: bool = False) -> None:
         """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
