@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .jit_variants import serial_twin
+
 __all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
@@ -222,49 +224,36 @@ def _corner_vectors(X, ci, cj, k):
 PARALLEL_CELLS = 1 << 18
 
 
-@njit(cache=True, inline="always")
-def _corner_row(X, ci, skip_grid_corners):
-    """Smallest corner term of the cells in row ``ci`` and how many are <= 0 (see :func:`corner_min`)."""
+@njit(cache=True, parallel=True)
+def _corner_min(X, skip_grid_corners):
     nu = X.shape[0]
     nv = X.shape[1]
-    best = np.inf
-    bad = 0
-    for cj in range(nv - 1):
-        for k in range(4):
-            i0 = ci + _DI[k]
-            j0 = cj + _DJ[k]
-            if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
-                continue
-            ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
-            J = ax * by - ay * bx
-            N = ax * ax + ay * ay + bx * bx + by * by
-            v = J / N if N > 0.0 else -1.0
-            if v <= 0.0:
-                bad += 1
-            if v < best:
-                best = v
-    return best, bad
-
-
-@njit(cache=True)
-def _corner_min_serial(X, skip_grid_corners):
-    best = np.inf
-    bad = 0
-    for ci in range(X.shape[0] - 1):
-        b, n = _corner_row(X, ci, skip_grid_corners)
-        best = min(best, b)
-        bad += n
-    return best, bad
-
-
-@njit(cache=True, parallel=True)
-def _corner_min_parallel(X, skip_grid_corners):
-    rows = X.shape[0] - 1
-    row_best = np.full(rows, np.inf)
-    row_bad = np.zeros(rows, dtype=np.int64)
-    for r in prange(rows):
-        row_best[r], row_bad[r] = _corner_row(X, np.int64(r), skip_grid_corners)
+    row_best = np.full(nu - 1, np.inf)
+    row_bad = np.zeros(nu - 1, dtype=np.int64)
+    for r in prange(nu - 1):
+        ci = np.int64(r)
+        best = np.inf
+        bad = 0
+        for cj in range(nv - 1):
+            for k in range(4):
+                i0 = ci + _DI[k]
+                j0 = cj + _DJ[k]
+                if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
+                    continue
+                ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
+                J = ax * by - ay * bx
+                N = ax * ax + ay * ay + bx * bx + by * by
+                v = J / N if N > 0.0 else -1.0
+                if v <= 0.0:
+                    bad += 1
+                if v < best:
+                    best = v
+        row_best[ci] = best
+        row_bad[ci] = bad
     return row_best.min(), row_bad.sum()
+
+
+_corner_min_serial = serial_twin(_corner_min)
 
 
 def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
@@ -273,43 +262,37 @@ def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
     The 4 fixed grid-corner terms are skipped if asked. A minimum and a count, so the rows of a
     large grid (:data:`PARALLEL_CELLS`) are measured in parallel with the same result.
     """
-    large = (X.shape[0] - 1) * (X.shape[1] - 1) >= PARALLEL_CELLS
-    return (_corner_min_parallel if large else _corner_min_serial)(X, skip_grid_corners)
-
-
-@njit(cache=True, inline="always")
-def _sine_row(X, ci, out):
-    """Row ``ci`` of :func:`cell_min_sine`."""
-    for cj in range(X.shape[1] - 1):
-        best = np.inf
-        for k in range(4):
-            ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
-            la = np.sqrt(ax * ax + ay * ay)
-            lb = np.sqrt(bx * bx + by * by)
-            if la == 0.0 or lb == 0.0:
-                v = -1.0
-            else:
-                v = (ax * by - ay * bx) / (la * lb)
-            if v < best:
-                best = v
-        out[ci, cj] = best
-
-
-@njit(cache=True)
-def _cell_min_sine_serial(X, out):
-    for ci in range(X.shape[0] - 1):
-        _sine_row(X, ci, out)
+    cells = (X.shape[0] - 1) * (X.shape[1] - 1)
+    if cells <= 0:
+        return np.inf, 0
+    return (_corner_min if cells >= PARALLEL_CELLS else _corner_min_serial)(X, skip_grid_corners)
 
 
 @njit(cache=True, parallel=True)
-def _cell_min_sine_parallel(X, out):
+def _cell_min_sine(X, out):
     for r in prange(X.shape[0] - 1):
-        _sine_row(X, np.int64(r), out)
+        ci = np.int64(r)
+        for cj in range(X.shape[1] - 1):
+            best = np.inf
+            for k in range(4):
+                ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
+                la = np.sqrt(ax * ax + ay * ay)
+                lb = np.sqrt(bx * bx + by * by)
+                if la == 0.0 or lb == 0.0:
+                    v = -1.0
+                else:
+                    v = (ax * by - ay * bx) / (la * lb)
+                if v < best:
+                    best = v
+            out[ci, cj] = best
+
+
+_cell_min_sine_serial = serial_twin(_cell_min_sine)
 
 
 def cell_min_sine(X: np.ndarray) -> np.ndarray:
     """``(nu-1, nv-1)`` smallest signed corner sine ``a x b / (|a| |b|)`` of every cell (<= 0: folded);
     rows of cells in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
     out = np.empty((X.shape[0] - 1, X.shape[1] - 1))
-    (_cell_min_sine_parallel if out.size >= PARALLEL_CELLS else _cell_min_sine_serial)(X, out)
+    (_cell_min_sine if out.size >= PARALLEL_CELLS else _cell_min_sine_serial)(X, out)
     return out

@@ -22,12 +22,12 @@ prolongation only adds the correction to the even rows.
 
 from __future__ import annotations
 
-import types
 from typing import Any
 
 import numba
 import numpy as np
 
+from ..jit_variants import serial_twin
 from ..multigrid_levels import LINE_BLOCK, Level
 
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
@@ -51,11 +51,10 @@ _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up
 # rows and ``-1`` for even rows. Couplings owned by the row below (``N`` to
 # it, ``NE`` and ``NW`` from it) are read from the other parity's arrays.
 
-# Lines per block of a half-sweep: at most LINE_BLOCK (512), and fewer where that would leave a thread
+# Lines per block of a half-sweep (``CpuMultigrid.mbs``): at most LINE_BLOCK (512), and fewer where that would leave a thread
 # without a block. Long blocks pay: a block reads each array row's ``mb`` contiguous values, and runs
 # of 4 KB (512 float64) let the prefetchers keep up where 1 KB runs did not (4096^2: a level-0 sweep
 # 90 -> 72 ms at 256 lines, a whole solve 2.7 -> 1.8 s at 512); at 1024^2 128 and 256 lines tie.
-_MB = LINE_BLOCK
 
 
 @numba.njit(inline="always", error_model="numpy")
@@ -634,22 +633,7 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
     return xe, xo
 
 
-def _serial(kernel):
-    """The same kernel compiled without threads (``prange`` runs as ``range``).
-
-    Compiled from a copy of the Python function named ``<name>_serial``: Numba's on-disk cache
-    names its files by the function's qualified name and line and keys them by signature, not
-    by the ``parallel`` flag, so a variant of the very same function shared the parallel
-    kernel's cache entry, and whichever was saved last was loaded for both (the parallel
-    kernels then ran on one thread).
-    """
-    f = kernel.py_func
-    g = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial", f.__defaults__, f.__closure__)
-    g.__qualname__, g.__module__, g.__doc__ = f.__qualname__ + "_serial", f.__module__, f.__doc__
-    return numba.njit(cache=True, nogil=True, error_model="numpy")(g)
-
-
-_KERNELS = {name: (globals()[name], _serial(globals()[name]))
+_KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, error_model="numpy"))
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
                          "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict_rhs",
                          "_prolong_full", "_merge_grid")}
@@ -695,7 +679,7 @@ class CpuMultigrid:
         # one of two threads idle).
         threads = numba.get_num_threads()
         per_thread = [-(-(nv // 2) // threads) for nv in self.nv]      # rows of a parity / threads, rounded up
-        self.mbs = [_MB if n < _PARALLEL_NODES else min(_MB, max(16, (r + 7) // 8 * 8))
+        self.mbs = [LINE_BLOCK if n < _PARALLEL_NODES else min(LINE_BLOCK, max(16, (r + 7) // 8 * 8))
                     for n, r in zip(self.nodes, per_thread)]
         self.x = [_parity_planes(x0)]
         if rhs is not None:
