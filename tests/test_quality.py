@@ -263,3 +263,41 @@ def test_planar_kernel_gives_the_numpy_measures(monkeypatch, seed):
     assert got == pytest.approx(ref, rel=1e-12)
     straight = {(0, 0)} if seed == 2 else set()   # the straight corner's cell: not folded by that corner
     assert folds(quality(grid, normal=normal)) - straight == reference_folds(p, np.array([0.0, 0.0, 1.0])) - straight
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_angle_kernel_gives_every_corners_extremes(monkeypatch, seed):
+    """sim_figures' Numba pass (quality_kernels.angle_and_edge_extremes) takes the arctangent
+    only of corners that could be a row's new extreme: on fresh curved grids with folds, its
+    smallest and largest angle are those of every corner's angle by the same arithmetic, bit for
+    bit, and the NumPy form's to rounding."""
+    import importlib
+
+    from clothgrid import quality_kernels as kernels
+
+    q = importlib.import_module("clothgrid.quality")
+    rng = np.random.default_rng([seed, 21])
+    nu, nv = (int(n) for n in rng.integers(4, 60, size=2))
+    p = plane_grid(nu, nv, shear=rng.uniform(-0.5, 0.5)) @ random_rotation(seed).T
+    p[1:-1, 1:-1] += rng.uniform(-0.6, 0.6, size=(nu - 2, nv - 2, 3)) * [1, 1, seed % 3]
+    if seed == 3:       # a nearly uniform grid: every corner near 90 degrees, little to skip
+        p = plane_grid(nu, nv) + rng.uniform(-1e-7, 1e-7, size=(nu, nv, 3))
+    amin, amax, corners, lo, hi = kernels.angle_and_edge_extremes(np.ascontiguousarray(p))
+    angles, ang = [], np.empty(4)
+    for i in range(nu - 1):
+        for j in range(nv - 1):
+            if (i in (0, nu - 2)) and (j in (0, nv - 2)):
+                continue                        # the grid-corner cells aside
+            kernels._cell_angles(p, i, j, ang)
+            angles.extend(ang)
+    assert (amin, amax) == (min(angles), max(angles))
+    monkeypatch.setattr(q, "KERNEL_CELLS", 10**12)
+    ref = q.sim_figures(p)
+    monkeypatch.setattr(q, "KERNEL_CELLS", 0)
+    got = q.sim_figures(p)
+    assert got["min_angle_deg"] == amin and got["max_angle_deg"] == amax
+    assert got.pop("corner_cell_angles_deg") == pytest.approx(ref.pop("corner_cell_angles_deg"), rel=1e-12)
+    assert got.pop("shortest_vs_target") is ref.pop("shortest_vs_target") is None
+    assert got == pytest.approx(ref, rel=1e-12, abs=1e-12)
+    if seed in (1, 2):
+        assert amin == 0.0          # folded corners count as 0

@@ -91,6 +91,31 @@ def test_curved_piece_uses_arc_lengths_and_3d_rest_shape():
     np.testing.assert_allclose(sp.rest_length, np.linalg.norm(flat[sp.pairs[:, 1]] - flat[sp.pairs[:, 0]], axis=1))
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_uv_kernel_gives_the_numpy_parameters(monkeypatch, seed):
+    """Large grids get their uv from one Numba pass (grid_kernels.arc_length_uv_into): on fresh
+    curved grids, with lines of coincident nodes (uniform parameters) and widths that do not fill
+    the kernel's column blocks, it gives the NumPy form's numbers bit for bit."""
+    import clothgrid.grid as grid_module
+    from clothgrid import grid_kernels
+
+    rng = np.random.default_rng([seed, 5])
+    nu, nv = (int(n) for n in rng.integers(2, 600, size=2))
+    p = np.cumsum(rng.normal(size=(nu, nv, 3)) * 10.0 ** rng.uniform(-3, 3), axis=int(rng.integers(2)))
+    if seed == 1:
+        p[:, int(rng.integers(nv))] = p[0, 0]     # a u-line of coincident nodes
+        p[int(rng.integers(nu))] = p[0, 0]        # a v-line likewise
+    monkeypatch.setattr(grid_module, "KERNEL_NODES", 10**12)
+    ref = grid_module.arc_length_uv(p)
+    monkeypatch.setattr(grid_module, "KERNEL_NODES", 0)
+    calls, kernel = [], grid_kernels.arc_length_uv_into
+    monkeypatch.setattr(grid_kernels, "arc_length_uv_into", lambda *a: calls.append(1) or kernel(*a))
+    got = grid_module.arc_length_uv(p)
+    assert calls, "the kernel was not used"
+    np.testing.assert_array_equal(got, ref)
+    assert np.all(ref[0, :, 0] == 0) and np.all(ref[:, 0, 1] == 0) and np.all(ref[-1, :, 0] == 1) and np.all(ref[:, -1, 1] == 1)
+
+
 # --------------------------------------------------------------------------- springs
 
 

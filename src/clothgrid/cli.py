@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import math
 import os
 import re
@@ -779,6 +780,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     many = len(jobs) > 1 or pattern
 
     def done(result: Any) -> None:
+        _resume_collector()     # one piece made: Numba and its kernels are loaded
         _report(result, pattern)
         job = result.job
         if not result.grid.info.get("converged", True):
@@ -894,6 +896,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     """``clothgrid batch INPUTS... -o OUTDIR``: grid many files on Dask, print the summary."""
     import signal
 
+    _resume_collector()     # a long run: collect as usual
+
     from . import batch
 
     options = _grid_options(args)
@@ -1006,7 +1010,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         the reader of the output closed the pipe. Unexpected exceptions propagate
         with their traceback.
     """
-    with _signals_as_interrupts():
+    with _signals_as_interrupts(), _collector_paused():
         try:
             return _main(argv)
         except Interrupted as exc:          # a signal while parsing or reporting
@@ -1015,6 +1019,53 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             _say("interrupted")
             return 130
+
+
+def console_main() -> int:
+    """The ``clothgrid`` program (and ``python -m clothgrid``): :func:`main`, then a quick exit.
+
+    At exit the interpreter runs full garbage collections over every object still alive; after
+    Numba's import and kernel loads those are some 10^5 objects and the passes took 0.12 s of a
+    1.1 s run (1024^2 grid to .npz). Freezing them first (:func:`gc.freeze`) skips the passes;
+    the process ends, so nothing is kept that would otherwise be freed.
+    """
+    code = main()
+    gc.freeze()
+    return code
+
+
+#: True while :func:`_collector_paused` holds the collector off that was on when it began
+_collector_held = False
+
+
+@contextlib.contextmanager
+def _collector_paused():
+    """Hold Python's cyclic garbage collector off while a command starts up.
+
+    Numba's import, its registries and the first cached kernels create some 10^5 long-lived
+    objects, and the collector's passes over them while they are made cost 50-70 ms of a 1.1 s
+    run (1024^2 grid to .npz, measured). A command that goes on past its first job calls
+    :func:`_resume_collector`, so a long run never goes without collection; the collector is
+    back as it was when the command ends.
+    """
+    global _collector_held
+    held = gc.isenabled()
+    gc.disable()
+    _collector_held = held
+    try:
+        yield
+    finally:
+        if _collector_held:
+            gc.enable()
+        _collector_held = False
+
+
+def _resume_collector() -> None:
+    """Turn the collector that :func:`_collector_paused` holds off back on (the start-up is over)."""
+    global _collector_held
+    if _collector_held:
+        gc.enable()
+        _collector_held = False
 
 
 class Interrupted(KeyboardInterrupt):

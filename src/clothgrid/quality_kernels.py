@@ -30,8 +30,9 @@ def _corner_cross(P, ia, ja, ib, jb, ic, jc):
 
 
 @njit(cache=True, inline="always")
-def _corner(P, ia, ja, ib, jb, ic, jc, nx, ny, nz):
-    """Angle (degrees) at node a of the cell between a->b and a->c, signed by the cell normal; 0 if folded."""
+def _corner_terms(P, ia, ja, ib, jb, ic, jc, nx, ny, nz):
+    """At node a of the cell, between a->b and a->c: the sine term (the cross product's length,
+    signed by the cell normal) and the cosine term (the dot product)."""
     cx, cy, cz, dot = _corner_cross(P, ia, ja, ib, jb, ic, jc)
     cr = cx * nx + cy * ny + cz * nz
     s = math.sqrt(cx * cx + cy * cy + cz * cz)
@@ -39,16 +40,14 @@ def _corner(P, ia, ja, ib, jb, ic, jc, nx, ny, nz):
         s = -s
     elif cr == 0:
         s = 0.0
-    ang = math.degrees(math.atan2(s, dot))
-    return 0.0 if ang < 0 else ang
+    return s, dot
 
 
 @njit(cache=True, inline="always")
-def _cross_add(P, ia, ja, ib, jb, ic, jc, out):
-    cx, cy, cz, _ = _corner_cross(P, ia, ja, ib, jb, ic, jc)
-    out[0] += cx
-    out[1] += cy
-    out[2] += cz
+def _angle(s, dot):
+    """The corner angle (degrees) of :func:`_corner_terms`; 0 if folded."""
+    ang = math.degrees(math.atan2(s, dot))
+    return 0.0 if ang < 0 else ang
 
 
 # node offsets of the four corners of a cell in quad order: (i, j), (i+1, j), (i+1, j+1), (i, j+1)
@@ -57,18 +56,38 @@ _DJ = np.array([0, 0, 1, 1], dtype=np.int64)
 
 
 @njit(cache=True)
+def _cell_terms(P, i, j, sines, cosines):
+    """The four corners' :func:`_corner_terms` of cell (i, j) (corners 0..3 in quad order)."""
+    nx = ny = nz = 0.0          # the cell normal: the sum of the corners' cross products
+    for k in range(4):
+        kn = (k + 1) % 4
+        kp = (k + 3) % 4
+        cx, cy, cz, _ = _corner_cross(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn],
+                                      i + _DI[kp], j + _DJ[kp])
+        nx += cx
+        ny += cy
+        nz += cz
+    for k in range(4):
+        kn = (k + 1) % 4
+        kp = (k + 3) % 4
+        sines[k], cosines[k] = _corner_terms(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn],
+                                             i + _DI[kp], j + _DJ[kp], nx, ny, nz)
+
+
+@njit(cache=True)
 def _cell_angles(P, i, j, out):
     """The four corner angles of cell (i, j) (corners 0..3 in quad order) into ``out``."""
-    n = np.zeros(3)
+    sines, cosines = np.empty(4), np.empty(4)
+    _cell_terms(P, i, j, sines, cosines)
     for k in range(4):
-        kn = (k + 1) % 4
-        kp = (k + 3) % 4
-        _cross_add(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn], i + _DI[kp], j + _DJ[kp], n)
-    for k in range(4):
-        kn = (k + 1) % 4
-        kp = (k + 3) % 4
-        out[k] = _corner(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn], i + _DI[kp], j + _DJ[kp],
-                         n[0], n[1], n[2])
+        out[k] = _angle(sines[k], cosines[k])
+
+
+#: A corner whose cosine is this far inside the (cosines of the) row's extreme angles so far
+#: cannot be a new extreme, and its arctangent is not taken. The cosine's rounding (a few 1e-16)
+#: is far below it, and a cosine difference d means an angle difference of at least d radians,
+#: so the extremes are those of every corner's angle, bit for bit.
+_COS_MARGIN = 1e-9
 
 
 @njit(cache=True, parallel=True)
@@ -95,15 +114,28 @@ def angle_and_edge_extremes(P):
     row_amax = np.zeros(mu)
     for r in prange(mu):
         i = np.int64(r)
-        ang = np.empty(4)
+        sines, cosines = np.empty(4), np.empty(4)
         lo, hi = 180.0, 0.0
+        cos_lo, cos_hi = -1.0, 1.0
         for j in range(mv):
             if skip and (i == 0 or i == mu - 1) and (j == 0 or j == mv - 1):
                 continue
-            _cell_angles(P, i, j, ang)
+            _cell_terms(P, i, j, sines, cosines)
             for k in range(4):
-                lo = min(lo, ang[k])
-                hi = max(hi, ang[k])
+                s, dot = sines[k], cosines[k]
+                if s > 0:
+                    h = math.sqrt(s * s + dot * dot)
+                    if 1e-150 < h < 1e150:        # s * s and dot * dot neither underflow nor overflow
+                        c = dot / h
+                        if c <= cos_lo - _COS_MARGIN and c >= cos_hi + _COS_MARGIN:
+                            continue
+                ang = _angle(s, dot)
+                if ang < lo:
+                    lo = ang
+                    cos_lo = math.cos(math.radians(lo))
+                if ang > hi:
+                    hi = ang
+                    cos_hi = math.cos(math.radians(hi))
         row_amin[i] = lo
         row_amax[i] = hi
     corners = np.empty(4)
