@@ -340,3 +340,116 @@ def test_parallel_kernels_do_not_load_their_serial_variants_from_the_cache(tmp_p
     child("par", "ser")                     # both compiled and saved, the serial one last
     assert child("ser") == "no threads"     # from the cache: no thread pool started
     assert child("par") != "no threads"     # from the cache: the parallel code, which starts it
+
+
+# --- the error bound by band barriers (solvers.bounds) -------------------------------------------------------
+
+def unit_stencil_weights(rng, kind, nu, nv):
+    """Separable weights with constant cu, cv: the paper's (random k), uniform, or random factors."""
+    if kind == "paper":
+        return make_weights("paper", nu, nv, k=float(rng.uniform(0.2, 5.0)))
+    if kind == "uniform":
+        return make_weights("uniform", nu, nv)
+    cu, cv = np.full(nu - 1, rng.uniform(0.5, 2.0)), np.full(nv - 1, rng.uniform(0.5, 2.0))
+    dv, du = np.exp(rng.uniform(-4, 4, nv)), np.exp(rng.uniform(-4, 4, nu))
+    return Weights.from_factors(cu, dv, du, cv, "custom")
+
+
+def band_profile(n, w):
+    """F(t) = min(phi(t), phi(n-1-t)), phi(t) = t (2w - t) up to w, w^2 beyond (written afresh)."""
+    t = np.arange(n, dtype=np.float64)
+    phi = lambda u: np.where(u <= w, u * (2 * w - u), float(w * w))    # noqa: E731
+    return np.minimum(phi(t), phi(n - 1 - t))
+
+
+@pytest.mark.parametrize("kind", ["paper", "uniform", "random"])
+@pytest.mark.parametrize("shape", [(5, 6), (37, 29), (64, 65), (130, 41)])
+def test_band_bound_is_the_maximum_of_a_supersolution(rng, kind, shape):
+    """The bound alpha max z + sum beta_k 2 w_k^2 is the maximum of W = alpha z + sum beta_k B_k,
+    and W is a supersolution: D^-1 A W >= |s| at every interior node, W >= 0 on the boundary.
+    Checked on rough random grids (any s) and on residuals that peak at the boundary."""
+    from clothgrid.backends.cpu import interior_diagonal, residual
+    from clothgrid.solvers.bounds import BandBarriers, band_steps
+
+    nu, nv = shape
+    w = unit_stencil_weights(rng, kind, nu, nv)
+    assert w.unit_stencil
+    wu, wv = np.ascontiguousarray(w.wu), np.ascontiguousarray(w.wv)
+    bands = BandBarriers.for_grid(nu, nv)
+    i, j = np.arange(nu)[:, None], np.arange(nv)[None, :]
+    z = i * (nu - 1 - i) + j * (nv - 1 - j) + 0.0
+    assert bands.zmax == z.max()
+    for trial in range(3):
+        x = rng.standard_normal((nu, nv, 3))
+        if trial:       # a smooth grid, rough within a few lines of the boundary
+            x = np.cumsum(np.cumsum(x, axis=0), axis=1) / (nu * nv) ** 0.5
+            edge = np.minimum(np.minimum(i, nu - 1 - i), np.minimum(j, nv - 1 - j)) < 2 * trial
+            x += rng.standard_normal((nu, nv, 3)) * edge[..., None]
+        st = band_steps(x, w, bands)
+        K = bands.bands
+        s = np.linalg.norm(residual(x, wu, wv), axis=-1) / interior_diagonal(wu, wv)
+        assert st[K + 1] == pytest.approx(s.max(), rel=1e-12)
+        widths = np.sqrt(bands.cost / 2.0).round().astype(int)
+        field = st[K] * z + sum(beta * (band_profile(nu, wk)[:, None] + band_profile(nv, wk)[None, :])
+                                for beta, wk in zip(st[:K], widths))
+        lifted = -residual(field[..., None], wu, wv)[..., 0] / interior_diagonal(wu, wv)   # D^-1 A W
+        assert np.all(lifted >= s * (1 - 1e-9) - 1e-300)
+        ring = np.concatenate([field[0], field[-1], field[:, 0], field[:, -1]])
+        assert ring.min() >= 0
+        banded = st[K] * z.max() + np.dot(st[:K], bands.cost)
+        assert field.max() <= banded * (1 + 1e-12)
+        assert bands.bound(st) == min(banded, st[K + 1] * z.max())
+
+
+@pytest.mark.parametrize("kind", ["paper", "uniform", "random"])
+@pytest.mark.parametrize("shape", [(5, 6), (37, 29), (64, 65), (130, 41), (520, 300)])
+def test_band_steps_kernel_matches_numpy(rng, kind, shape):
+    """The cpu backend's band_steps (one pass over the parity planes) gives bounds.band_steps."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+    from clothgrid.solvers.bounds import BandBarriers, band_steps
+
+    nu, nv = shape
+    w = unit_stencil_weights(rng, kind, nu, nv)
+    x0 = rng.standard_normal((nu, nv, 3)) * np.exp(rng.uniform(-3, 3))
+    ops = CpuMultigrid(build_hierarchy(w), x0)
+    bands = BandBarriers.for_grid(nu, nv)
+    got, ref = ops.band_steps(bands), band_steps(x0, w, bands)
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
+    assert ops.max_step() == pytest.approx(ref[-1], rel=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["paper", "uniform"])
+def test_band_bound_holds_on_fresh_boundaries(rng, kind):
+    """On fresh boundaries the band barriers' bound stays above the true error (exact sparse
+    solve), after one and two V-cycles and at the tolerance."""
+    nu, nv = 193, 161
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    w = make_weights(kind, nu, nv)
+    ref = exact_solution(boundary_grid(b), w.wu, w.wv)
+    for cycles in (1, 2):
+        g = clothgrid.generate(b, weights=kind, solver="multigrid", tol=1e-30, max_iter=cycles,
+                               allow_unconverged=True)
+        assert g.info["bound_method"] == "band barriers"
+        assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"]
+    fresh = clothgrid.generate(b, weights=kind, solver="multigrid", tol=TOL)
+    assert max_rel_error(fresh.points, ref, b.size) <= fresh.info["error_estimate"] <= TOL
+
+
+@pytest.mark.parametrize("kind", ["paper", "uniform"])
+def test_band_bound_saves_cycles_on_a_real_piece(monkeypatch, kind):
+    """The T-shirt front's residual peaks near its outline: there the band barriers' bound is
+    several times below max|s| max z, and the solve to 2^-12 takes fewer V-cycles than with it."""
+    from pathlib import Path
+
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+
+    piece = clothgrid.load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
+    b = piece.resampled(257, 257)
+    banded = clothgrid.generate(b, weights=kind, solver="multigrid", tol=TOL)
+    monkeypatch.setattr(CpuMultigrid, "band_steps", lambda self, barriers: None)
+    plain = clothgrid.generate(b, weights=kind, solver="multigrid", tol=TOL)
+    assert plain.info["bound_method"] == "max step" and banded.info["bound_method"] == "band barriers"
+    assert banded.info["iterations"] < plain.info["iterations"]
+    assert plain.info["steps"][:len(banded.info["steps"])] == banded.info["steps"]   # the same cycles
+    ref = clothgrid.generate(b, weights=kind, solver="direct")
+    assert max_rel_error(banded.points, ref.points, b.size) <= banded.info["error_estimate"] <= TOL

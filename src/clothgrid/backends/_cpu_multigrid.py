@@ -585,6 +585,76 @@ def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cost, zmax):
+    """:func:`clothgrid.solvers.bounds.band_steps` for a unit-stencil level 0 (the residual as in
+    :func:`_max_step5u`): ``beta_0 .. beta_{K-1}, alpha, max|s|``. ``ku`` the band of each line
+    ``i``; ``kve``, ``kvo`` of each line ``j`` of either parity; ``cost`` the bands' ``2 w^2``."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nb = cost.shape[0]
+    rowmax = np.zeros((nu, nb + 2))
+    for i in numba.prange(1, nu - 1):
+        s2 = rows[numba.get_thread_id()]
+        out = rowmax[i]
+        ni = nn[i]
+        kui = ku[i]
+        for p in range(2):
+            m_lo, m_hi = _line_range(nv, p)
+            n = m_hi - m_lo
+            if n <= 0:
+                continue
+            ob = 0 if p == 1 else -1
+            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
+            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+            e = (ee if p == 0 else eo)[a:z]
+            kv = (kve if p == 0 else kvo)[a:z]
+            for q in range(n):
+                s2[q] = 0.0
+            for c in range(k):
+                x, t = xown[c], xoth[c]
+                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
+                if has_b:
+                    bi = (be if p == 0 else bo)[c, i, a:z]
+                    for q in range(n):
+                        r = bi[q] + e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+                        s2[q] += r * r
+                else:
+                    for q in range(n):
+                        r = e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+                        s2[q] += r * r
+            for q in range(n):
+                d = 2.0 * (e[q] + ni)
+                v = s2[q] / (d * d)
+                if v > out[nb + 1]:
+                    out[nb + 1] = v
+                kvq = kv[q]
+                k1 = min(kui, kvq)
+                k2 = max(kui, kvq)
+                slot = nb
+                cover = 1.0
+                if k1 < nb:
+                    cover = ((e[q] if kui == k1 else 0.0) + (ni if kvq == k1 else 0.0)) / (e[q] + ni)
+                    c1 = cost[k1] / cover
+                    c2 = cost[k2] if (k2 < nb and k2 != k1) else np.inf
+                    if c1 < zmax and c1 <= c2:
+                        slot = k1
+                    elif c2 < zmax:
+                        slot = k2
+                        cover = 1.0
+                    else:
+                        cover = 1.0
+                v /= cover * cover
+                if v > out[slot]:
+                    out[slot] = v
+    res = np.empty(nb + 2)
+    for m in range(nb + 2):
+        best = 0.0
+        for i in range(nu):
+            best = max(best, rowmax[i, m])
+        res[m] = np.sqrt(best)
+    return res
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_grid(x, xe, xo):
     """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""
     nu, nv, k = x.shape
@@ -636,7 +706,7 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
 _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, error_model="numpy"))
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
                          "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict_rhs",
-                         "_prolong_full", "_merge_grid")}
+                         "_prolong_full", "_merge_grid", "_band_steps5u")}
 
 
 def _pick(name: str, nodes: int):
@@ -820,6 +890,19 @@ class CpuMultigrid:
                                                              self._rows))
         Ee, Eo, Ne, No = self.st[0]
         return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
+
+    def band_steps(self, barriers: Any) -> np.ndarray | None:
+        """:func:`~clothgrid.solvers.bounds.band_steps` of level 0's iterate (its right-hand side
+        included) for a :class:`~clothgrid.solvers.bounds.BandBarriers`, whose ``bound`` takes
+        it; None where level 0 is not a unit stencil."""
+        if self.unit0 is None:
+            return None
+        (xe, xo), (be, bo) = self.x[0], self.b[0]
+        ee, eo, nn = self.unit0
+        return _pick("_band_steps5u", self.nodes[0])(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
+                                                     self._rows, barriers.ku, barriers.kv[0::2].copy(),
+                                                     barriers.kv[1::2].copy(), barriers.cost,
+                                                     float(barriers.zmax))
 
     def _residual9(self) -> np.ndarray:
         """``b - A x`` of a 9-point level 0 as an ``(nu, nv, k)`` float64 array (zero on the boundary)."""

@@ -67,6 +67,13 @@ class MultigridOps(Protocol):
     and ``prolong``; :func:`~clothgrid.solvers.multigrid.fmg` (the full
     multigrid start) also ``restrict_full`` and ``prolong_full``.
 
+    One operation is optional (not a member here, so that ``isinstance`` does not
+    ask for it): ``band_steps(barriers)`` returns
+    :func:`~clothgrid.solvers.bounds.band_steps` of level 0's iterate for a
+    :class:`~clothgrid.solvers.bounds.BandBarriers` (or None), for the error bound
+    by band barriers. A backend without it gets the bound ``max_step() * max z``,
+    looser by 5-1000x, and so more V-cycles (the cpu backend has it).
+
     Attributes
     ----------
     levels : int
