@@ -375,30 +375,29 @@ def test_band_bound_is_the_maximum_of_a_supersolution(rng, kind, shape):
     w = unit_stencil_weights(rng, kind, nu, nv)
     assert w.unit_stencil
     wu, wv = np.ascontiguousarray(w.wu), np.ascontiguousarray(w.wv)
-    bands = BandBarriers.for_grid(nu, nv)
     i, j = np.arange(nu)[:, None], np.arange(nv)[None, :]
     z = i * (nu - 1 - i) + j * (nv - 1 - j) + 0.0
-    assert bands.zmax == z.max()
+    assert BandBarriers.for_grid(nu, nv, 1.0).zmax == z.max()
     for trial in range(3):
         x = rng.standard_normal((nu, nv, 3))
         if trial:       # a smooth grid, rough within a few lines of the boundary
             x = np.cumsum(np.cumsum(x, axis=0), axis=1) / (nu * nv) ** 0.5
             edge = np.minimum(np.minimum(i, nu - 1 - i), np.minimum(j, nv - 1 - j)) < 2 * trial
             x += rng.standard_normal((nu, nv, 3)) * edge[..., None]
-        st = band_steps(x, w, bands)
-        K = bands.bands
         s = np.linalg.norm(residual(x, wu, wv), axis=-1) / interior_diagonal(wu, wv)
-        assert st[K + 1] == pytest.approx(s.max(), rel=1e-12)
-        widths = np.sqrt(bands.cost / 2.0).round().astype(int)
-        field = st[K] * z + sum(beta * (band_profile(nu, wk)[:, None] + band_profile(nv, wk)[None, :])
-                                for beta, wk in zip(st[:K], widths))
-        lifted = -residual(field[..., None], wu, wv)[..., 0] / interior_diagonal(wu, wv)   # D^-1 A W
-        assert np.all(lifted >= s * (1 - 1e-9) - 1e-300)
-        ring = np.concatenate([field[0], field[-1], field[:, 0], field[:, -1]])
-        assert ring.min() >= 0
-        banded = st[K] * z.max() + np.dot(st[:K], bands.cost)
-        assert field.max() <= banded * (1 + 1e-12)
-        assert bands.bound(st) == min(banded, st[K + 1] * z.max())
+        for reference in (s.max() * 10.0 ** rng.uniform(-3, 1), np.median(s), 1e-300):
+            bands = BandBarriers.for_grid(nu, nv, reference)
+            st = band_steps(x, w, bands)
+            assert st[0] == pytest.approx(s.max() ** 2, rel=1e-12)
+            alpha, beta = bands.coefficients(st)
+            widths = np.sqrt(bands.cost / 2.0).round().astype(int)
+            field = alpha * z + sum(b * (band_profile(nu, wk)[:, None] + band_profile(nv, wk)[None, :])
+                                    for b, wk in zip(beta, widths))
+            lifted = -residual(field[..., None], wu, wv)[..., 0] / interior_diagonal(wu, wv)   # D^-1 A W
+            assert np.all(lifted >= s * (1 - 1e-9))
+            ring = np.concatenate([field[0], field[-1], field[:, 0], field[:, -1]])
+            assert ring.min() >= 0
+            assert field.max() <= bands.bound(st) * (1 + 1e-12) <= s.max() * z.max() * (1 + 1e-9)
 
 
 @pytest.mark.parametrize("kind", ["paper", "uniform", "random"])
@@ -412,10 +411,11 @@ def test_band_steps_kernel_matches_numpy(rng, kind, shape):
     w = unit_stencil_weights(rng, kind, nu, nv)
     x0 = rng.standard_normal((nu, nv, 3)) * np.exp(rng.uniform(-3, 3))
     ops = CpuMultigrid(build_hierarchy(w), x0)
-    bands = BandBarriers.for_grid(nu, nv)
+    bands = BandBarriers.for_grid(nu, nv, ops.max_step() * 10.0 ** rng.uniform(-4, 0))
     got, ref = ops.band_steps(bands), band_steps(x0, w, bands)
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
-    assert ops.max_step() == pytest.approx(ref[-1], rel=1e-12)
+    assert np.count_nonzero(ref[2:]) > 1              # the buckets are used
+    assert ops.max_step() ** 2 == pytest.approx(ref[0], rel=1e-12)
 
 
 @pytest.mark.parametrize("kind", ["paper", "uniform"])

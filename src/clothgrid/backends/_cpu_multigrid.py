@@ -22,6 +22,7 @@ prolongation only adds the correction to the even rows.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numba
@@ -585,16 +586,19 @@ def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cost, zmax):
-    """:func:`clothgrid.solvers.bounds.band_steps` for a unit-stencil level 0 (the residual as in
-    :func:`_max_step5u`): ``beta_0 .. beta_{K-1}, alpha, max|s|``. ``ku`` the band of each line
-    ``i``; ``kve``, ``kvo`` of each line ``j`` of either parity; ``cost`` the bands' ``2 w^2``."""
+def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cost, zmax, ref2, nbuckets):
+    """:func:`clothgrid.solvers.bounds.band_steps`' table for a unit-stencil level 0 (the residual
+    as in :func:`_max_step5u`). ``ku`` the band of each line ``i``; ``kve``, ``kvo`` of each line
+    ``j`` of either parity; ``cost`` the bands' ``2 w^2``; ``ref2`` the reference level squared;
+    ``nbuckets`` the barriers' ``buckets``."""
     k, nu = xe.shape[0], xe.shape[1]
     nb = cost.shape[0]
-    rowmax = np.zeros((nu, nb + 2))
+    M = nbuckets
+    off = 2 + M + 1
+    tabs = np.zeros((rows.shape[0], off + (M + 1) * nb))     # one table a thread (rows: one a thread)
     for i in numba.prange(1, nu - 1):
         s2 = rows[numba.get_thread_id()]
-        out = rowmax[i]
+        out = tabs[numba.get_thread_id()]
         ni = nn[i]
         kui = ku[i]
         for p in range(2):
@@ -624,8 +628,8 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
             for q in range(n):
                 d = 2.0 * (e[q] + ni)
                 v = s2[q] / (d * d)
-                if v > out[nb + 1]:
-                    out[nb + 1] = v
+                if v > out[0]:
+                    out[0] = v
                 kvq = kv[q]
                 k1 = min(kui, kvq)
                 k2 = max(kui, kvq)
@@ -640,17 +644,26 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
                     elif c2 < zmax:
                         slot = k2
                         cover = 1.0
-                    else:
-                        cover = 1.0
-                v /= cover * cover
-                if v > out[slot]:
-                    out[slot] = v
-    res = np.empty(nb + 2)
-    for m in range(nb + 2):
-        best = 0.0
-        for i in range(nu):
-            best = max(best, rowmax[i, m])
-        res[m] = np.sqrt(best)
+                if slot == nb:
+                    if v > out[1]:
+                        out[1] = v
+                    continue
+                h = M - 1
+                if v > 0.0:
+                    ratio = ref2 / v
+                    if ratio < np.inf:
+                        h = min(max(math.frexp(ratio)[1] - 1, -1), M - 1)
+                row = h + 1
+                if v > out[2 + row]:
+                    out[2 + row] = v
+                w2 = v / (cover * cover)
+                col = off + row * nb + slot
+                if w2 > out[col]:
+                    out[col] = w2
+    res = np.zeros(off + (M + 1) * nb)
+    for t in range(tabs.shape[0]):
+        for m in range(res.shape[0]):
+            res[m] = max(res[m], tabs[t, m])
     return res
 
 
@@ -902,7 +915,8 @@ class CpuMultigrid:
         return _pick("_band_steps5u", self.nodes[0])(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
                                                      self._rows, barriers.ku, barriers.kv[0::2].copy(),
                                                      barriers.kv[1::2].copy(), barriers.cost,
-                                                     float(barriers.zmax))
+                                                     float(barriers.zmax), float(barriers.reference) ** 2,
+                                                     barriers.buckets)
 
     def _residual9(self) -> np.ndarray:
         """``b - A x`` of a 9-point level 0 as an ``(nu, nv, k)`` float64 array (zero on the boundary)."""

@@ -86,6 +86,10 @@ def error_bound(points: Any, problem: Problem, backend: Backend, zmax: float, we
     return backend.max_step(points, wu, wv) * zmax
 
 
+#: Half-octave buckets of ``|s|`` below the reference level, for the choice of what ``z`` takes
+THRESHOLDS = 24
+
+
 @dataclass(frozen=True)
 class BandBarriers:
     """The band barriers of an ``nu x nv`` grid with unit-stencil weights (module docstring).
@@ -100,15 +104,21 @@ class BandBarriers:
     ku, kv : numpy.ndarray
         ``(nu,)`` and ``(nv,)`` int64: the narrowest band holding line ``i``
         (``j``), ``K`` for none.
+    reference : float
+        The level of ``|s|`` whose ``z`` term alone is the tolerance (``tol * scale
+        / max z``): nodes are sorted into :data:`THRESHOLDS` half-octave buckets
+        below it, so that ``z`` may take every node under a threshold (it costs
+        nothing more than ``alpha`` already does) and the bands only the rest.
     """
 
     zmax: float
     cost: np.ndarray
     ku: np.ndarray
     kv: np.ndarray
+    reference: float
 
     @classmethod
-    def for_grid(cls, nu: int, nv: int) -> "BandBarriers":
+    def for_grid(cls, nu: int, nv: int, reference: float) -> "BandBarriers":
         widths = []
         w = 2
         while w <= (min(nu, nv) - 1) // 2:
@@ -120,43 +130,88 @@ class BandBarriers:
             t = np.arange(n)
             return np.searchsorted(wk, np.minimum(t, n - 1 - t), side="right").astype(np.int64)
 
-        return cls(_analytic_barrier_max(nu, nv), 2.0 * wk.astype(np.float64) ** 2, band(nu), band(nv))
+        if not (reference > 0 and np.isfinite(reference)):
+            raise ValueError(f"the reference level must be positive and finite, not {reference!r}")
+        return cls(_analytic_barrier_max(nu, nv), 2.0 * wk.astype(np.float64) ** 2, band(nu), band(nv),
+                   float(reference))
 
     @property
     def bands(self) -> int:
         return len(self.cost)
 
-    def bound(self, steps: np.ndarray) -> float:
-        """The error bound from :func:`band_steps`' answer (absolute, never above ``max|s| max z``)."""
-        K = self.bands
-        banded = float(steps[K]) * self.zmax + float(np.dot(steps[:K], self.cost))
-        return min(banded, float(steps[K + 1]) * self.zmax)
+    @property
+    def buckets(self) -> int:
+        """:data:`THRESHOLDS`: half-octave buckets of ``|s|`` below :attr:`reference`."""
+        return THRESHOLDS
+
+    @property
+    def table_size(self) -> int:
+        """Length of :func:`band_steps`' answer."""
+        return 2 + (THRESHOLDS + 1) * (self.bands + 1)
+
+    def coefficients(self, table: np.ndarray) -> tuple[float, np.ndarray]:
+        """``(alpha, beta)`` of the least bound from :func:`band_steps`' table: over the thresholds
+        ``reference * 2^(-m/2)`` (``z`` takes every node below it) and none, and the plain
+        ``(max|s|, 0)``. ``W = alpha z + sum_k beta_k B_k`` is then a supersolution."""
+        K, M = self.bands, THRESHOLDS
+        smax2, base2 = float(table[0]), float(table[1])
+        sa = table[2:2 + M + 1]                             # bucket h + 1: max s^2 of the nodes a band could take
+        sb = table[2 + M + 1:].reshape(M + 1, K)            # ... their s^2 / coverage^2 in the band they would take
+        # z takes the buckets from row r on (r = 0 .. M + 1; M + 1: none of them), the bands the rows before
+        alpha2 = np.maximum(base2, np.maximum.accumulate(np.append(sa, 0.0)[::-1])[::-1])
+        beta2 = np.vstack([np.zeros((1, K)), np.maximum.accumulate(sb, axis=0)])
+        alpha, beta = np.sqrt(alpha2), np.sqrt(beta2)
+        totals = alpha * self.zmax + beta @ self.cost
+        r = int(np.argmin(totals))
+        if not totals[r] < np.sqrt(smax2) * self.zmax:
+            return float(np.sqrt(smax2)), np.zeros(K)
+        return float(alpha[r]), beta[r].copy()
+
+    def bound(self, table: np.ndarray) -> float:
+        """The error bound (absolute) from :func:`band_steps`' table: ``alpha max z + sum_k beta_k
+        2 w_k^2`` of :meth:`coefficients`, never above ``max|s| max z``."""
+        alpha, beta = self.coefficients(table)
+        return alpha * self.zmax + float(beta @ self.cost)
 
 
 def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.ndarray:
     """What :meth:`BandBarriers.bound` needs of a grid, in NumPy (the reference of the kernels).
 
-    Returns the ``(K + 2,)`` array ``beta_0 .. beta_{K-1}, alpha, max|s|`` (module docstring) for
-    ``s = D^-1 (b - A R)`` of ``points`` (``(nu, nv, k)``, zero right-hand side) with the
-    unit-stencil ``weights`` (:class:`~clothgrid.weights.Weights`).
+    For ``s = D^-1 (b - A R)`` of ``points`` (``(nu, nv, k)``, zero right-hand side) with the
+    unit-stencil ``weights`` (:class:`~clothgrid.weights.Weights`), a flat table of squares:
+    ``max s^2``; the largest ``s^2`` of the nodes only ``z`` can take; then, by half-octave
+    bucket ``h`` of ``s`` below the reference (``h = floor(log2(reference^2 / s^2))`` held to
+    ``-1 .. THRESHOLDS - 1``, stored at ``h + 1``), the largest ``s^2`` of the other nodes, and
+    for each band the largest ``s^2 / coverage^2`` of the nodes of that bucket that band takes.
+    A node's band is the cheaper of its narrowest band (its coverage there) and the band holding
+    it in both directions (coverage 1), cost ``2 w^2 / coverage``, if cheaper than ``max z``.
     """
     from ..backends.cpu import interior_diagonal, residual
 
     wu, wv = np.ascontiguousarray(weights.wu), np.ascontiguousarray(weights.wv)
-    K = barriers.bands
-    out = np.zeros(K + 2)
+    K, M = barriers.bands, THRESHOLDS
+    out = np.zeros(barriers.table_size)
     if points.shape[0] < 3 or points.shape[1] < 3:
         return out
-    s = np.linalg.norm(residual(points, wu, wv), axis=-1) / interior_diagonal(wu, wv)
+    s2 = np.sum(residual(points, wu, wv) ** 2, axis=-1) / interior_diagonal(wu, wv) ** 2
     a, b = wu[1:, 1:-1], wv[1:-1, 1:]                         # the couplings along i and along j
     ku, kv = np.broadcast_arrays(barriers.ku[1:-1, None], barriers.kv[None, 1:-1])
     k1, k2 = np.minimum(ku, kv), np.maximum(ku, kv)
     cost = np.append(barriers.cost, np.inf)
-    cover = (a * (ku == k1) + b * (kv == k1)) / (a + b)
+    cover = np.where(k1 < K, (a * (ku == k1) + b * (kv == k1)) / (a + b), 1.0)
     c1 = np.where(k1 < K, cost[k1] / cover, np.inf)
     c2 = np.where((k2 < K) & (k2 != k1), cost[np.minimum(k2, K)], np.inf)
     slot = np.where((c1 < barriers.zmax) & (c1 <= c2), k1, np.where(c2 < barriers.zmax, k2, K))
-    value = np.where(slot == k1, s / np.where(k1 < K, cover, 1.0), s)
-    np.maximum.at(out, slot.ravel(), value.ravel())
-    out[K + 1] = s.max()
+    value2 = np.where(slot == k1, s2 / (cover * cover), s2)
+    ratio = np.divide(barriers.reference ** 2, s2, out=np.full(s2.shape, np.inf), where=s2 > 0)
+    h = np.where(np.isfinite(ratio), np.frexp(np.where(np.isfinite(ratio), ratio, 1.0))[1] - 1, M - 1)
+    row = np.clip(h, -1, M - 1) + 1
+    out[0] = s2.max()
+    z_only = slot == K
+    out[1] = s2[z_only].max() if z_only.any() else 0.0
+    sa = out[2:2 + M + 1]
+    np.maximum.at(sa, row[~z_only], s2[~z_only])
+    sb = np.zeros((M + 1, K))
+    np.maximum.at(sb, (row[~z_only], slot[~z_only]), value2[~z_only])
+    out[2 + M + 1:] = sb.ravel()
     return out

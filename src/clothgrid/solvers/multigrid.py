@@ -189,8 +189,8 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
                        _barrier_solver(problem, backend, levels))
     # The band barriers' bound (solvers.bounds) where the weights and the backend allow it
-    bands = BandBarriers.for_grid(nu, nv) if (stop == "error" and problem.weights.unit_stencil
-                                              and hasattr(ops, "band_steps")) else None
+    bands = (BandBarriers.for_grid(nu, nv, tol * problem.scale / zmax)
+             if stop == "error" and problem.weights.unit_stencil and hasattr(ops, "band_steps") else None)
 
     method = "max step"
 
@@ -201,7 +201,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
             got = ops.band_steps(bands)
             if got is not None:
                 method = "band barriers"
-                return float(got[-1]), bands.bound(got)
+                return math.sqrt(got[0]), bands.bound(got)
         step = ops.max_step()
         return step, step * (zmax if stop == "error" else 1.0)
 
