@@ -28,8 +28,9 @@ SOLVERS = {"direct": solve_direct, "fdm": solve_fdm, "jacobi": solve_jacobi, "mu
 
 
 # Largest grids (nodes) where the exact solvers are the default on the CPU. fdm's solve is slower
-# than multigrid's from about 192x192 on (warm, 2 cores: 26 ms against 9 ms at 256x256, 99 against
-# 37 ms at 512x512, 302 against 132 ms at 1024x1024; docs/performance.md), but multigrid's first
+# than multigrid's from about 200x200 on (warm, 2 cores, T-shirt front, paper weights: 16 against
+# 6.5 ms at 257x257, 72 against 20 ms at 513x513, 302 against 70 ms at 1024x1024; 2026-11-26,
+# docs/performance.md), but multigrid's first
 # use in a process loads Numba and its kernels (about 0.35 s), which a length grid of up to
 # 512x512 does not otherwise need; larger grids load Numba anyway (the quality kernel), and every
 # real pattern piece at its default edge length stays on the exact solve.
