@@ -1,0 +1,85 @@
+"""How far each a-posteriori error bound is from the true error after a few multigrid cycles.
+
+    python benchmarks/bound_quality.py [--size 513] [--cycles 1 2 3]
+
+For the bundled T-shirt front and every classic region with corners in ``../shared/regions``
+(resampled to ``size x size``), paper and uniform weights: the multigrid solve stopped after 1, 2,
+3 V-cycles, its true error against SciPy's sparse direct solve, and two bounds on it, both
+relative to the piece's size: ``max|s| max z`` and the band barriers' bound
+(``solvers/bounds.py``). Prints one row per piece, weights and cycle count, then the spread of the
+ratios bound / true error. Every bound must be at least the true error; the script fails
+otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import clothgrid
+from clothgrid.backends import get_backend
+from clothgrid.backends._cpu_multigrid import CpuMultigrid
+from clothgrid.initial import initial_grid
+from clothgrid.solvers import Problem, solve
+from clothgrid.weights import make_weights
+
+ROOT = Path(__file__).resolve().parents[1]
+PIECE = ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json"
+REGIONS = ROOT.parent / "shared" / "regions"
+
+
+def pieces() -> list[Path]:
+    found = [p for p in sorted(REGIONS.glob("*.json")) if "corners" in json.loads(p.read_text())]
+    return [PIECE] + found
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=513)
+    ap.add_argument("--cycles", type=int, nargs="+", default=[1, 2, 3])
+    args = ap.parse_args()
+    n, cpu = args.size, get_backend("cpu")
+    ratios: dict[str, list[float]] = {"max step": [], "band barriers": []}
+    print(f"| piece | weights | V-cycles | true error | max|s| max z (x true) | band barriers (x true) |")
+    print("|---|---|---|---|---|---|")
+    plain_steps = CpuMultigrid.band_steps
+    for path in pieces():
+        b = clothgrid.load_boundary(path).resampled(n, n)
+        r = initial_grid(b, "tfi")
+        for weights in ("paper", "uniform"):
+            w = make_weights(weights, n, n)
+            exact = solve(Problem(r.copy(), w, b.size), "direct", backend=cpu, tol=2.0**-12)[1].points
+            for cycles in args.cycles:
+                row = {}
+                for method in ("band barriers", "max step"):
+                    if method == "max step":
+                        CpuMultigrid.band_steps = lambda self, barriers: None
+                    try:
+                        res = solve(Problem(r.copy(), w, b.size), "multigrid", backend=cpu, tol=1e-30,
+                                    max_iter=cycles)[1]
+                    finally:
+                        CpuMultigrid.band_steps = plain_steps
+                    assert res.extra["bound_method"] == method
+                    err = float(np.linalg.norm(res.points - exact, axis=-1).max()) / b.size
+                    if err > res.error_estimate:
+                        print(f"{path.stem} {weights} {cycles}: bound {res.error_estimate:.3g} below the true "
+                              f"error {err:.3g}", file=sys.stderr)
+                        return 1
+                    row[method] = (err, res.error_estimate)
+                err = row["band barriers"][0]
+                for method, (e, bound) in row.items():
+                    ratios[method].append(bound / e)
+                print(f"| {path.stem} | {weights} | {cycles} | {err:.2e} | {row['max step'][1]:.2e} "
+                      f"({row['max step'][1] / row['max step'][0]:.0f}x) | {row['band barriers'][1]:.2e} "
+                      f"({row['band barriers'][1] / err:.0f}x) |", flush=True)
+    for method, rs in ratios.items():
+        print(f"{method}: bound / true error {min(rs):.1f} to {max(rs):.0f}x, median {np.median(rs):.0f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
