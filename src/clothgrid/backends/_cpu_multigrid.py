@@ -596,9 +596,14 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
     M = nbuckets
     off = 2 + M + 1
     tabs = np.zeros((rows.shape[0], off + (M + 1) * nb))     # one table a thread (rows: one a thread)
+    fref = np.empty(1)
+    fref[0] = ref2
+    eref = (fref.view(np.int64)[0] >> 52) & 0x7FF
     for i in numba.prange(1, nu - 1):
         s2 = rows[numba.get_thread_id()]
         out = tabs[numba.get_thread_id()]
+        fbits = np.empty(1)
+        ibits = fbits.view(np.int64)
         ni = nn[i]
         kui = ku[i]
         for p in range(2):
@@ -627,36 +632,39 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
                         s2[q] += r * r
             for q in range(n):
                 d = 2.0 * (e[q] + ni)
-                v = s2[q] / (d * d)
+                s2[q] = s2[q] / (d * d)
+            for q in range(n):
+                v = s2[q]
                 if v > out[0]:
                     out[0] = v
                 kvq = kv[q]
                 k1 = min(kui, kvq)
-                k2 = max(kui, kvq)
-                slot = nb
-                cover = 1.0
-                if k1 < nb:
-                    cover = ((e[q] if kui == k1 else 0.0) + (ni if kvq == k1 else 0.0)) / (e[q] + ni)
-                    c1 = cost[k1] / cover
-                    c2 = cost[k2] if (k2 < nb and k2 != k1) else np.inf
-                    if c1 < zmax and c1 <= c2:
-                        slot = k1
-                    elif c2 < zmax:
-                        slot = k2
-                        cover = 1.0
-                if slot == nb:
+                if k1 >= nb:                    # in no band: z's
                     if v > out[1]:
                         out[1] = v
                     continue
-                h = M - 1
-                if v > 0.0:
-                    ratio = ref2 / v
-                    if ratio < np.inf:
-                        h = min(max(math.frexp(ratio)[1] - 1, -1), M - 1)
-                row = h + 1
+                k2 = max(kui, kvq)
+                # coverage num / den; the cheapest barrier by cross-multiplied costs
+                den = e[q] + ni
+                num = (e[q] if kui == k1 else 0.0) + (ni if kvq == k1 else 0.0)
+                c1 = cost[k1] * den             # times num: band k1's cost
+                slot = k1
+                if k2 < nb and k2 != k1 and cost[k2] * num < c1:
+                    slot = k2
+                    num = den
+                    c1 = cost[k2] * den
+                if not c1 < zmax * num:         # z is cheaper
+                    if v > out[1]:
+                        out[1] = v
+                    continue
+                # bucket by the binary exponents (any bucket keeps the bound rigorous: alpha and
+                # beta are the exact maxima of whatever their nodes are)
+                fbits[0] = v
+                h = eref - ((ibits[0] >> 52) & 0x7FF)
+                row = min(max(h, -1), M - 1) + 1
                 if v > out[2 + row]:
                     out[2 + row] = v
-                w2 = v / (cover * cover)
+                w2 = v if num == den else v * (den * den) / (num * num)
                 col = off + row * nb + slot
                 if w2 > out[col]:
                     out[col] = w2

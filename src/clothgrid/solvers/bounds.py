@@ -174,17 +174,24 @@ class BandBarriers:
         return alpha * self.zmax + float(beta @ self.cost)
 
 
+def _exponent(x: Any) -> Any:
+    """The biased binary exponent field of float64 ``x`` (0 for zero and subnormals)."""
+    return (np.asarray(x, dtype=np.float64).view(np.int64) >> 52) & 0x7FF
+
+
 def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.ndarray:
     """What :meth:`BandBarriers.bound` needs of a grid, in NumPy (the reference of the kernels).
 
     For ``s = D^-1 (b - A R)`` of ``points`` (``(nu, nv, k)``, zero right-hand side) with the
     unit-stencil ``weights`` (:class:`~clothgrid.weights.Weights`), a flat table of squares:
     ``max s^2``; the largest ``s^2`` of the nodes only ``z`` can take; then, by half-octave
-    bucket ``h`` of ``s`` below the reference (``h = floor(log2(reference^2 / s^2))`` held to
-    ``-1 .. THRESHOLDS - 1``, stored at ``h + 1``), the largest ``s^2`` of the other nodes, and
-    for each band the largest ``s^2 / coverage^2`` of the nodes of that bucket that band takes.
-    A node's band is the cheaper of its narrowest band (its coverage there) and the band holding
-    it in both directions (coverage 1), cost ``2 w^2 / coverage``, if cheaper than ``max z``.
+    bucket ``h`` of ``s`` below the reference (the binary exponent of ``reference^2`` less that
+    of ``s^2``, held to ``-1 .. THRESHOLDS - 1``, stored at ``h + 1``), the largest ``s^2`` of
+    the other nodes, and for each band the largest ``s^2 / coverage^2`` of the nodes of that
+    bucket that band takes. A node's band is the cheaper of its narrowest band (its coverage
+    there) and the band holding it in both directions (coverage 1), cost ``2 w^2 / coverage``,
+    if cheaper than ``max z``. (Which bucket a node falls in only steers the choice of
+    threshold: ``alpha`` and ``beta`` are exact maxima of the nodes charged to them.)
     """
     from ..backends.cpu import interior_diagonal, residual
 
@@ -198,13 +205,17 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
     ku, kv = np.broadcast_arrays(barriers.ku[1:-1, None], barriers.kv[None, 1:-1])
     k1, k2 = np.minimum(ku, kv), np.maximum(ku, kv)
     cost = np.append(barriers.cost, np.inf)
-    cover = np.where(k1 < K, (a * (ku == k1) + b * (kv == k1)) / (a + b), 1.0)
-    c1 = np.where(k1 < K, cost[k1] / cover, np.inf)
-    c2 = np.where((k2 < K) & (k2 != k1), cost[np.minimum(k2, K)], np.inf)
-    slot = np.where((c1 < barriers.zmax) & (c1 <= c2), k1, np.where(c2 < barriers.zmax, k2, K))
-    value2 = np.where(slot == k1, s2 / (cover * cover), s2)
-    ratio = np.divide(barriers.reference ** 2, s2, out=np.full(s2.shape, np.inf), where=s2 > 0)
-    h = np.where(np.isfinite(ratio), np.frexp(np.where(np.isfinite(ratio), ratio, 1.0))[1] - 1, M - 1)
+    # coverage num / den; costs compared cross-multiplied, as the kernels do
+    den = a + b
+    num = a * (ku == k1) + b * (kv == k1)
+    both = (k2 < K) & (k2 != k1)
+    take2 = both & (cost[np.minimum(k2, K)] * num < cost[np.minimum(k1, K)] * den)
+    num = np.where(take2, den, num)
+    slot = np.where(take2, k2, k1)
+    band = (k1 < K) & (cost[np.minimum(slot, K)] * den < barriers.zmax * num)
+    slot = np.where(band, slot, K)
+    value2 = np.where(num == den, s2, s2 * (den * den) / np.where(num > 0, num * num, 1.0))
+    h = _exponent(np.float64(barriers.reference) ** 2) - _exponent(s2)
     row = np.clip(h, -1, M - 1) + 1
     out[0] = s2.max()
     z_only = slot == K
