@@ -133,8 +133,9 @@ def _corner_sine(X, p, q, r):
 
 @njit(cache=True)
 def _sines_around(X, i, j, out):
-    """The corner sines of the (up to) four cells around node (i, j) into ``out`` (16; 2.0 where
-    there is no such corner or it is a grid corner, whose angle is the outline's)."""
+    """The corner sines of the (up to) four cells around node (i, j) that move with it into ``out``
+    (16; 2.0 where there is no such corner, where it is a grid corner, whose angle is the
+    outline's, and at each cell's corner opposite the node, whose sine the node does not change)."""
     nu, nv = X.shape[0], X.shape[1]
     m = 0
     for ci in range(i - 1, i + 1):
@@ -143,7 +144,8 @@ def _sines_around(X, i, j, out):
             c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
             for k in range(4):
                 q = c[k]
-                if not inside or ((q[0] == 0 or q[0] == nu - 1) and (q[1] == 0 or q[1] == nv - 1)):
+                if (not inside or ((q[0] == 0 or q[0] == nu - 1) and (q[1] == 0 or q[1] == nv - 1))
+                        or (q[0] != i and q[1] != j)):
                     out[m] = 2.0
                 else:
                     out[m] = _corner_sine(X, c[(k + 3) % 4], q, c[(k + 1) % 4])

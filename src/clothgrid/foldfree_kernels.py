@@ -33,84 +33,94 @@ _DI = np.array([0, 1, 1, 0], dtype=np.int64)
 _DJ = np.array([0, 0, 1, 1], dtype=np.int64)
 
 
+@njit(cache=True, inline="always")
+def _tri(x0, y0, x1, y1, x3, y3, d4, kind, want):
+    """One corner triangle (apex (x0, y0), edges a, b to (x1, y1), (x3, y3)): its energy and, if
+    ``want``, gradient and Hessian terms in the moving node (``kind``: 0 the apex, 1 the end of a,
+    2 the end of b). Energy inf if inverted beyond the regularisation (D <= 0)."""
+    ax = x1 - x0
+    ay = y1 - y0
+    bx = x3 - x0
+    by = y3 - y0
+    J = ax * by - ay * bx
+    N = ax * ax + ay * ay + bx * bx + by * by
+    s = np.sqrt(J * J + d4)
+    D = J + s
+    if D <= 0.0:
+        return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
+    f = N / D
+    if not want:
+        return f, 0.0, 0.0, 0.0, 0.0, 0.0
+    if kind == 0:
+        nx = -2.0 * (ax + bx)
+        ny = -2.0 * (ay + by)
+        h2 = 4.0
+        jx = ay - by
+        jy = bx - ax
+    elif kind == 1:
+        nx = 2.0 * ax
+        ny = 2.0 * ay
+        h2 = 2.0
+        jx = by
+        jy = -bx
+    else:
+        nx = 2.0 * bx
+        ny = 2.0 * by
+        h2 = 2.0
+        jx = -ay
+        jy = ax
+    Dp = 1.0 + J / s
+    Dpp = d4 / (s * s * s)
+    gx = nx / D - N * Dp / (D * D) * jx
+    gy = ny / D - N * Dp / (D * D) * jy
+    cjj = 2.0 * N * Dp * Dp / (D * D * D) - N * Dpp / (D * D)
+    cnj = Dp / (D * D)
+    hxx = h2 / D - cnj * 2.0 * nx * jx + cjj * jx * jx
+    hyy = h2 / D - cnj * 2.0 * ny * jy + cjj * jy * jy
+    hxy = -cnj * (nx * jy + jx * ny) + cjj * jx * jy
+    return f, gx, gy, hxx, hxy, hyy
+
+
 @njit(cache=True, fastmath=False)
 def _node_energy(X, i, j, px, py, d4, want):
-    """Energy of the 4 cells around node (i, j) with the node at (px, py); gradient, Hessian if want."""
-    E = 0.0
-    gx = 0.0
-    gy = 0.0
-    hxx = 0.0
-    hxy = 0.0
-    hyy = 0.0
+    """Energy of the 4 cells around node (i, j) with the node at (px, py); gradient, Hessian if want.
+
+    Cells (i-1, j-1), (i, j-1), (i-1, j), (i, j) in turn; in each (corners p, n, o, q counter-
+    clockwise from the node p) the three corner triangles that hold p: apex q (p ends a), apex p,
+    apex n (p ends b). The sums run in that order."""
+    ex, ey = X[i + 1, j, 0], X[i + 1, j, 1]
+    wx, wy = X[i - 1, j, 0], X[i - 1, j, 1]
+    nx, ny = X[i, j + 1, 0], X[i, j + 1, 1]
+    sx, sy = X[i, j - 1, 0], X[i, j - 1, 1]
+    E = gx = gy = hxx = hxy = hyy = 0.0
     for c in range(4):
-        ci = i - 1 + (c & 1)
-        cj = j - 1 + (c >> 1)
-        # local index m of the node in this cell
-        m = -1
-        for k in range(4):
-            if ci + _DI[k] == i and cj + _DJ[k] == j:
-                m = k
-        for t in range(3):          # the three corners whose triangle holds the node
-            k = (m + t - 1) % 4     # m-1 (node is a's end), m (apex), m+1 (node is b's end)
-            k1 = (k + 1) % 4
-            k3 = (k + 3) % 4
-            # corner points, with the node replaced by (px, py)
-            if k == m:
-                x0, y0 = px, py
+        if c == 0:
+            n_x, n_y, q_x, q_y = wx, wy, sx, sy
+            o_x, o_y = X[i - 1, j - 1, 0], X[i - 1, j - 1, 1]
+        elif c == 1:
+            n_x, n_y, q_x, q_y = sx, sy, ex, ey
+            o_x, o_y = X[i + 1, j - 1, 0], X[i + 1, j - 1, 1]
+        elif c == 2:
+            n_x, n_y, q_x, q_y = nx, ny, wx, wy
+            o_x, o_y = X[i - 1, j + 1, 0], X[i - 1, j + 1, 1]
+        else:
+            n_x, n_y, q_x, q_y = ex, ey, nx, ny
+            o_x, o_y = X[i + 1, j + 1, 0], X[i + 1, j + 1, 1]
+        for t in range(3):
+            if t == 0:
+                f, a1, a2, a3, a4, a5 = _tri(q_x, q_y, px, py, o_x, o_y, d4, 1, want)
+            elif t == 1:
+                f, a1, a2, a3, a4, a5 = _tri(px, py, n_x, n_y, q_x, q_y, d4, 0, want)
             else:
-                x0 = X[ci + _DI[k], cj + _DJ[k], 0]
-                y0 = X[ci + _DI[k], cj + _DJ[k], 1]
-            if k1 == m:
-                x1, y1 = px, py
-            else:
-                x1 = X[ci + _DI[k1], cj + _DJ[k1], 0]
-                y1 = X[ci + _DI[k1], cj + _DJ[k1], 1]
-            if k3 == m:
-                x3, y3 = px, py
-            else:
-                x3 = X[ci + _DI[k3], cj + _DJ[k3], 0]
-                y3 = X[ci + _DI[k3], cj + _DJ[k3], 1]
-            ax = x1 - x0
-            ay = y1 - y0
-            bx = x3 - x0
-            by = y3 - y0
-            J = ax * by - ay * bx
-            N = ax * ax + ay * ay + bx * bx + by * by
-            s = np.sqrt(J * J + d4)
-            D = J + s
-            if D <= 0.0:
+                f, a1, a2, a3, a4, a5 = _tri(n_x, n_y, o_x, o_y, px, py, d4, 2, want)
+            if f == np.inf:
                 return np.inf, 0.0, 0.0, 0.0, 0.0, 0.0
-            f = N / D
             E += f
-            if not want:
-                continue
-            if k == m:          # apex: a = P1 - p, b = P3 - p
-                nx = -2.0 * (ax + bx)
-                ny = -2.0 * (ay + by)
-                h2 = 4.0
-                jx = ay - by
-                jy = bx - ax
-            elif k1 == m:       # a = p - P0
-                nx = 2.0 * ax
-                ny = 2.0 * ay
-                h2 = 2.0
-                jx = by
-                jy = -bx
-            else:               # b = p - P0
-                nx = 2.0 * bx
-                ny = 2.0 * by
-                h2 = 2.0
-                jx = -ay
-                jy = ax
-            Dp = 1.0 + J / s
-            Dpp = d4 / (s * s * s)
-            gx += nx / D - N * Dp / (D * D) * jx
-            gy += ny / D - N * Dp / (D * D) * jy
-            cjj = 2.0 * N * Dp * Dp / (D * D * D) - N * Dpp / (D * D)
-            cnj = Dp / (D * D)
-            hxx += h2 / D - cnj * 2.0 * nx * jx + cjj * jx * jx
-            hyy += h2 / D - cnj * 2.0 * ny * jy + cjj * jy * jy
-            hxy += -cnj * (nx * jy + jx * ny) + cjj * jx * jy
+            gx += a1
+            gy += a2
+            hxx += a3
+            hxy += a4
+            hyy += a5
     return E, gx, gy, hxx, hxy, hyy
 
 
