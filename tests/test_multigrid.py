@@ -365,9 +365,11 @@ def band_profile(n, w):
 @pytest.mark.parametrize("kind", ["paper", "uniform", "random"])
 @pytest.mark.parametrize("shape", [(5, 6), (37, 29), (64, 65), (130, 41)])
 def test_band_bound_is_the_maximum_of_a_supersolution(rng, kind, shape):
-    """The bound alpha max z + sum beta_k 2 w_k^2 is the maximum of W = alpha z + sum beta_k B_k,
-    and W is a supersolution: D^-1 A W >= |s| at every interior node, W >= 0 on the boundary.
-    Checked on rough random grids (any s) and on residuals that peak at the boundary."""
+    """The bound alpha max z + sum (beta_k + gamma_k) w_k^2 is the maximum of
+    W = alpha z + sum beta_k U_k + gamma_k V_k (U_k = F(i), V_k = F(j), band profiles written
+    afresh here), and W is a supersolution: D^-1 A W >= |s| at every interior node, W >= 0 on
+    the boundary. Checked on rough random grids (any s) and on residuals that peak at the
+    boundary, for several reference levels (the threshold choice)."""
     from clothgrid.backends.cpu import interior_diagonal, residual
     from clothgrid.solvers.bounds import BandBarriers, band_steps
 
@@ -389,10 +391,10 @@ def test_band_bound_is_the_maximum_of_a_supersolution(rng, kind, shape):
             bands = BandBarriers.for_grid(nu, nv, reference)
             st = band_steps(x, w, bands)
             assert st[0] == pytest.approx(s.max() ** 2, rel=1e-12)
-            alpha, beta = bands.coefficients(st)
-            widths = np.sqrt(bands.cost / 2.0).round().astype(int)
-            field = alpha * z + sum(b * (band_profile(nu, wk)[:, None] + band_profile(nv, wk)[None, :])
-                                    for b, wk in zip(beta, widths))
+            alpha, beta, gamma = bands.coefficients(st)
+            widths = np.sqrt(bands.cost).round().astype(int)
+            field = alpha * z + sum(bu * band_profile(nu, wk)[:, None] + bv * band_profile(nv, wk)[None, :]
+                                    for bu, bv, wk in zip(beta, gamma, widths))
             lifted = -residual(field[..., None], wu, wv)[..., 0] / interior_diagonal(wu, wv)   # D^-1 A W
             assert np.all(lifted >= s * (1 - 1e-9))
             ring = np.concatenate([field[0], field[-1], field[:, 0], field[:, -1]])

@@ -589,13 +589,13 @@ def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
 def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cost, zmax, ref2, nbuckets):
     """:func:`clothgrid.solvers.bounds.band_steps`' table for a unit-stencil level 0 (the residual
     as in :func:`_max_step5u`). ``ku`` the band of each line ``i``; ``kve``, ``kvo`` of each line
-    ``j`` of either parity; ``cost`` the bands' ``2 w^2``; ``ref2`` the reference level squared;
+    ``j`` of either parity; ``cost`` the bands' ``w^2``; ``ref2`` the reference level squared;
     ``nbuckets`` the barriers' ``buckets``."""
     k, nu = xe.shape[0], xe.shape[1]
     nb = cost.shape[0]
     M = nbuckets
     off = 2 + M + 1
-    tabs = np.zeros((rows.shape[0], off + (M + 1) * nb))     # one table a thread (rows: one a thread)
+    tabs = np.zeros((rows.shape[0], off + (M + 1) * 2 * nb))     # one table a thread (rows: one a thread)
     fref = np.empty(1)
     fref[0] = ref2
     eref = (fref.view(np.int64)[0] >> 52) & 0x7FF
@@ -638,37 +638,47 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
                 if v > out[0]:
                     out[0] = v
                 kvq = kv[q]
-                k1 = min(kui, kvq)
-                if k1 >= nb:                    # in no band: z's
+                if kui >= nb and kvq >= nb:     # in no band: z's
                     if v > out[1]:
                         out[1] = v
                     continue
-                k2 = max(kui, kvq)
-                # coverage num / den; the cheapest barrier by cross-multiplied costs
-                den = e[q] + ni
-                num = (e[q] if kui == k1 else 0.0) + (ni if kvq == k1 else 0.0)
-                c1 = cost[k1] * den             # times num: band k1's cost
-                slot = k1
-                if k2 < nb and k2 != k1 and cost[k2] * num < c1:
-                    slot = k2
-                    num = den
-                    c1 = cost[k2] * den
-                if not c1 < zmax * num:         # z is cheaper
+                # the cheapest barrier, costs cross-multiplied by a b (module bounds' options)
+                ea = e[q]
+                den = ea + ni
+                cu = cost[kui] if kui < nb else np.inf
+                cv = cost[kvq] if kvq < nb else np.inf
+                choice = 0
+                best = cu * den * ni
+                c = cv * den * ea
+                if c < best:
+                    choice, best = 1, c
+                c = (cu + cv) * ea * ni
+                if c < best:
+                    choice, best = 2, c
+                if zmax * ea * ni < best:       # z is cheaper
                     if v > out[1]:
                         out[1] = v
                     continue
-                # bucket by the binary exponents (any bucket keeps the bound rigorous: alpha and
-                # beta are the exact maxima of whatever their nodes are)
                 fbits[0] = v
                 h = eref - ((ibits[0] >> 52) & 0x7FF)
                 row = min(max(h, -1), M - 1) + 1
                 if v > out[2 + row]:
                     out[2 + row] = v
-                w2 = v if num == den else v * (den * den) / (num * num)
-                col = off + row * nb + slot
-                if w2 > out[col]:
-                    out[col] = w2
-    res = np.zeros(off + (M + 1) * nb)
+                base = off + row * 2 * nb
+                if choice == 0:
+                    w2 = v * (den / ea) ** 2
+                    if w2 > out[base + kui]:
+                        out[base + kui] = w2
+                elif choice == 1:
+                    w2 = v * (den / ni) ** 2
+                    if w2 > out[base + nb + kvq]:
+                        out[base + nb + kvq] = w2
+                else:
+                    if v > out[base + kui]:
+                        out[base + kui] = v
+                    if v > out[base + nb + kvq]:
+                        out[base + nb + kvq] = v
+    res = np.zeros(off + (M + 1) * 2 * nb)
     for t in range(tabs.shape[0]):
         for m in range(res.shape[0]):
             res[m] = max(res[m], tabs[t, m])

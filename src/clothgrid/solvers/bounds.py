@@ -17,22 +17,23 @@ over from one coordinate to the 3-vector).
 hundreds to 10^5 times the true error, because ``s`` peaks within a few lines of
 the boundary, where the error's real sensitivity to it is small. Any ``W >= 0``
 on the boundary with ``D^-1 A W >= |s|`` bounds the error node by node (the same
-maximum principle), and for a band of width ``w`` (lines ``1 .. w-1`` from each
-side) the function ``B_w[i, j] = F(i) + F(j)``, ``F(t) = min(phi(t), phi(n-1-t))``,
-``phi(t) = t (2w - t)`` up to ``w`` and ``w^2`` beyond, is concave along each line,
-so ``D^-1 A B_w >= (a [i in band] + b [j in band]) / (a + b)`` (``a``, ``b`` the
-node's couplings along ``i`` and ``j``), and ``max B_w = 2 w^2``. Each node is
-charged to the cheapest of: ``z`` (cost ``max z``), its narrowest band (cost
-``2 w^2`` over that coverage) or the band holding it in both directions (cost
-``2 w^2``), and
+maximum principle). For a band of width ``w`` (lines ``1 .. w-1`` from each side)
+the profile ``F(t) = min(phi(t), phi(n-1-t))``, ``phi(t) = t (2w - t)`` up to ``w``
+and ``w^2`` beyond, is concave, so ``U_w[i, j] = F(i)`` has
+``D^-1 A U_w >= a / (a + b)`` on the lines ``i`` of the band and ``>= 0`` elsewhere,
+and ``V_w[i, j] = F(j)`` likewise with ``b / (a + b)`` (``a``, ``b`` the node's
+couplings along ``i`` and ``j``); ``max U_w = max V_w = w^2``. Each node is charged
+to the cheapest of: ``z`` (cost ``max z``); ``U`` of its narrowest band along ``i``
+(cost ``w^2 (a + b) / a``); ``V`` of its narrowest along ``j`` (``w^2 (a + b) / b``);
+both of those at once (coverage 1, cost ``w_i^2 + w_j^2``); and
 
-    |R* - R| <= alpha max z + sum_k beta_k 2 w_k^2,
+    |R* - R| <= alpha max z + sum_k (beta_k + gamma_k) w_k^2,
 
-``alpha`` the largest ``|s|`` charged to ``z`` and ``beta_k`` the largest
-``|s| / coverage`` charged to band ``k`` (widths 2, 4, 8, ...). On the T-shirt
-front at 1024^2 this is 160-250x the true error with the paper's weights and
-about 100x with uniform ones, against 800-3600x and 10^5x for ``max|s| max z``;
-the solve stops one to three V-cycles sooner (docs/performance.md).
+``alpha`` the largest ``|s|`` charged to ``z``, ``beta_k`` (``gamma_k``) the largest
+``|s| / coverage`` charged to ``U`` (``V``) of band ``k`` (widths 2, 4, 8, ...).
+``z`` also takes every node below a threshold (free while ``alpha`` is above it),
+chosen over half-octave buckets of ``|s|`` collected in the same pass. The bound
+is never above ``max|s| max z``; ``docs/accuracy.md`` has its figures.
 """
 
 from __future__ import annotations
@@ -99,8 +100,8 @@ class BandBarriers:
     zmax : float
         ``max z`` of the whole-grid barrier.
     cost : numpy.ndarray
-        ``(K,)`` float64: ``2 w_k^2``, the largest value of band ``k``'s barrier
-        (widths ``w_k = 2, 4, 8, ...`` up to ``(min(nu, nv) - 1) / 2``).
+        ``(K,)`` float64: ``w_k^2``, the largest value of band ``k``'s barriers
+        ``U`` and ``V`` (widths ``w_k = 2, 4, 8, ...`` up to ``(min(nu, nv) - 1) / 2``).
     ku, kv : numpy.ndarray
         ``(nu,)`` and ``(nv,)`` int64: the narrowest band holding line ``i``
         (``j``), ``K`` for none.
@@ -132,7 +133,7 @@ class BandBarriers:
 
         if not (reference > 0 and np.isfinite(reference)):
             raise ValueError(f"the reference level must be positive and finite, not {reference!r}")
-        return cls(_analytic_barrier_max(nu, nv), 2.0 * wk.astype(np.float64) ** 2, band(nu), band(nv),
+        return cls(_analytic_barrier_max(nu, nv), wk.astype(np.float64) ** 2, band(nu), band(nv),
                    float(reference))
 
     @property
@@ -147,31 +148,32 @@ class BandBarriers:
     @property
     def table_size(self) -> int:
         """Length of :func:`band_steps`' answer."""
-        return 2 + (THRESHOLDS + 1) * (self.bands + 1)
+        return 2 + (THRESHOLDS + 1) * (2 * self.bands + 1)
 
-    def coefficients(self, table: np.ndarray) -> tuple[float, np.ndarray]:
-        """``(alpha, beta)`` of the least bound from :func:`band_steps`' table: over the thresholds
-        ``reference * 2^(-m/2)`` (``z`` takes every node below it) and none, and the plain
-        ``(max|s|, 0)``. ``W = alpha z + sum_k beta_k B_k`` is then a supersolution."""
+    def coefficients(self, table: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """``(alpha, beta, gamma)`` of the least bound from :func:`band_steps`' table: over the
+        thresholds ``reference * 2^(-m/2)`` (``z`` takes every node below it) and none, and the
+        plain ``(max|s|, 0, 0)``. ``W = alpha z + sum_k beta_k U_k + gamma_k V_k`` is then a
+        supersolution."""
         K, M = self.bands, THRESHOLDS
         smax2, base2 = float(table[0]), float(table[1])
         sa = table[2:2 + M + 1]                             # bucket h + 1: max s^2 of the nodes a band could take
-        sb = table[2 + M + 1:].reshape(M + 1, K)            # ... their s^2 / coverage^2 in the band they would take
+        sb = table[2 + M + 1:].reshape(M + 1, 2 * K)        # ... their s^2 / coverage^2 in U_k (k < K), V_k
         # z takes the buckets from row r on (r = 0 .. M + 1; M + 1: none of them), the bands the rows before
         alpha2 = np.maximum(base2, np.maximum.accumulate(np.append(sa, 0.0)[::-1])[::-1])
-        beta2 = np.vstack([np.zeros((1, K)), np.maximum.accumulate(sb, axis=0)])
+        beta2 = np.vstack([np.zeros((1, 2 * K)), np.maximum.accumulate(sb, axis=0)])
         alpha, beta = np.sqrt(alpha2), np.sqrt(beta2)
-        totals = alpha * self.zmax + beta @ self.cost
+        totals = alpha * self.zmax + beta @ np.concatenate([self.cost, self.cost])
         r = int(np.argmin(totals))
         if not totals[r] < np.sqrt(smax2) * self.zmax:
-            return float(np.sqrt(smax2)), np.zeros(K)
-        return float(alpha[r]), beta[r].copy()
+            return float(np.sqrt(smax2)), np.zeros(K), np.zeros(K)
+        return float(alpha[r]), beta[r, :K].copy(), beta[r, K:].copy()
 
     def bound(self, table: np.ndarray) -> float:
-        """The error bound (absolute) from :func:`band_steps`' table: ``alpha max z + sum_k beta_k
-        2 w_k^2`` of :meth:`coefficients`, never above ``max|s| max z``."""
-        alpha, beta = self.coefficients(table)
-        return alpha * self.zmax + float(beta @ self.cost)
+        """The error bound (absolute) from :func:`band_steps`' table: ``alpha max z + sum_k
+        (beta_k + gamma_k) w_k^2`` of :meth:`coefficients`, never above ``max|s| max z``."""
+        alpha, beta, gamma = self.coefficients(table)
+        return alpha * self.zmax + float((beta + gamma) @ self.cost)
 
 
 def _exponent(x: Any) -> Any:
@@ -184,14 +186,14 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
 
     For ``s = D^-1 (b - A R)`` of ``points`` (``(nu, nv, k)``, zero right-hand side) with the
     unit-stencil ``weights`` (:class:`~clothgrid.weights.Weights`), a flat table of squares:
-    ``max s^2``; the largest ``s^2`` of the nodes only ``z`` can take; then, by half-octave
+    ``max s^2``; the largest ``s^2`` of the nodes only ``z`` takes; then, by half-octave
     bucket ``h`` of ``s`` below the reference (the binary exponent of ``reference^2`` less that
     of ``s^2``, held to ``-1 .. THRESHOLDS - 1``, stored at ``h + 1``), the largest ``s^2`` of
-    the other nodes, and for each band the largest ``s^2 / coverage^2`` of the nodes of that
-    bucket that band takes. A node's band is the cheaper of its narrowest band (its coverage
-    there) and the band holding it in both directions (coverage 1), cost ``2 w^2 / coverage``,
-    if cheaper than ``max z``. (Which bucket a node falls in only steers the choice of
-    threshold: ``alpha`` and ``beta`` are exact maxima of the nodes charged to them.)
+    the other nodes, and for each barrier ``U_0 .. U_{K-1}, V_0 .. V_{K-1}`` the largest
+    ``s^2 / coverage^2`` of the nodes of that bucket charged to it. A node is charged to the
+    cheapest of the options in the module docstring (costs compared cross-multiplied by
+    ``a b``, as the kernels do). (Which bucket a node falls in only steers the choice of
+    threshold: the coefficients are exact maxima of the nodes charged to them.)
     """
     from ..backends.cpu import interior_diagonal, residual
 
@@ -203,26 +205,24 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
     s2 = np.sum(residual(points, wu, wv) ** 2, axis=-1) / interior_diagonal(wu, wv) ** 2
     a, b = wu[1:, 1:-1], wv[1:-1, 1:]                         # the couplings along i and along j
     ku, kv = np.broadcast_arrays(barriers.ku[1:-1, None], barriers.kv[None, 1:-1])
-    k1, k2 = np.minimum(ku, kv), np.maximum(ku, kv)
     cost = np.append(barriers.cost, np.inf)
-    # coverage num / den; costs compared cross-multiplied, as the kernels do
+    cu, cv = cost[ku], cost[kv]
     den = a + b
-    num = a * (ku == k1) + b * (kv == k1)
-    both = (k2 < K) & (k2 != k1)
-    take2 = both & (cost[np.minimum(k2, K)] * num < cost[np.minimum(k1, K)] * den)
-    num = np.where(take2, den, num)
-    slot = np.where(take2, k2, k1)
-    band = (k1 < K) & (cost[np.minimum(slot, K)] * den < barriers.zmax * num)
-    slot = np.where(band, slot, K)
-    value2 = np.where(num == den, s2, s2 * (den * den) / np.where(num > 0, num * num, 1.0))
+    options = np.stack([cu * den * b,                        # U of the band along i
+                        cv * den * a,                        # V of the band along j
+                        (cu + cv) * a * b,                   # both
+                        np.full(s2.shape, barriers.zmax) * a * b])     # z
+    choice = np.argmin(options, axis=0)                       # ties: the first
     h = _exponent(np.float64(barriers.reference) ** 2) - _exponent(s2)
     row = np.clip(h, -1, M - 1) + 1
     out[0] = s2.max()
-    z_only = slot == K
+    z_only = choice == 3
     out[1] = s2[z_only].max() if z_only.any() else 0.0
-    sa = out[2:2 + M + 1]
-    np.maximum.at(sa, row[~z_only], s2[~z_only])
-    sb = np.zeros((M + 1, K))
-    np.maximum.at(sb, (row[~z_only], slot[~z_only]), value2[~z_only])
+    np.maximum.at(out[2:2 + M + 1], row[~z_only], s2[~z_only])
+    sb = np.zeros((M + 1, 2 * K))
+    for option, slot, scale in ((0, ku, den / a), (1, K + kv, den / b), (2, ku, 1.0), (2, K + kv, 1.0)):
+        pick = choice == option
+        value = s2 * np.broadcast_to(scale, s2.shape) ** 2
+        np.maximum.at(sb, (row[pick], slot[pick]), value[pick])
     out[2 + M + 1:] = sb.ravel()
     return out
