@@ -543,44 +543,54 @@ def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     return np.sqrt(rowmax.max())
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _unit_steps2(xe, xo, be, bo, ee, eo, nn, nv, has_b, i, p, s2):
+    """Squared Jacobi steps ``|D^-1 (b - A x)|^2`` of a unit-stencil level 0 on line ``i``, rows of
+    parity ``p``, into ``s2[:n]``; returns ``(m_lo, n)`` (rows ``j = 2 m + p``, ``m`` from ``m_lo``)."""
+    k = xe.shape[0]
+    ni = nn[i]
+    m_lo, m_hi = _line_range(nv, p)
+    n = m_hi - m_lo
+    if n <= 0:
+        return m_lo, 0
+    ob = 0 if p == 1 else -1
+    xown, xoth = (xe, xo) if p == 0 else (xo, xe)
+    a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+    e = (ee if p == 0 else eo)[a:z]
+    for q in range(n):
+        s2[q] = 0.0
+    for c in range(k):
+        x, t = xown[c], xoth[c]
+        xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
+        if has_b:
+            bi = (be if p == 0 else bo)[c, i, a:z]
+            for q in range(n):
+                r = bi[q] + e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+                s2[q] += r * r
+        else:
+            for q in range(n):
+                r = e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
+                s2[q] += r * r
+    for q in range(n):
+        d = 2.0 * (e[q] + ni)
+        s2[q] = s2[q] / (d * d)
+    return m_lo, n
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
     """:func:`_max_step5` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``,
     see :func:`_relax5u`); ``rows`` per-thread scratch of at least ``nv // 2 + 1``."""
-    k, nu = xe.shape[0], xe.shape[1]
+    nu = xe.shape[1]
     rowmax = np.zeros(nu)
     for i in numba.prange(1, nu - 1):
         best = 0.0
         s2 = rows[numba.get_thread_id()]
-        ni = nn[i]
         for p in range(2):
-            m_lo, m_hi = _line_range(nv, p)
-            n = m_hi - m_lo
-            if n <= 0:
-                continue
-            ob = 0 if p == 1 else -1
-            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
-            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
-            e = (ee if p == 0 else eo)[a:z]
+            _, n = _unit_steps2(xe, xo, be, bo, ee, eo, nn, nv, has_b, i, p, s2)
             for q in range(n):
-                s2[q] = 0.0
-            for c in range(k):
-                x, t = xown[c], xoth[c]
-                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
-                if has_b:
-                    bi = (be if p == 0 else bo)[c, i, a:z]
-                    for q in range(n):
-                        r = bi[q] + e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
-                        s2[q] += r * r
-                else:
-                    for q in range(n):
-                        r = e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
-                        s2[q] += r * r
-            for q in range(n):
-                d = 2.0 * (e[q] + ni)
-                v = s2[q] / (d * d)
-                if v > best:
-                    best = v
+                if s2[q] > best:
+                    best = s2[q]
         rowmax[i] = best
     return np.sqrt(rowmax.max())
 
@@ -607,32 +617,9 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
         ni = nn[i]
         kui = ku[i]
         for p in range(2):
-            m_lo, m_hi = _line_range(nv, p)
-            n = m_hi - m_lo
-            if n <= 0:
-                continue
-            ob = 0 if p == 1 else -1
-            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
-            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
-            e = (ee if p == 0 else eo)[a:z]
-            kv = (kve if p == 0 else kvo)[a:z]
-            for q in range(n):
-                s2[q] = 0.0
-            for c in range(k):
-                x, t = xown[c], xoth[c]
-                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
-                if has_b:
-                    bi = (be if p == 0 else bo)[c, i, a:z]
-                    for q in range(n):
-                        r = bi[q] + e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
-                        s2[q] += r * r
-                else:
-                    for q in range(n):
-                        r = e[q] * (xm[q] - x0[q] + xp[q] - x0[q]) + ni * (tlo[q] - x0[q] + thi[q] - x0[q])
-                        s2[q] += r * r
-            for q in range(n):
-                d = 2.0 * (e[q] + ni)
-                s2[q] = s2[q] / (d * d)
+            a, n = _unit_steps2(xe, xo, be, bo, ee, eo, nn, nv, has_b, i, p, s2)
+            e = (ee if p == 0 else eo)[a:a + n]
+            kv = (kve if p == 0 else kvo)[a:a + n]
             for q in range(n):
                 v = s2[q]
                 if v > out[0]:
