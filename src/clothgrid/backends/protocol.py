@@ -67,13 +67,6 @@ class MultigridOps(Protocol):
     and ``prolong``; :func:`~clothgrid.solvers.multigrid.fmg` (the full
     multigrid start) also ``restrict_full`` and ``prolong_full``.
 
-    One operation is optional (not a member here, so that ``isinstance`` does not
-    ask for it): ``band_steps(barriers)`` returns
-    :func:`~clothgrid.solvers.bounds.band_steps` of level 0's iterate for a
-    :class:`~clothgrid.solvers.bounds.BandBarriers` (or None), for the error bound
-    by band barriers. A backend without it gets the bound ``max_step() * max z``,
-    looser by 5-1000x, and so more V-cycles (the cpu backend has it).
-
     Attributes
     ----------
     levels : int
@@ -104,6 +97,13 @@ class MultigridOps(Protocol):
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node), in float64.
 
         Reads one float back from a device: the operations issued before it have finished.
+        """
+
+    def band_steps(self, barriers: Any) -> np.ndarray | None:
+        """:func:`~clothgrid.solvers.bounds.band_steps`' table of level 0's iterate for a
+        :class:`~clothgrid.solvers.bounds.BandBarriers` (unit-stencil weights), for the error
+        bound by band barriers; None where the backend does not compute it (the solve then
+        uses :meth:`max_step` times ``max z``, looser by 5-1000x, and so more V-cycles).
         """
 
     def solution(self) -> np.ndarray:

@@ -155,7 +155,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     """V(1,1) cycles until the stopping rule holds.
 
     ``stop="error"``: a guaranteed error bound is at most ``tol * scale``: for the
-    paper's and uniform weights on a backend with ``band_steps`` (the cpu's) the band
+    paper's and uniform weights on a backend whose ``band_steps`` computes it (the cpu's) the band
     barriers' bound, else ``max|D^-1 r| * max z`` (:mod:`clothgrid.solvers.bounds`).
     ``stop="paper"``: the step a Jacobi sweep would take,
     ``max|D^-1 r|``, is below ``tol * scale`` (the paper's rule, not a bound).
@@ -190,7 +190,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
                        _barrier_solver(problem, backend, levels))
     # The band barriers' bound (solvers.bounds) where the weights and the backend allow it
     bands = (BandBarriers.for_grid(nu, nv, tol * problem.scale / zmax)
-             if stop == "error" and problem.weights.unit_stencil and hasattr(ops, "band_steps") else None)
+             if stop == "error" and problem.weights.unit_stencil else None)
 
     method = "max step"
 

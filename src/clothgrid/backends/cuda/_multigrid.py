@@ -238,6 +238,10 @@ class CudaMultigrid:
         if self._xp is not np:
             self._xp.cuda.Device().synchronize()   # GPU only
 
+    def band_steps(self, barriers: Any) -> None:
+        """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
+        return None
+
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
         (xe, xo), (be, bo) = self.x[0], self.b[0]

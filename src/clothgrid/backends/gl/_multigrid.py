@@ -230,6 +230,10 @@ class GLMultigrid:
         with self.dev.current():
             self.dev.ctx.finish()
 
+    def band_steps(self, barriers: Any) -> None:
+        """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
+        return None
+
     def max_step(self) -> float:
         """Fold level 0's correction into the float64 iterate; ``max |D^-1 (b - A x)|`` in float64."""
         t0 = time.perf_counter()
