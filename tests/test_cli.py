@@ -144,6 +144,34 @@ def test_generate_default_nodes_and_quiet(capsys, horn, tmp_path):
         assert z["points"].shape == (20, 20, 3)
 
 
+def test_collector_held_off_during_start_up_and_restored(capsys, horn, tmp_path, monkeypatch):
+    """The command holds Python's cyclic collector off until its first piece is made (Numba's
+    start-up), then collects as usual; afterwards the collector is as it was, on or off."""
+    import gc
+
+    import clothgrid.pipeline as pipeline
+
+    seen = []
+    real = pipeline.run_job
+
+    def spy(*a, **k):
+        seen.append(gc.isenabled())
+        return real(*a, **k)
+
+    monkeypatch.setattr(pipeline, "run_job", spy)
+    assert gc.isenabled()
+    code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "g.npz", "-q", "--nodes", "9")
+    assert code == 0, err
+    assert seen == [False] and gc.isenabled()
+    gc.disable()
+    try:
+        code, _, err = run(capsys, "generate", horn, "-o", tmp_path / "h.npz", "-q", "--nodes", "9")
+        assert code == 0, err
+        assert not gc.isenabled()       # left off: it was off before
+    finally:
+        gc.enable()
+
+
 def test_python_m_clothgrid(horn, tmp_path):
     src = str(Path(clothgrid.__file__).resolve().parent.parent)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]),
