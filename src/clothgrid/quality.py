@@ -310,6 +310,16 @@ def line_lengths(points: np.ndarray) -> tuple[float, float]:
 KERNEL_CELLS = 1 << 18
 
 
+def _cross_last(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of ``(..., 3)`` arrays, the same arithmetic without its dispatch (a third
+    faster on the small grids that the corner choice scores by the thousand)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.subtract(a[..., 1] * b[..., 2], a[..., 2] * b[..., 1], out=out[..., 0])
+    np.subtract(a[..., 2] * b[..., 0], a[..., 0] * b[..., 2], out=out[..., 1])
+    np.subtract(a[..., 0] * b[..., 1], a[..., 1] * b[..., 0], out=out[..., 2])
+    return out
+
+
 def _angle_and_edge_extremes(P: np.ndarray) -> tuple[float, float, np.ndarray, float, float]:
     """:func:`clothgrid.quality_kernels.angle_and_edge_extremes` in NumPy (``(nu, nv, 3)`` nodes)."""
     c = (P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:])
@@ -318,13 +328,14 @@ def _angle_and_edge_extremes(P: np.ndarray) -> tuple[float, float, np.ndarray, f
     amax = np.zeros(nc)
     # the cell's normal: the sum of its corner cross products (for the sign of each angle)
     normal = np.zeros(nc + (3,))
+    crosses = [_cross_last(c[(k + 1) % 4] - c[k], c[k - 1] - c[k]) for k in range(4)]
     for k in range(4):
-        normal += np.cross(c[(k + 1) % 4] - c[k], c[k - 1] - c[k])
+        normal += crosses[k]
     corner_angle = []
     for k in range(4):
         a, b = c[(k + 1) % 4] - c[k], c[k - 1] - c[k]
-        cr = np.einsum("...k,...k->...", np.cross(a, b), normal)
-        sin = np.linalg.norm(np.cross(a, b), axis=-1) * np.sign(cr)
+        cr = np.einsum("...k,...k->...", crosses[k], normal)
+        sin = np.linalg.norm(crosses[k], axis=-1) * np.sign(cr)
         ang = np.degrees(np.arctan2(sin, np.einsum("...k,...k->...", a, b)))
         ang = np.where(ang < 0, 0.0, ang)          # folded: 0
         corner_angle.append(ang)
