@@ -455,3 +455,23 @@ def test_band_bound_saves_cycles_on_a_real_piece(monkeypatch, kind):
     assert plain.info["steps"][:len(banded.info["steps"])] == banded.info["steps"]   # the same cycles
     ref = clothgrid.generate(b, weights=kind, solver="direct")
     assert max_rel_error(banded.points, ref.points, b.size) <= banded.info["error_estimate"] <= TOL
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_band_bound_holds_on_random_sizes_and_k(seed):
+    """Random sizes (odd, even, elongated), the paper's weights with a random k or uniform
+    weights, a random tolerance; stopped after 1 or 2 cycles and at the tolerance: the reported
+    bound (band barriers) is never below the true error of an exact sparse solve."""
+    rng = np.random.default_rng([seed, 77])
+    nu, nv = (int(n) for n in rng.integers(12, 200, size=2))
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    kind = ("paper", "uniform")[seed % 2]
+    kw = {"k": float(np.exp(rng.uniform(np.log(0.1), np.log(10))))} if kind == "paper" else {}
+    w = make_weights(kind, nu, nv, **kw)
+    ref = exact_solution(boundary_grid(b), w.wu, w.wv)
+    tol = float(10 ** rng.uniform(-7, -2))
+    for cycles in (1, 2, None):
+        opts = {"tol": tol} if cycles is None else {"tol": 1e-30, "max_iter": cycles, "allow_unconverged": True}
+        g = clothgrid.generate(b, weights=kind, solver="multigrid", **kw, **opts)
+        assert g.info["bound_method"] == "band barriers"
+        assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"]
