@@ -215,6 +215,42 @@ def test_memory_estimate_covers_multigrid():
     assert estimate_bytes("fdm", 4096, 4096) > estimate_bytes("multigrid", 4096, 4096) > estimate_bytes("jacobi", 4096, 4096)
 
 
+def test_small_pages_holds_numpy_huge_pages_off_and_restores(monkeypatch):
+    """generate allocates with 4 KB pages (memory.small_pages: NumPy's madvise(MADV_HUGEPAGE)
+    switched off inside, put back after, also after an error); CLOTHGRID_HUGEPAGES=1 keeps it."""
+    from clothgrid import memory
+
+    switch = memory._hugepage_switch()
+    if switch is None:
+        pytest.skip("this NumPy has no huge-page switch")
+    seen = []
+    real = memory._hugepage_switch
+
+    def spy():
+        def record(flag):
+            seen.append(flag)
+            return switch(flag)
+        return record
+
+    monkeypatch.setattr(memory, "_hugepage_switch", spy)
+    before = switch(True)
+    try:
+        rng = np.random.default_rng(3)
+        b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 20, 17))
+        clothgrid.generate(b, solver="multigrid")
+        assert seen == [False, True]
+        with pytest.raises(clothgrid.InputError):
+            clothgrid.generate(b, solver="nope")
+        assert seen[2:] == [False, True]
+        monkeypatch.setenv("CLOTHGRID_HUGEPAGES", "1")
+        clothgrid.generate(b, solver="multigrid")
+        assert len(seen) == 4
+        assert switch(before) is True        # left as it was
+    finally:
+        monkeypatch.setattr(memory, "_hugepage_switch", real)
+        switch(before)
+
+
 def test_discard_gives_whole_pages_back_and_keeps_the_array_usable():
     import mmap
     import sys

@@ -1010,7 +1010,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         the reader of the output closed the pipe. Unexpected exceptions propagate
         with their traceback.
     """
-    with _signals_as_interrupts(), _collector_paused():
+    from .memory import small_pages
+
+    with _signals_as_interrupts(), _collector_paused(), small_pages():
         try:
             return _main(argv)
         except Interrupted as exc:          # a signal while parsing or reporting
