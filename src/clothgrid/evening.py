@@ -161,21 +161,28 @@ def _even_node(X, i, j, lo, hi, floor, before, after, need):
     if g < 1e-9:
         return -1.0
     e0 = _node_energy(X, i, j, lo, hi)
-    _sines_around(X, i, j, before)
-    for k in range(16):
-        need[k] = min(before[k], floor)
     x0, y0 = X[i, j, 0], X[i, j, 1]
+    have_before = False      # the sines before the move: needed only where a corner ends below the floor
     step = min(1.0 / curv, 0.25 / g) if curv > 0 else 0.25 / g
     for _ in range(8):
-        X[i, j, 0] = x0 - step * gx
-        X[i, j, 1] = y0 - step * gy
+        xt, yt = x0 - step * gx, y0 - step * gy
+        X[i, j, 0] = xt
+        X[i, j, 1] = yt
         ok = _node_energy(X, i, j, lo, hi) < e0
         if ok:
             _sines_around(X, i, j, after)
             for k in range(16):
-                if after[k] < need[k]:
-                    ok = False
-                    break
+                if after[k] < floor:    # else it is at the floor or above: never below min(before, floor)
+                    if not have_before:
+                        X[i, j, 0], X[i, j, 1] = x0, y0
+                        _sines_around(X, i, j, before)
+                        for q in range(16):
+                            need[q] = min(before[q], floor)
+                        X[i, j, 0], X[i, j, 1] = xt, yt
+                        have_before = True
+                    if after[k] < need[k]:
+                        ok = False
+                        break
         if ok:
             return step * g
         step *= 0.5
