@@ -216,9 +216,9 @@ def test_memory_estimate_covers_multigrid():
 
 
 def test_small_pages_holds_numpy_huge_pages_off_and_restores(monkeypatch):
-    """generate allocates with 4 KB pages (memory.small_pages: NumPy's madvise(MADV_HUGEPAGE)
+    """generate allocates with 4 KB pages (pages.small_pages: NumPy's madvise(MADV_HUGEPAGE)
     switched off inside, put back after, also after an error); CLOTHGRID_HUGEPAGES=1 keeps it."""
-    from clothgrid import memory
+    from clothgrid import pages as memory
 
     switch = memory._hugepage_switch()
     if switch is None:

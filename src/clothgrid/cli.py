@@ -1010,7 +1010,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         the reader of the output closed the pipe. Unexpected exceptions propagate
         with their traceback.
     """
-    from .memory import small_pages
+    from .pages import small_pages
 
     with _signals_as_interrupts(), _collector_paused(), small_pages():
         try:

@@ -14,7 +14,8 @@ from .errors import InputError, NotConvergedError, SizeError
 from .limits import MAX_NODES_PER_SIDE
 from .grid import Grid
 from .initial import INITS, boundary_grid, initial_grid
-from .memory import check_memory, estimate_bytes, format_bytes, small_pages
+from .memory import check_memory, estimate_bytes, format_bytes
+from .pages import small_pages
 from .solvers import SOLVERS, Problem, choose_solver, solve
 from .weights import Weights, make_weights
 
@@ -65,7 +66,7 @@ def _check_options(init: str, solver: str, stop: str, tol: float, max_iter) -> N
         raise InputError(f"max_iter must be a positive integer, not {max_iter!r}")
 
 
-@small_pages()         # 4 KB pages: their first touch costs a fifth of huge pages' here (memory.small_pages)
+@small_pages()         # 4 KB pages: their first touch costs a fifth of huge pages' here (pages.small_pages)
 def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
              weights: str | tuple[np.ndarray, np.ndarray] | Weights = "paper", k: float = 1.0,
              solver: str = "auto", backend: str = "auto", tol: float = 2.0**-12, stop: str = "error",
