@@ -22,7 +22,6 @@ prolongation only adds the correction to the even rows.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numba
@@ -601,7 +600,7 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
     as in :func:`_max_step5u`). ``ku`` the band of each line ``i``; ``kve``, ``kvo`` of each line
     ``j`` of either parity; ``cost`` the bands' ``w^2``; ``ref2`` the reference level squared;
     ``nbuckets`` the barriers' ``buckets``."""
-    k, nu = xe.shape[0], xe.shape[1]
+    nu = xe.shape[1]
     nb = cost.shape[0]
     M = nbuckets
     off = 2 + M + 1
