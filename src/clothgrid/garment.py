@@ -818,7 +818,7 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
     ``seams="weld"`` the welded vertices (faces still carry each panel's own ``vt``).
     USD: :func:`clothgrid.garment_usd.write_garment_usd` (needs ``usd-core``).
     """
-    from .writers import atomic_write, info_json
+    from .writers import atomic_write, info_json, savez
 
     if seams not in ("keep", "weld"):
         raise InputError(f"seams must be 'keep' or 'weld', not {seams!r}")
@@ -841,7 +841,7 @@ def write_garment(g: Garment, path: str | Path, *, seams: str = "keep",
             arrays.update(weld_map=w["map"], welded_points=w["points"], welded_quads=w["quads"],
                           welded_triangles=w["triangles"])
         with atomic_write(path) as fh:
-            np.savez(fh, **arrays)
+            savez(fh, **arrays)
         return path
     if suffix == ".obj":
         lines = [f"# clothgrid garment: {len(g.panel_names)} panels, {len(g.stitches)} stitched node pairs; "

@@ -706,7 +706,7 @@ class HeatResult:
     def save(self, path: str | Path) -> Path:
         """Write ``.npz`` (``temperature``, ``x``, ``y``, ``conductivity``, ``info``; transient also
         ``times``, ``history``), ``.vts`` (ParaView) or ``.png`` (field and isotherms), atomically."""
-        from .writers import atomic_write, info_json
+        from .writers import atomic_write, info_json, savez
 
         path = Path(path)
         ext = path.suffix.lower()
@@ -717,7 +717,7 @@ class HeatResult:
         with atomic_write(path) as fh:
             if ext == ".npz":
                 extra = {} if self.times is None else {"times": self.times, "history": self.history}
-                np.savez(fh, temperature=self.temperature, x=self.x, y=self.y, conductivity=self.problem.k,
+                savez(fh, temperature=self.temperature, x=self.x, y=self.y, conductivity=self.problem.k,
                          info=np.array(info_json(self.info)), **extra)
             else:
                 fh.write(_vts(self).encode("utf-8"))
