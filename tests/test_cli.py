@@ -181,11 +181,51 @@ def test_python_m_clothgrid(horn, tmp_path):
                          text=True, env=env, stdin=subprocess.DEVNULL, timeout=600)
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "g.ply").is_file()
+    # console_main ends the process with os._exit after flushing: the report arrives whole
+    assert "solver " in res.stdout and res.stdout.endswith("\n"), res.stdout
     bad = subprocess.run([sys.executable, "-m", "clothgrid", "generate", str(horn), "-o",
                           str(tmp_path / "g.xyz")], capture_output=True, text=True, env=env,
                          stdin=subprocess.DEVNULL, timeout=600)
     assert bad.returncode == 2
     assert "clothgrid: error:" in bad.stderr
+
+
+def test_blas_preload_in_a_fresh_interpreter():
+    """preload_cython_blas: Numba's kernels and BLAS work without scipy.linalg's package until it is
+    imported, and then the package is whole, with the very module as its attribute."""
+    code = """
+import sys
+from clothgrid.blas_preload import preload_cython_blas
+assert preload_cython_blas()
+assert not preload_cython_blas()          # once
+assert "scipy.linalg" not in sys.modules
+import numpy as np
+from numba import njit
+@njit
+def dot(a):
+    return np.dot(a, a)                   # Numba's BLAS, through cython_blas
+assert dot(np.arange(4.0)) == 14.0
+assert "scipy.linalg" not in sys.modules
+import scipy.linalg
+from scipy.linalg import cython_blas
+assert scipy.linalg.cython_blas is cython_blas is sys.modules["scipy.linalg.cython_blas"]
+assert scipy.linalg.__loader__.__class__.__name__ == "SourceFileLoader"
+assert np.allclose(scipy.linalg.solve(2 * np.eye(3), np.ones(3)), 0.5)
+print("ok")
+"""
+    src = str(Path(clothgrid.__file__).resolve().parent.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         stdin=subprocess.DEVNULL, timeout=600)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
+
+
+def test_blas_preload_leaves_an_imported_scipy_linalg_alone():
+    import scipy.linalg  # noqa: F401  (imported in this process: nothing to do)
+
+    from clothgrid.blas_preload import preload_cython_blas
+
+    assert not preload_cython_blas()
 
 
 # --------------------------------------------------------------------------- bad input -> 2

@@ -30,22 +30,8 @@ def _corner_cross(P, ia, ja, ib, jb, ic, jc):
 
 
 @njit(cache=True, inline="always")
-def _corner_terms(P, ia, ja, ib, jb, ic, jc, nx, ny, nz):
-    """At node a of the cell, between a->b and a->c: the sine term (the cross product's length,
-    signed by the cell normal) and the cosine term (the dot product)."""
-    cx, cy, cz, dot = _corner_cross(P, ia, ja, ib, jb, ic, jc)
-    cr = cx * nx + cy * ny + cz * nz
-    s = math.sqrt(cx * cx + cy * cy + cz * cz)
-    if cr < 0:
-        s = -s
-    elif cr == 0:
-        s = 0.0
-    return s, dot
-
-
-@njit(cache=True, inline="always")
 def _angle(s, dot):
-    """The corner angle (degrees) of :func:`_corner_terms`; 0 if folded."""
+    """The corner angle (degrees) from a corner's sine and cosine terms (:func:`_cell_terms`); 0 if folded."""
     ang = math.degrees(math.atan2(s, dot))
     return 0.0 if ang < 0 else ang
 
@@ -56,29 +42,40 @@ _DJ = np.array([0, 0, 1, 1], dtype=np.int64)
 
 
 @njit(cache=True)
-def _cell_terms(P, i, j, sines, cosines):
-    """The four corners' :func:`_corner_terms` of cell (i, j) (corners 0..3 in quad order)."""
-    nx = ny = nz = 0.0          # the cell normal: the sum of the corners' cross products
+def _cell_terms(P, i, j, sines, cosines, cross):
+    """The four corners' sine and cosine terms of cell (i, j) (corners 0..3 in quad order).
+
+    At corner a, between a->b and a->c: the sine term is the cross product's length, signed by
+    the cell normal (the sum of the four corners' cross products), and the cosine term the dot
+    product. Each corner's cross product is computed once (``cross``: ``(4, 3)`` scratch).
+    """
+    nx = ny = nz = 0.0
     for k in range(4):
         kn = (k + 1) % 4
         kp = (k + 3) % 4
-        cx, cy, cz, _ = _corner_cross(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn],
-                                      i + _DI[kp], j + _DJ[kp])
+        cx, cy, cz, dot = _corner_cross(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn],
+                                        i + _DI[kp], j + _DJ[kp])
+        cross[k, 0], cross[k, 1], cross[k, 2] = cx, cy, cz
+        cosines[k] = dot
         nx += cx
         ny += cy
         nz += cz
     for k in range(4):
-        kn = (k + 1) % 4
-        kp = (k + 3) % 4
-        sines[k], cosines[k] = _corner_terms(P, i + _DI[k], j + _DJ[k], i + _DI[kn], j + _DJ[kn],
-                                             i + _DI[kp], j + _DJ[kp], nx, ny, nz)
+        cx, cy, cz = cross[k, 0], cross[k, 1], cross[k, 2]
+        cr = cx * nx + cy * ny + cz * nz
+        s = math.sqrt(cx * cx + cy * cy + cz * cz)
+        if cr < 0:
+            s = -s
+        elif cr == 0:
+            s = 0.0
+        sines[k] = s
 
 
 @njit(cache=True)
 def _cell_angles(P, i, j, out):
     """The four corner angles of cell (i, j) (corners 0..3 in quad order) into ``out``."""
-    sines, cosines = np.empty(4), np.empty(4)
-    _cell_terms(P, i, j, sines, cosines)
+    sines, cosines, cross = np.empty(4), np.empty(4), np.empty((4, 3))
+    _cell_terms(P, i, j, sines, cosines, cross)
     for k in range(4):
         out[k] = _angle(sines[k], cosines[k])
 
@@ -114,13 +111,13 @@ def angle_and_edge_extremes(P):
     row_amax = np.zeros(mu)
     for r in prange(mu):
         i = np.int64(r)
-        sines, cosines = np.empty(4), np.empty(4)
+        sines, cosines, cross = np.empty(4), np.empty(4), np.empty((4, 3))
         lo, hi = 180.0, 0.0
         cos_lo, cos_hi = -1.0, 1.0
         for j in range(mv):
             if skip and (i == 0 or i == mu - 1) and (j == 0 or j == mv - 1):
                 continue
-            _cell_terms(P, i, j, sines, cosines)
+            _cell_terms(P, i, j, sines, cosines, cross)
             for k in range(4):
                 s, dot = sines[k], cosines[k]
                 if s > 0:
