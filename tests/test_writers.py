@@ -75,6 +75,38 @@ def test_savez_matches_numpy_member_for_member(tmp_path):
         writers.savez(io.BytesIO(), o=np.array([{}, 1], dtype=object))
 
 
+@pytest.mark.parametrize("flip", [False, True])
+@pytest.mark.parametrize("shape", [(2, 2), (7, 3), (40, 1700), (1700, 40)])
+def test_quad_blocks_stream_the_quads(shape, flip, tmp_path):
+    """Grid.quad_blocks (a reused buffer, or views once made) concatenates to quads; the .npz
+    writer streams them and numpy reads back the very array."""
+    from clothgrid.grid import quad_indices
+
+    nu, nv = shape
+    rng = np.random.default_rng()
+    g = Grid.from_points(rng.standard_normal((nu, nv, 3)), flip=flip)
+    expected = quad_indices(nu, nv, flip=flip)
+    cells = int(rng.integers(1, 3 * nv))
+    made = [b.copy() for b in g.quad_blocks(cells)]     # copies: the buffer is reused
+    assert g._quads is None                             # streaming made no whole array
+    assert np.array_equal(np.concatenate(made), expected)
+    save(g, tmp_path / "g.npz")
+    with np.load(tmp_path / "g.npz") as z:
+        assert z["quads"].dtype == np.int64 and np.array_equal(z["quads"], expected)
+    g.quads                                             # made: the blocks are its views
+    views = list(g.quad_blocks(cells))
+    assert all(np.shares_memory(v, g.quads) for v in views)
+    assert np.array_equal(np.concatenate(views), expected)
+
+
+def test_savez_streamed_checks_its_length():
+    import io
+
+    short = writers.Streamed((10, 4), np.int64, lambda: iter([np.zeros((9, 4), np.int64)]))
+    with pytest.raises(ValueError, match="shape needs"):
+        writers.savez(io.BytesIO(), a=short)
+
+
 def test_grid_save_method_and_2d_dim(grid, tmp_path):
     g2 = Grid.from_points(grid.points * np.array([1.0, 1.0, 0.0]), dim=2)
     g2.save(tmp_path / "flat.NPZ")

@@ -39,6 +39,7 @@ __all__ = [
     "save",
     "atomic_write",
     "savez",
+    "Streamed",
     "write_npz",
     "write_obj",
     "write_ply",
@@ -106,28 +107,58 @@ def atomic_write(path: str | Path) -> Iterator[BinaryIO]:
         raise
 
 
+class Streamed:
+    """An array that :func:`savez` writes block by block, never whole in memory.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The whole array's shape.
+    dtype : numpy.dtype
+        Its dtype (a plain one, no objects).
+    blocks : callable
+        Returns an iterator over C-contiguous blocks whose concatenation along the first axis
+        is the array (a block may be reused once the next one is asked for).
+    """
+
+    def __init__(self, shape: tuple[int, ...], dtype: Any, blocks: Callable[[], Iterator[np.ndarray]]):
+        self.shape = tuple(int(n) for n in shape)
+        self.dtype = np.dtype(dtype)
+        self.blocks = blocks
+
+
 def savez(fh: BinaryIO, **arrays: Any) -> None:
     """``numpy.savez`` (uncompressed, readable by ``numpy.load``) without copying the arrays.
 
     NumPy writes each array into the zip archive through ``tobytes`` copies of up to 16 MB; this
     writes the ``.npy`` header and then the array's own memory (C-contiguous arrays of plain
     dtypes; anything else goes through ``numpy.lib.format.write_array``). The same members, bytes
-    and CRCs as ``numpy.savez``; 13 ms less on a 1024^2 grid's 75 MB in a fresh process.
+    and CRCs as ``numpy.savez``; 13 ms less on a 1024^2 grid's 75 MB in a fresh process. A
+    :class:`Streamed` value is written block by block.
     """
     fmt = np.lib.format
     with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
         for name, value in arrays.items():
-            a = np.asanyarray(value)
+            streamed = isinstance(value, Streamed)
+            a = value if streamed else np.asanyarray(value)
             with zf.open(name + ".npy", "w", force_zip64=True) as member:
-                if a.ndim == 0 or a.dtype.hasobject or not a.flags.c_contiguous or type(a) is not np.ndarray:
+                if not streamed and (a.ndim == 0 or a.dtype.hasobject or not a.flags.c_contiguous
+                                     or type(a) is not np.ndarray):
                     fmt.write_array(member, a, allow_pickle=False)
                     continue
-                header = fmt.header_data_from_array_1_0(a)
+                header = {"descr": fmt.dtype_to_descr(a.dtype), "fortran_order": False, "shape": a.shape}
                 try:
                     fmt.write_array_header_1_0(member, header)
                 except ValueError:              # a header over 64 KB (a record dtype with many fields)
                     fmt.write_array_header_2_0(member, header)
-                member.write(memoryview(a.reshape(-1)).cast("B"))
+                written = 0
+                for block in (a.blocks() if streamed else (a,)):
+                    block = np.ascontiguousarray(block, dtype=a.dtype)
+                    member.write(memoryview(block.reshape(-1)).cast("B"))
+                    written += block.nbytes
+                expected = int(np.prod(a.shape, dtype=np.int64)) * a.dtype.itemsize
+                if written != expected:
+                    raise ValueError(f"savez: {name!r} got {written} bytes of data, its shape needs {expected}")
 
 
 def _write_rows(fh: BinaryIO, fmt: str, rows: np.ndarray) -> None:
@@ -159,6 +190,15 @@ def texture_coordinates(grid: GridLike, uv: str) -> np.ndarray:
     raise InputError(f"uv must be one of {', '.join(UV_CHOICES)}, not {uv!r}")
 
 
+def _quads(grid: GridLike) -> Any:
+    """The grid's quads for :func:`savez`: streamed in blocks where the grid can make them so."""
+    blocks = getattr(grid, "quad_blocks", None)
+    if blocks is None:
+        return grid.quads
+    nu, nv = grid.shape
+    return Streamed((max(nu - 1, 0) * max(nv - 1, 0), 4), np.int64, blocks)
+
+
 def write_npz(grid: GridLike, fh: BinaryIO, *, cloth: bool = False, triangles: str = "fixed",
               density: float | str | None = None, length_unit: str | None = None) -> None:
     """NumPy archive (uncompressed, fast to write).
@@ -184,7 +224,7 @@ def write_npz(grid: GridLike, fh: BinaryIO, *, cloth: bool = False, triangles: s
     side = sim.sides(grid)
     corner = sim.corners(grid)
     arrays: dict[str, Any] = {
-        "points": grid.points, "uv": grid.uv, "quads": grid.quads, "dim": np.int64(grid.dim),
+        "points": grid.points, "uv": grid.uv, "quads": _quads(grid), "dim": np.int64(grid.dim),
         "info": np.array(info_json(grid.info)), "length_unit": np.array(unit),
         "planar": np.bool_(grid.planar), **{f"side_{k}": v for k, v in side.items()},
         "corners": np.array([corner[k] for k in sim.CORNER_NAMES], dtype=np.int64),
