@@ -237,3 +237,36 @@ def test_corner_measures_of_large_grids_run_in_parallel_with_the_same_results(rn
         (jmin_p, bad_p), sine_p = out[0]
         assert jmin_s == jmin_p and bad_s == bad_p and np.array_equal(sine_s, sine_p)
         assert bad_s == int((corner_jacobians(X) <= 0).sum()) > 0
+
+
+def test_node_energy_lanes_match_one_triangle_at_a_time():
+    """The vectorised node energy (twelve triangles in the lanes of a scratch row) gives the bits of
+    _tri called triangle by triangle and summed in the documented order, on fresh random nodes
+    (folded ones too: then both are inf)."""
+    from clothgrid import foldfree_kernels as K
+
+    rng = np.random.default_rng()
+    w = K.new_scratch(1)[0]
+    for trial in range(300):
+        X = np.stack(np.meshgrid(np.arange(3.0), np.arange(3.0), indexing="ij"), axis=-1)
+        X += rng.normal(scale=0.6 if trial % 3 else 0.15, size=X.shape)
+        px, py = X[1, 1] + rng.normal(scale=0.3, size=2)
+        d4 = float(rng.choice([0.0, 1e-6, 1e-2]))
+        # cells (i-1, j-1), (i, j-1), (i-1, j), (i, j) around the node: (n, o, q) of each
+        n_o_q = (((0, 1), (0, 0), (1, 0)), ((1, 0), (2, 0), (2, 1)),
+                 ((1, 2), (0, 2), (0, 1)), ((2, 1), (2, 2), (1, 2)))
+        want = bool(trial % 2)
+        total = np.zeros(6)
+        folded = False
+        for n, o, q in n_o_q:
+            pts = {"p": (px, py), "n": tuple(X[n]), "o": tuple(X[o]), "q": tuple(X[q])}
+            for apex, a_end, b_end, kind in (("q", "p", "o", 1), ("p", "n", "q", 0), ("n", "o", "p", 2)):
+                got = K._tri(*pts[apex], *pts[a_end], *pts[b_end], d4, kind, want)
+                if got[0] == np.inf:
+                    folded = True
+                total += np.array(got)          # the same order of additions as the kernel
+        E = K._node_energy(X, 1, 1, px, py, d4, want, w)
+        if folded:
+            assert E[0] == np.inf
+        else:
+            assert np.array_equal(np.array(E), total), (trial, E, total)

@@ -100,7 +100,9 @@ def _node_energy(X, i, j, lo, hi):
 
 @njit(cache=True)
 def _node_gradient(X, i, j, lo, hi):
-    gx, gy, curv = 0.0, 0.0, 0.0
+    """The node's gradient, curvature and (:func:`_node_energy`'s, the same terms in the same order)
+    energy, from one logarithm an edge."""
+    gx, gy, curv, e = 0.0, 0.0, 0.0, 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
         b = j + (1 if n == 2 else (-1 if n == 3 else 0))
@@ -110,13 +112,15 @@ def _node_gradient(X, i, j, lo, hi):
         f = 0.0
         if t > hi:
             f = 2.0 * (t - hi)
+            e += (t - hi) ** 2
         elif t < lo:
             f = -2.0 * (lo - t)
+            e += (lo - t) ** 2
         if f != 0.0:
             gx += f * dx / d2          # d/dx of (t - hi)^2 = 2 (t - hi) * dx / d^2
             gy += f * dy / d2
             curv += 2.0 / d2 + abs(f) / d2
-    return gx, gy, curv
+    return gx, gy, curv, e
 
 
 @njit(cache=True)
@@ -156,11 +160,10 @@ def _sines_around(X, i, j, out):
 def _even_node(X, i, j, lo, hi, floor, before, after, need):
     """One line-searched gradient step of node (i, j) that lowers its energy and keeps every corner
     of its cells at the floor or no worse; the move, or -1.0 where it did not move."""
-    gx, gy, curv = _node_gradient(X, i, j, lo, hi)
+    gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi)
     g = math.sqrt(gx * gx + gy * gy)
     if g < 1e-9:
         return -1.0
-    e0 = _node_energy(X, i, j, lo, hi)
     x0, y0 = X[i, j, 0], X[i, j, 1]
     have_before = False      # the sines before the move: needed only where a corner ends below the floor
     step = min(1.0 / curv, 0.25 / g) if curv > 0 else 0.25 / g
