@@ -155,3 +155,34 @@ def test_edge_lengths_kernel_is_numpys_norm_of_differences(rng):
         X = np.ascontiguousarray(rng.normal(size=(nu, nv, 2)) * 10.0 ** rng.uniform(-3, 3))
         ref = np.concatenate([np.linalg.norm(np.diff(X, axis=a), axis=-1).ravel() for a in (0, 1)])
         assert np.array_equal(_edge_lengths(X), ref)
+
+
+def test_sines_around_match_one_corner_at_a_time():
+    """The evening's corner sines taken side by side in 16 lanes give _corner_sine's bits, and 2.0
+    exactly where a corner does not count (outside the grid, a grid corner, opposite the node)."""
+    from clothgrid import evening as E
+
+    rng = np.random.default_rng()
+    w, out = np.empty(E.SINE_SCRATCH), np.empty(16)
+    for trial in range(200):
+        nu, nv = int(rng.integers(2, 6)), int(rng.integers(2, 6))
+        X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
+        X += rng.normal(scale=0.4, size=X.shape)
+        if trial % 5 == 0:                       # a zero-length edge: sine -1
+            X[min(1, nu - 1), 0] = X[0, 0]
+        i, j = int(rng.integers(0, nu)), int(rng.integers(0, nv))
+        E._sines_around(X, i, j, out, w)
+        m = 0
+        for ci in (i - 1, i):
+            for cj in (j - 1, j):
+                inside = 0 <= ci < nu - 1 and 0 <= cj < nv - 1
+                c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
+                for k in range(4):
+                    q = c[k]
+                    grid_corner = q[0] in (0, nu - 1) and q[1] in (0, nv - 1)
+                    if not inside or grid_corner or (q[0] != i and q[1] != j):
+                        assert out[m] == 2.0
+                    else:
+                        want = E._corner_sine(X, np.array(c[(k + 3) % 4]), np.array(q), np.array(c[(k + 1) % 4]))
+                        assert out[m] == want, (trial, m, out[m], want)
+                    m += 1

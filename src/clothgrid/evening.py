@@ -135,12 +135,51 @@ def _corner_sine(X, p, q, r):
     return (ax * by - ay * bx) / (na * nb)
 
 
+#: The sines' scratch (:func:`_sines_around`): rows of 16 lanes, one corner a lane (edges a, b,
+#: the sine). Sixteen lanes, the compile-time count LLVM's loop vectoriser takes: two 8-wide passes
+#: of square roots and divisions.
+LANES = 16
+_AX, _AY, _BX, _BY, _SINE = (r * LANES for r in range(5))
+SINE_SCRATCH = 5 * LANES
+
+
+@njit(cache=True, error_model="numpy")
+def _lane_sines(w):
+    """Every lane's corner sine, :func:`_corner_sine`'s arithmetic (-1 for a zero-length edge)."""
+    for m in range(LANES):
+        ax, ay, bx, by = w[_AX + m], w[_AY + m], w[_BX + m], w[_BY + m]
+        na = math.sqrt(ax * ax + ay * ay)
+        nb = math.sqrt(bx * bx + by * by)
+        v = (ax * by - ay * bx) / (na * nb)
+        w[_SINE + m] = -1.0 if (na == 0.0 or nb == 0.0) else v
+
+
 @njit(cache=True)
-def _sines_around(X, i, j, out):
+def _sines_around(X, i, j, out, w):
     """The corner sines of the (up to) four cells around node (i, j) that move with it into ``out``
     (16; 2.0 where there is no such corner, where it is a grid corner, whose angle is the
-    outline's, and at each cell's corner opposite the node, whose sine the node does not change)."""
+    outline's, and at each cell's corner opposite the node, whose sine the node does not change).
+
+    The sixteen corners' edges go into the lanes of ``w`` (``SINE_SCRATCH``), their sines are
+    taken side by side (:func:`_lane_sines`, :func:`_corner_sine`'s bits), and the corners that
+    do not count are set to 2.0 after."""
     nu, nv = X.shape[0], X.shape[1]
+    m = 0
+    for ci in range(i - 1, i + 1):
+        for cj in range(j - 1, j + 1):
+            inside = not (ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1)
+            c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
+            for k in range(4):
+                if inside:
+                    q, r, p = c[k], c[(k + 1) % 4], c[(k + 3) % 4]
+                    w[_AX + m] = X[r[0], r[1], 0] - X[q[0], q[1], 0]
+                    w[_AY + m] = X[r[0], r[1], 1] - X[q[0], q[1], 1]
+                    w[_BX + m] = X[p[0], p[1], 0] - X[q[0], q[1], 0]
+                    w[_BY + m] = X[p[0], p[1], 1] - X[q[0], q[1], 1]
+                else:
+                    w[_AX + m] = w[_AY + m] = w[_BX + m] = w[_BY + m] = 0.0
+                m += 1
+    _lane_sines(w)
     m = 0
     for ci in range(i - 1, i + 1):
         for cj in range(j - 1, j + 1):
@@ -152,12 +191,12 @@ def _sines_around(X, i, j, out):
                         or (q[0] != i and q[1] != j)):
                     out[m] = 2.0
                 else:
-                    out[m] = _corner_sine(X, c[(k + 3) % 4], q, c[(k + 1) % 4])
+                    out[m] = w[_SINE + m]
                 m += 1
 
 
 @njit(cache=True)
-def _even_node(X, i, j, lo, hi, floor, before, after, need):
+def _even_node(X, i, j, lo, hi, floor, before, after, need, w):
     """One line-searched gradient step of node (i, j) that lowers its energy and keeps every corner
     of its cells at the floor or no worse; the move, or -1.0 where it did not move."""
     gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi)
@@ -173,12 +212,12 @@ def _even_node(X, i, j, lo, hi, floor, before, after, need):
         X[i, j, 1] = yt
         ok = _node_energy(X, i, j, lo, hi) < e0
         if ok:
-            _sines_around(X, i, j, after)
+            _sines_around(X, i, j, after, w)
             for k in range(16):
                 if after[k] < floor:    # else it is at the floor or above: never below min(before, floor)
                     if not have_before:
                         X[i, j, 0], X[i, j, 1] = x0, y0
-                        _sines_around(X, i, j, before)
+                        _sines_around(X, i, j, before, w)
                         for q in range(16):
                             need[q] = min(before[q], floor)
                         X[i, j, 0], X[i, j, 1] = xt, yt
@@ -198,12 +237,12 @@ def _sweep(X, lo, hi, floor, active):
     """One Gauss-Seidel sweep over the interior nodes; the largest move, the nodes moved."""
     nu, nv = X.shape[0], X.shape[1]
     biggest, moved = 0.0, 0
-    before, after, need = np.empty(16), np.empty(16), np.empty(16)
+    before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
     for i in range(1, nu - 1):
         for j in range(1, nv - 1):
             if not active[i, j]:
                 continue
-            d = _even_node(X, i, j, lo, hi, floor, before, after, need)
+            d = _even_node(X, i, j, lo, hi, floor, before, after, need, w)
             if d >= 0.0:
                 biggest = max(biggest, d)
                 moved += 1
@@ -222,11 +261,13 @@ def _sweep_coloured(X, lo, hi, floor, active):
         rows = (nu - 2 - ci + 1) // 2
         for r in prange(rows):
             i = 1 + ci + 2 * r
-            before, after, need = np.empty(16), np.empty(16), np.empty(16)
+            # one block a row, 128 bytes unused at its end: blocks of two threads never share a cache line
+            block = np.empty(48 + SINE_SCRATCH + 16)
+            before, after, need, w = block[0:16], block[16:32], block[32:48], block[48:48 + SINE_SCRATCH]
             for j in range(1 + cj, nv - 1, 2):
                 if not active[i, j]:
                     continue
-                d = _even_node(X, i, j, lo, hi, floor, before, after, need)
+                d = _even_node(X, i, j, lo, hi, floor, before, after, need, w)
                 if d >= 0.0:
                     row_big[i] = max(row_big[i], d)
                     row_moved[i] += 1
