@@ -186,3 +186,25 @@ def test_sines_around_match_one_corner_at_a_time():
                         want = E._corner_sine(X, np.array(c[(k + 3) % 4]), np.array(q), np.array(c[(k + 1) % 4]))
                         assert out[m] == want, (trial, m, out[m], want)
                     m += 1
+
+
+def test_edges_skipped_inside_the_band_add_nothing():
+    """The evening skips the logarithm of an edge whose squared length lies inside (lo2, hi2): every
+    such length, right up to both limits, has lo < log(d2) / 2 < hi, so it would have added nothing."""
+    import math
+
+    from clothgrid import evening as E
+
+    rng = np.random.default_rng()
+    for band in (1.0001, 1.05, 1.4, 3.0, 50.0):
+        lo, hi = -math.log(band), math.log(band)
+        lo2, hi2 = E._inside_band(lo, hi)
+        assert 0 < lo2 < hi2
+        inside = np.concatenate([rng.uniform(lo2, hi2, 10000),
+                                 np.nextafter(lo2, np.inf) * (1 + rng.uniform(0, 1e-12, 1000)),
+                                 np.nextafter(hi2, 0) * (1 - rng.uniform(0, 1e-12, 1000))])
+        inside = inside[(inside > lo2) & (inside < hi2)]
+        t = 0.5 * np.log(inside)
+        assert np.all((t > lo) & (t < hi))
+        # and the limits themselves are within 1e-8 of the band's: almost every inside edge is skipped
+        assert abs(lo2 / math.exp(2 * lo) - 1) < 1e-8 and abs(hi2 / math.exp(2 * hi) - 1) < 1e-8

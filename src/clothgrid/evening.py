@@ -83,14 +83,32 @@ def _energy(X, lo, hi):
     return e
 
 
+#: Relative margin of :func:`_inside_band`: far above the rounding of ``exp``, ``log`` and the
+#: halving (a few 1e-16 relative), far below any band (``BAND`` is 1.4).
+_BAND_MARGIN = 1e-9
+
+
 @njit(cache=True)
-def _node_energy(X, i, j, lo, hi):
+def _inside_band(lo, hi):
+    """``(lo2, hi2)``: a squared edge length ``d2`` with ``lo2 < d2 < hi2`` has ``lo < log(d2) / 2 < hi``
+    for certain, so it adds nothing to a node's energy or gradient and its logarithm is not taken
+    (the same sums: the skipped terms are exactly the ones that added nothing)."""
+    lo2 = math.exp(2.0 * lo) * (1.0 + _BAND_MARGIN)
+    hi2 = math.exp(2.0 * hi) * (1.0 - _BAND_MARGIN)
+    return lo2, hi2
+
+
+@njit(cache=True)
+def _node_energy(X, i, j, lo, hi, lo2, hi2):
     e = 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
         b = j + (1 if n == 2 else (-1 if n == 3 else 0))
         dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
-        t = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
+        d2 = dx * dx + dy * dy + 1e-300
+        if lo2 < d2 < hi2:
+            continue
+        t = 0.5 * math.log(d2)
         if t > hi:
             e += (t - hi) ** 2
         elif t < lo:
@@ -99,15 +117,17 @@ def _node_energy(X, i, j, lo, hi):
 
 
 @njit(cache=True)
-def _node_gradient(X, i, j, lo, hi):
+def _node_gradient(X, i, j, lo, hi, lo2, hi2):
     """The node's gradient, curvature and (:func:`_node_energy`'s, the same terms in the same order)
-    energy, from one logarithm an edge."""
+    energy, from one logarithm an edge (none for an edge inside the band, :func:`_inside_band`)."""
     gx, gy, curv, e = 0.0, 0.0, 0.0, 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
         b = j + (1 if n == 2 else (-1 if n == 3 else 0))
         dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
         d2 = dx * dx + dy * dy + 1e-300
+        if lo2 < d2 < hi2:
+            continue
         t = 0.5 * math.log(d2)
         f = 0.0
         if t > hi:
@@ -196,10 +216,10 @@ def _sines_around(X, i, j, out, w):
 
 
 @njit(cache=True)
-def _even_node(X, i, j, lo, hi, floor, before, after, need, w):
+def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w):
     """One line-searched gradient step of node (i, j) that lowers its energy and keeps every corner
     of its cells at the floor or no worse; the move, or -1.0 where it did not move."""
-    gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi)
+    gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi, lo2, hi2)
     g = math.sqrt(gx * gx + gy * gy)
     if g < 1e-9:
         return -1.0
@@ -210,7 +230,7 @@ def _even_node(X, i, j, lo, hi, floor, before, after, need, w):
         xt, yt = x0 - step * gx, y0 - step * gy
         X[i, j, 0] = xt
         X[i, j, 1] = yt
-        ok = _node_energy(X, i, j, lo, hi) < e0
+        ok = _node_energy(X, i, j, lo, hi, lo2, hi2) < e0
         if ok:
             _sines_around(X, i, j, after, w)
             for k in range(16):
@@ -236,13 +256,14 @@ def _even_node(X, i, j, lo, hi, floor, before, after, need, w):
 def _sweep(X, lo, hi, floor, active):
     """One Gauss-Seidel sweep over the interior nodes; the largest move, the nodes moved."""
     nu, nv = X.shape[0], X.shape[1]
+    lo2, hi2 = _inside_band(lo, hi)
     biggest, moved = 0.0, 0
     before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
     for i in range(1, nu - 1):
         for j in range(1, nv - 1):
             if not active[i, j]:
                 continue
-            d = _even_node(X, i, j, lo, hi, floor, before, after, need, w)
+            d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w)
             if d >= 0.0:
                 biggest = max(biggest, d)
                 moved += 1
@@ -254,6 +275,7 @@ def _sweep_coloured(X, lo, hi, floor, active):
     """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
     (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet)."""
     nu, nv = X.shape[0], X.shape[1]
+    lo2, hi2 = _inside_band(lo, hi)
     row_big = np.zeros(nu)
     row_moved = np.zeros(nu, np.int64)
     for c in range(4):
@@ -267,7 +289,7 @@ def _sweep_coloured(X, lo, hi, floor, active):
             for j in range(1 + cj, nv - 1, 2):
                 if not active[i, j]:
                     continue
-                d = _even_node(X, i, j, lo, hi, floor, before, after, need, w)
+                d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w)
                 if d >= 0.0:
                     row_big[i] = max(row_big[i], d)
                     row_moved[i] += 1
