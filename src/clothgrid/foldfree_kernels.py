@@ -192,6 +192,24 @@ def _node_energy(X, i, j, px, py, d4, want, w):
         w[_X0 + k], w[_Y0 + k], w[_X1 + k], w[_Y1 + k], w[_X3 + k], w[_Y3 + k] = px, py, n_x, n_y, q_x, q_y
         k = 8 + c
         w[_X0 + k], w[_Y0 + k], w[_X1 + k], w[_Y1 + k], w[_X3 + k], w[_Y3 + k] = n_x, n_y, o_x, o_y, px, py
+    return _lane_sums(w, d4, want)
+
+
+@njit(cache=True, error_model="numpy")
+def _moved_energy(w, px, py, d4):
+    """:func:`_node_energy` (no derivatives) with the node moved to (px, py), its neighbours already
+    in ``w`` from the last call: only the node's own lanes are rewritten."""
+    for c in range(4):
+        w[_X1 + c], w[_Y1 + c] = px, py
+        w[_X0 + 4 + c], w[_Y0 + 4 + c] = px, py
+        w[_X3 + 8 + c], w[_Y3 + 8 + c] = px, py
+    return _lane_sums(w, d4, False)[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _lane_sums(w, d4, want):
+    """The lanes' triangles (:func:`_triangles`) summed in :func:`_node_energy`'s order; inf if any
+    of the twelve is inverted beyond the regularisation."""
     _triangles(w, d4, want)
     for K in range(12):
         if w[_D + K] <= 0.0:
@@ -245,7 +263,7 @@ def _relax_node(X, i, j, delta2, w):
         dy *= lim / step
     t = 1.0
     for _ls in range(12):
-        E1, _a, _b, _c, _d, _e = _node_energy(X, i, j, px + t * dx, py + t * dy, d4, False, w)
+        E1 = _moved_energy(w, px + t * dx, py + t * dy, d4)
         if E1 < E:
             X[i, j, 0] = px + t * dx
             X[i, j, 1] = py + t * dy
