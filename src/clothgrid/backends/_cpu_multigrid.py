@@ -31,6 +31,11 @@ from ..jit_variants import serial_twin
 from ..multigrid_levels import LINE_BLOCK, Level
 
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
+# ... except in a hierarchy whose finest level has at least this many nodes: there the parallel
+# kernels run every level. Its few small levels cost some 100 thread start-ups a solve (under a
+# millisecond at 1024^2), while loading the five serial twins from Numba's cache cost a fresh
+# process (the command line) about 20 ms.
+_ALL_PARALLEL_NODES = 1 << 18
 
 
 # Coarse row J lives in the even array at J // 2 when J is even, else in the odd
@@ -726,9 +731,11 @@ _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, err
                          "_prolong_full", "_merge_grid", "_band_steps5u")}
 
 
-def _pick(name: str, nodes: int):
+def _pick(name: str, nodes: int, finest: int = 0):
+    """The parallel kernel ``name`` for a level of ``nodes`` nodes (in a hierarchy whose finest level
+    has ``finest``), or its serial twin."""
     par, ser = _KERNELS[name]
-    return par if nodes >= _PARALLEL_NODES else ser
+    return par if nodes >= _PARALLEL_NODES or finest >= _ALL_PARALLEL_NODES else ser
 
 
 def _split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -820,6 +827,11 @@ class CpuMultigrid:
             else:
                 self.st.append(sum((_split(a) for a in (lv.C, lv.E, lv.N, lv.NE, lv.NW)), ()))
 
+    def _kernel(self, name: str, level: int):
+        """Kernel ``name`` for ``level``: parallel, or its serial twin on a small level of a small
+        hierarchy (:data:`_PARALLEL_NODES`, :data:`_ALL_PARALLEL_NODES`)."""
+        return _pick(name, self.nodes[level], self.nodes[0])
+
     def smooth(self, level: int, reverse: bool = False) -> None:
         """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
@@ -829,22 +841,22 @@ class CpuMultigrid:
             b = be if p == 0 else bo
             if level == 0 and self.unit0 is not None:
                 ee, eo, nn = self.unit0
-                _pick("_relax5u", self.nodes[level])(own, other, b, (ee, eo)[p], nn, p, nv, self._has_b, mb,
+                self._kernel("_relax5u", level)(own, other, b, (ee, eo)[p], nn, p, nv, self._has_b, mb,
                                                      scr)
             elif level == 0 and not self.nine0:
                 Ee, Eo, Ne, No = st
-                _pick("_relax5", self.nodes[level])(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
+                self._kernel("_relax5", level)(own, other, b, (Ee, Eo)[p], (Ne, No)[p], (No, Ne)[p],
                                                     p, nv, self._has_b, mb, scr)
             elif self.sep[level]:
                 cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo = st
                 q = 1 - p
                 md, mu, kd, ku = (mde, mdo), (mue, muo), (kde, kdo), (kue, kuo)
-                _pick("_relax9s", self.nodes[level])(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
+                self._kernel("_relax9s", level)(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
                                                      mu[q], ku[q], p, nv, mb, scr)
             else:
                 Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
                 q = 1 - p
-                _pick("_relax9", self.nodes[level])(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
+                self._kernel("_relax9", level)(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
                                                     (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
                                                     (NWe, NWo)[p], (NWe, NWo)[q], p, nv, mb, scr)
 
@@ -854,24 +866,24 @@ class CpuMultigrid:
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
         if level == 0 and self.unit0 is not None:
-            _pick("_restrict5u", self.nodes[level])(xe, xo, be, self.unit0[0], self.unit0[2], self._has_b,
+            self._kernel("_restrict5u", level)(xe, xo, be, self.unit0[0], self.unit0[2], self._has_b,
                                                     bce, bco, xce, xco, self._rows)
         elif level == 0 and not self.nine0:
             Ee, _, Ne, No = st
-            _pick("_restrict5", self.nodes[level])(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco, self._rows)
+            self._kernel("_restrict5", level)(xe, xo, be, Ee, Ne, No, self._has_b, bce, bco, xce, xco, self._rows)
         elif self.sep[level]:
             cu, kud, du, mde, _, mue, muo, kde, _, kue, kuo = st
-            _pick("_restrict9s", self.nodes[level])(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo,
+            self._kernel("_restrict9s", level)(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo,
                                                     bce, bco, xce, xco, self._rows)
         else:
             Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
-            _pick("_restrict9", self.nodes[level])(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
+            self._kernel("_restrict9", level)(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
                                                    bce, bco, xce, xco, self._rows)
 
     def prolong(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
         xce, xco = self.x[level + 1]
-        _pick("_prolong", self.nodes[level])(self.x[level][0], xce, xco)
+        self._kernel("_prolong", level)(self.x[level][0], xce, xco)
 
     def restrict_full(self, level: int) -> None:
         """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
@@ -879,20 +891,20 @@ class CpuMultigrid:
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
         if level == 0 and self.nine0:
             re, ro = _parity_planes(self._residual9())
-            _pick("_restrict_rhs", self.nodes[0])(re, ro, self.nv[0], bce, bco, xce, xco)
+            self._kernel("_restrict_rhs", 0)(re, ro, self.nv[0], bce, bco, xce, xco)
         elif level == 0:
             (xe, xo), (be, bo) = self.x[0], self.b[0]
             Ee, Eo, Ne, No = self.st[0]
-            _pick("_restrict5_full", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self._has_b, self.nv[0],
+            self._kernel("_restrict5_full", 0)(xe, xo, be, bo, Ee, Eo, Ne, No, self._has_b, self.nv[0],
                                                     bce, bco, xce, xco)
         else:
             be, bo = self.b[level]
-            _pick("_restrict_rhs", self.nodes[level])(be, bo, self.nv[level], bce, bco, xce, xco)
+            self._kernel("_restrict_rhs", level)(be, bo, self.nv[level], bce, bco, xce, xco)
 
     def prolong_full(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on every row (full-multigrid start)."""
         xe, xo = self.x[level]
-        _pick("_prolong_full", self.nodes[level])(xe, xo, *self.x[level + 1], self.nv[level])
+        self._kernel("_prolong_full", level)(xe, xo, *self.x[level + 1], self.nv[level])
 
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
@@ -903,10 +915,10 @@ class CpuMultigrid:
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         if self.unit0 is not None:
             ee, eo, nn = self.unit0
-            return float(_pick("_max_step5u", self.nodes[0])(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
+            return float(self._kernel("_max_step5u", 0)(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
                                                              self._rows))
         Ee, Eo, Ne, No = self.st[0]
-        return float(_pick("_max_step5", self.nodes[0])(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
+        return float(self._kernel("_max_step5", 0)(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
 
     def band_steps(self, barriers: Any) -> np.ndarray | None:
         """:func:`~clothgrid.solvers.bounds.band_steps` of level 0's iterate (its right-hand side
@@ -916,7 +928,7 @@ class CpuMultigrid:
             return None
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         ee, eo, nn = self.unit0
-        return _pick("_band_steps5u", self.nodes[0])(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
+        return self._kernel("_band_steps5u", 0)(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
                                                      self._rows, barriers.ku, barriers.kv[0::2].copy(),
                                                      barriers.kv[1::2].copy(), barriers.cost,
                                                      float(barriers.zmax), float(barriers.reference) ** 2,
@@ -960,7 +972,7 @@ class CpuMultigrid:
         if sum(a.nbytes for a in coarse) >= DISCARD_MIN_BYTES:
             for a in coarse:
                 discard(a)
-        _pick("_merge_grid", self.nodes[0])(*self.x[0], out)
+        self._kernel("_merge_grid", 0)(*self.x[0], out)
 
     def synchronize(self) -> None:
         """Nothing to wait for: every kernel has returned when its call does."""
