@@ -270,3 +270,36 @@ def test_node_energy_lanes_match_one_triangle_at_a_time():
             assert E[0] == np.inf
         else:
             assert np.array_equal(np.array(E), total), (trial, E, total)
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_plane_coordinates_of_an_xy_piece_without_the_matrix_product(clockwise):
+    """to_plane and _with_interior take the swap-and-negate frame of a piece in the xy-plane
+    without a matrix product: the values of (R - centre) @ basis.T and centre + X @ basis (exact:
+    +-1 times a coordinate plus zeros), and a 3D frame still goes through the product."""
+    from clothgrid.foldfree import _with_interior, plane_frame, to_plane
+
+    rng = np.random.default_rng()
+    nu, nv = 7, 9
+    u, v = np.meshgrid(np.linspace(0, 3, nu), np.linspace(0, 2, nv), indexing="ij")
+    R = np.stack([u, v, np.zeros_like(u)], -1)
+    R[1:-1, 1:-1, :2] += rng.normal(scale=0.05, size=(nu - 2, nv - 2, 2))
+    R[2, 3, 0] = 0.0                                      # an exact zero coordinate, too
+    if clockwise:
+        R = R[::-1].copy()
+    centre, basis = plane_frame(R, 2)
+    X = to_plane(R, centre, basis)
+    assert np.array_equal(X, (R - centre) @ basis.T)
+    Y = X + rng.normal(scale=0.01, size=X.shape)
+    want = R.copy()
+    want[1:-1, 1:-1] = centre + Y[1:-1, 1:-1] @ basis
+    want[1:-1, 1:-1, 2] = 0.0
+    mine = R.copy()
+    got = _with_interior(mine, Y, centre, basis, 2, copy=False)
+    assert got is mine and np.array_equal(got, want)
+    assert np.array_equal(_with_interior(R, Y, centre, basis, 2), want)
+    # a tilted plane: the general frame, the product
+    tilt = np.array([[1.0, 0, 0], [0, 0.6, 0.8], [0, -0.8, 0.6]])
+    R3 = R @ tilt.T + [1.0, 2.0, 3.0]
+    c3, b3 = plane_frame(R3, 3)
+    assert np.array_equal(to_plane(R3, c3, b3), (R3 - c3) @ b3.T)

@@ -53,33 +53,40 @@ CHECK_SWEEPS = 10
 MIN_PROGRESS = 0.05
 
 
-@njit(cache=True)
-def _edge_log_lengths(X):
-    """Log lengths of the ``(nu-1, nv)`` u-edges and the ``(nu, nv-1)`` v-edges."""
-    nu, nv = X.shape[0], X.shape[1]
-    tu = np.empty((nu - 1, nv))
-    tv = np.empty((nu, nv - 1))
-    for i in range(nu):
-        for j in range(nv):
-            if i + 1 < nu:
-                dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
-                tu[i, j] = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
-            if j + 1 < nv:
-                dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
-                tv[i, j] = 0.5 * math.log(dx * dx + dy * dy + 1e-300)
-    return tu, tv
+@njit(cache=True, inline="always")
+def _outlying(d2, lo, hi, lo2, hi2):
+    """An edge's term of the energy from its squared length ``d2`` (``1e-300`` added): 0.0 inside
+    the band (no logarithm where ``lo2 < d2 < hi2``, :func:`_inside_band`), else ``(t - hi)^2`` or
+    ``(lo - t)^2`` with ``t = log(d2) / 2``; and whether it is outside the band."""
+    if lo2 < d2 < hi2:
+        return 0.0, False
+    t = 0.5 * math.log(d2)
+    if t > hi:
+        return (t - hi) ** 2, True
+    if t < lo:
+        return (lo - t) ** 2, True
+    return 0.0, False
 
 
 @njit(cache=True)
 def _energy(X, lo, hi):
-    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean)."""
+    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean): the
+    u-edges row by row, then the v-edges, each outlying edge's term added in that order."""
+    nu, nv = X.shape[0], X.shape[1]
+    lo2, hi2 = _inside_band(lo, hi)
     e = 0.0
-    for t in _edge_log_lengths(X):
-        for v in t.ravel():
-            if v > hi:
-                e += (v - hi) ** 2
-            elif v < lo:
-                e += (lo - v) ** 2
+    for i in range(nu - 1):
+        for j in range(nv):
+            dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
+            f, out = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+            if out:
+                e += f
+    for i in range(nu):
+        for j in range(nv - 1):
+            dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
+            f, out = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+            if out:
+                e += f
     return e
 
 
@@ -301,15 +308,19 @@ def _outside(X, lo, hi, margin):
     """Interior nodes within ``margin`` grid lines of an edge outside the band; their count."""
     nu, nv = X.shape[0], X.shape[1]
     hot = np.zeros((nu, nv), np.bool_)
-    tu, tv = _edge_log_lengths(X)
+    lo2, hi2 = _inside_band(lo, hi)
     for i in range(nu):
         for j in range(nv):
-            if i + 1 < nu and (tu[i, j] > hi or tu[i, j] < lo):
-                hot[i, j] = True
-                hot[i + 1, j] = True
-            if j + 1 < nv and (tv[i, j] > hi or tv[i, j] < lo):
-                hot[i, j] = True
-                hot[i, j + 1] = True
+            if i + 1 < nu:
+                dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
+                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1]:
+                    hot[i, j] = True
+                    hot[i + 1, j] = True
+            if j + 1 < nv:
+                dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
+                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1]:
+                    hot[i, j] = True
+                    hot[i, j + 1] = True
     active = np.zeros((nu, nv), np.bool_)
     count = 0
     for i in range(nu):
@@ -362,12 +373,12 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         never grows: where the sweeps left it larger, the input grid is returned,
         ``moved`` is 0 and ``rejected_spread`` holds the spread they reached.
     """
-    from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame
+    from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame, to_plane
 
     t0 = time.perf_counter()
     R = _grid_copy(points, "even_edges")
     centre, basis = plane_frame(R, dim)
-    X = np.ascontiguousarray((R - centre) @ basis.T)
+    X = np.ascontiguousarray(to_plane(R, centre, basis))
     lengths = _edge_lengths(X)
     shortest = float(lengths.min())
     spread = float(lengths.max()) / shortest if shortest > 0 else float("inf")
@@ -414,7 +425,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         info.update(rejected_spread=after, moved=0)
         return R, info
     info["spread_after"] = after
-    return _with_interior(R, X, centre, basis, dim), info
+    return _with_interior(R, X, centre, basis, dim, copy=False), info   # R: this call's own copy
 
 
 @njit(cache=True)
