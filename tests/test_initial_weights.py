@@ -99,3 +99,20 @@ def test_clockwise_piece_gets_ccw_quads(rng):
                         axis=1)
     assert np.all(area > 0)
     assert clothgrid.quality(g).folded == 0
+
+
+@pytest.mark.parametrize("shape", [(520, 510, 3), (700, 400, 2), (400, 700, 1)])
+def test_transfinite_kernel_gives_the_numpy_forms_bits(shape, monkeypatch):
+    """Large grids are interpolated by one Numba pass (initial_kernels.transfinite_into): on fresh
+    boundaries, bit for bit the NumPy form's grid."""
+    from clothgrid import initial
+
+    rng = np.random.default_rng()
+    r = np.zeros(shape)
+    for side in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
+        r[side] = rng.normal(size=r[side].shape) * rng.uniform(0.1, 100)
+    assert shape[0] * shape[1] >= initial.KERNEL_NODES
+    got = initial.transfinite(r.copy())
+    monkeypatch.setattr(initial, "KERNEL_NODES", 10**12)
+    want = initial.transfinite(r.copy())
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))

@@ -29,11 +29,21 @@ def _average(r: np.ndarray) -> np.ndarray:
     return r
 
 
+#: grids of at least this many nodes are interpolated by one Numba pass (:mod:`clothgrid.initial_kernels`,
+#: the same bits; 17-24 -> ~3 ms at 1024^2)
+KERNEL_NODES = 1 << 18
+
+
 def transfinite(r: np.ndarray) -> np.ndarray:
     """Fill the interior of ``r`` (``(nu, nv, d)``, any ``d``) from its boundary by eq. (4), in place."""
     # Eq. (4) regrouped: (1-u) L'(v) + u R'(v) + (1-v) B(u) + v T(u), where L' and R' are the
     # left and right sides less the corners' linear interpolation; written into the interior.
     nu, nv = r.shape[:2]
+    if nu * nv >= KERNEL_NODES and r.flags.c_contiguous and r.dtype == np.float64 and nu > 2 and nv > 2:
+        from .initial_kernels import transfinite_into     # one pass, the same bits
+
+        transfinite_into(r, np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv))
+        return r
     u = np.linspace(0.0, 1.0, nu)[1:-1, None, None]
     v = np.linspace(0.0, 1.0, nv)[None, 1:-1, None]
     vv = v[0]
