@@ -114,19 +114,6 @@ def _triangles(w, d4, want):
     ``D`` into ``_D`` and, if ``want``, gradient and Hessian terms (the moving node's role by lane:
     lanes 0-3 end edge a, 4-7 are the apex, 8-11 end edge b). No branches: an inverted triangle's
     lane divides by zero or less (numpy's error model: no exception) and is found by its ``D``."""
-    if not want:
-        for K in range(LANES):
-            ax = w[_X1 + K] - w[_X0 + K]
-            ay = w[_Y1 + K] - w[_Y0 + K]
-            bx = w[_X3 + K] - w[_X0 + K]
-            by = w[_Y3 + K] - w[_Y0 + K]
-            J = ax * by - ay * bx
-            N = ax * ax + ay * ay + bx * bx + by * by
-            s = np.sqrt(J * J + d4)
-            D = J + s
-            w[_D + K] = D
-            w[_F + K] = N / D
-        return
     for K in range(LANES):
         ax = w[_X1 + K] - w[_X0 + K]
         ay = w[_Y1 + K] - w[_Y0 + K]
@@ -136,24 +123,25 @@ def _triangles(w, d4, want):
         N = ax * ax + ay * ay + bx * bx + by * by
         s = np.sqrt(J * J + d4)
         D = J + s
-        apex = K >= 4 and K < 8
-        a_end = K < 4
-        nx = -2.0 * (ax + bx) if apex else (2.0 * ax if a_end else 2.0 * bx)
-        ny = -2.0 * (ay + by) if apex else (2.0 * ay if a_end else 2.0 * by)
-        h2 = 4.0 if apex else 2.0
-        jx = (ay - by) if apex else (by if a_end else -ay)
-        jy = (bx - ax) if apex else (-bx if a_end else ax)
-        Dp = 1.0 + J / s
-        Dpp = d4 / (s * s * s)
         w[_D + K] = D
         w[_F + K] = N / D
-        w[_GX + K] = nx / D - N * Dp / (D * D) * jx
-        w[_GY + K] = ny / D - N * Dp / (D * D) * jy
-        cjj = 2.0 * N * Dp * Dp / (D * D * D) - N * Dpp / (D * D)
-        cnj = Dp / (D * D)
-        w[_HXX + K] = h2 / D - cnj * 2.0 * nx * jx + cjj * jx * jx
-        w[_HYY + K] = h2 / D - cnj * 2.0 * ny * jy + cjj * jy * jy
-        w[_HXY + K] = -cnj * (nx * jy + jx * ny) + cjj * jx * jy
+        if want:                # loop-invariant: the compiler makes two loops, both vectorised
+            apex = K >= 4 and K < 8
+            a_end = K < 4
+            nx = -2.0 * (ax + bx) if apex else (2.0 * ax if a_end else 2.0 * bx)
+            ny = -2.0 * (ay + by) if apex else (2.0 * ay if a_end else 2.0 * by)
+            h2 = 4.0 if apex else 2.0
+            jx = (ay - by) if apex else (by if a_end else -ay)
+            jy = (bx - ax) if apex else (-bx if a_end else ax)
+            Dp = 1.0 + J / s
+            Dpp = d4 / (s * s * s)
+            w[_GX + K] = nx / D - N * Dp / (D * D) * jx
+            w[_GY + K] = ny / D - N * Dp / (D * D) * jy
+            cjj = 2.0 * N * Dp * Dp / (D * D * D) - N * Dpp / (D * D)
+            cnj = Dp / (D * D)
+            w[_HXX + K] = h2 / D - cnj * 2.0 * nx * jx + cjj * jx * jx
+            w[_HYY + K] = h2 / D - cnj * 2.0 * ny * jy + cjj * jy * jy
+            w[_HXY + K] = -cnj * (nx * jy + jx * ny) + cjj * jx * jy
 
 
 @njit(cache=True, error_model="numpy")
