@@ -488,7 +488,9 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         raise InputError("the piece's boundary encloses no area")
     scale = np.sqrt(area / ((nu - 1) * (nv - 1)))
     shift = loop.mean(axis=0)
-    Xs = np.ascontiguousarray((X - shift) / scale)
+    Xs = np.ascontiguousarray(X)            # X's own memory (to_plane made it): no temporaries
+    Xs -= shift
+    Xs /= scale
     stats: dict[str, Any] = {"sweeps": 0, "rounds": 0, "moved": 0, "method": "relax"}
     poor = np.ones((nu - 1, nv - 1), bool) if whole else _poor_cells(Xs, poor_sine)
     if not poor.any():
@@ -508,6 +510,8 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         stats["sweeps"] += int(done)
         jmin, bad = corner_min(Xs, True)
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
-    out = _with_interior(R, Xs * scale + shift, centre, basis, dim, copy=False)   # R: this call's own copy
+    Xs *= scale
+    Xs += shift
+    out = _with_interior(R, Xs, centre, basis, dim, copy=False)   # R: this call's own copy
     stats["seconds"] = time.perf_counter() - t0
     return out, stats
