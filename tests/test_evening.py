@@ -208,3 +208,18 @@ def test_edges_skipped_inside_the_band_add_nothing():
         assert np.all((t > lo) & (t < hi))
         # and the limits themselves are within 1e-8 of the band's: almost every inside edge is skipped
         assert abs(lo2 / math.exp(2 * lo) - 1) < 1e-8 and abs(hi2 / math.exp(2 * hi) - 1) < 1e-8
+
+
+def test_evening_in_the_callers_array_with_copy_false(rng):
+    """copy=False writes the evened grid into the array it is given (the same result as a copy);
+    the default leaves its input alone."""
+    for _ in range(4):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
+        length = generate(b, weights="paper")
+        given = length.points.copy()
+        want, info = even_edges(given, dim=2)
+        assert np.array_equal(given, length.points)            # copy=True: untouched
+        mine = length.points.copy()
+        got, info2 = even_edges(mine, dim=2, copy=False)
+        assert np.array_equal(got, want) and info2["moved"] == info["moved"]
+        assert got is mine                                      # written into the caller's array

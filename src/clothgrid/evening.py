@@ -336,8 +336,8 @@ def _outside(X, lo, hi, margin):
 
 
 def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG, band: float = BAND,
-               spread_ok: float = SPREAD_OK, max_sweeps: int = MAX_SWEEPS, margin: int = 3
-               ) -> tuple[np.ndarray, dict[str, Any]]:
+               spread_ok: float = SPREAD_OK, max_sweeps: int = MAX_SWEEPS, margin: int = 3,
+               copy: bool = True) -> tuple[np.ndarray, dict[str, Any]]:
     """Lower the edge spread of a planar grid by moving interior nodes near its outlying edges.
 
     Parameters
@@ -361,6 +361,10 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         :data:`MIN_PROGRESS` over :data:`CHECK_SWEEPS` sweeps.
     margin : int
         Nodes within this many grid lines of an outlying edge are moved.
+    copy : bool
+        False: ``points`` (a C-contiguous float64 array) is the caller's to give away, and the
+        result is written into it (a grid-size copy less); it is still returned as it was where
+        nothing is evened.
 
     Returns
     -------
@@ -376,7 +380,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame, to_plane
 
     t0 = time.perf_counter()
-    R = _grid_copy(points, "even_edges")
+    R = _grid_copy(points, "even_edges", copy=copy)
     centre, basis = plane_frame(R, dim)
     X = np.ascontiguousarray(to_plane(R, centre, basis))
     lengths = _edge_lengths(X)

@@ -81,9 +81,10 @@ def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarra
     return centre, basis
 
 
-def _grid_copy(points: np.ndarray, who: str) -> np.ndarray:
-    """A float64 copy of an ``(nu, nv, 3)`` grid with ``nu, nv >= 3`` and finite nodes (else InputError)."""
-    R = np.array(points, dtype=np.float64)
+def _grid_copy(points: np.ndarray, who: str, copy: bool = True) -> np.ndarray:
+    """A float64 copy of an ``(nu, nv, 3)`` grid with ``nu, nv >= 3`` and finite nodes (else InputError);
+    with ``copy=False`` the array itself where it is C-contiguous float64 already."""
+    R = np.array(points, dtype=np.float64) if copy else np.ascontiguousarray(points, dtype=np.float64)
     if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
         raise InputError(f"{who} needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
     if not np.isfinite(R).all():

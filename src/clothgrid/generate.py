@@ -302,7 +302,7 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         say(f"warning: {q.folded} folded cells kept: {exc}")
         return grid
     relaxed = not (functional == "auto" and ff.get("moved", 0) == 0)
-    points, ev = even_edges(points, dim=grid.dim)
+    points, ev = even_edges(points, dim=grid.dim, copy=False)     # relax's result: a copy of its own
     kept = f"; kept, the sweeps reached {ev['rejected_spread']:.3g}" if "rejected_spread" in ev else ""
     say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
         f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
