@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -179,15 +180,39 @@ def _planar(R, basis, i, j):
 
 
 @njit(cache=True, inline="always")
-def _edge(R, basis, i0, j0, i1, j1):
-    """The in-plane edge from node ``(i0, j0)`` to ``(i1, j1)``: unit vector (zero if degenerate), length."""
-    x0, y0 = _planar(R, basis, i0, j0)
-    x1, y1 = _planar(R, basis, i1, j1)
+def _edge_xy(x0, y0, x1, y1):
+    """The in-plane edge from ``(x0, y0)`` to ``(x1, y1)``: unit vector (zero if degenerate), length."""
     dx, dy = x1 - x0, y1 - y0
     length = math.sqrt(dx * dx + dy * dy)
     if length > 0:
         return dx / length, dy / length, length
     return 0.0, 0.0, length
+
+
+@njit(cache=True, inline="always")
+def _edge(R, basis, i0, j0, i1, j1):
+    """The in-plane edge from node ``(i0, j0)`` to ``(i1, j1)``: unit vector (zero if degenerate), length."""
+    x0, y0 = _planar(R, basis, i0, j0)
+    x1, y1 = _planar(R, basis, i1, j1)
+    return _edge_xy(x0, y0, x1, y1)
+
+
+@njit(cache=True)
+def _row_edges(R, basis, i, e):
+    """The edges of the cells of row ``i`` into ``e`` (rows of ``nv`` values): 0-2 the u-edges from
+    row ``i`` to ``i + 1`` (unit x, y, length), 3-5 the v-edges of row ``i``, 6-8 those of row ``i + 1``:
+    each edge once (:func:`_edge`'s arithmetic), not once for each cell and measure."""
+    nv = R.shape[1]
+    x0, y0 = _planar(R, basis, i, 0)
+    x1, y1 = _planar(R, basis, i + 1, 0)
+    for j in range(nv):
+        e[0, j], e[1, j], e[2, j] = _edge_xy(x0, y0, x1, y1)
+        if j + 1 < nv:
+            xa, ya = _planar(R, basis, i, j + 1)
+            xb, yb = _planar(R, basis, i + 1, j + 1)
+            e[3, j], e[4, j], e[5, j] = _edge_xy(x0, y0, xa, ya)
+            e[6, j], e[7, j], e[8, j] = _edge_xy(x1, y1, xb, yb)
+            x0, y0, x1, y1 = xa, ya, xb, yb
 
 
 @njit(cache=True, parallel=True)
@@ -217,14 +242,19 @@ def planar_measures(R, basis, straight):
     row_aspect = np.zeros(mu)
     row_cos = np.zeros(mu)
     row_deg = np.zeros(mu, dtype=np.bool_)     # a degenerate cell in the row: deviation 90
+    row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row; max, min of the v-edges
+    row_u[nu - 1, 1] = np.inf      # the last row has no u-edges
+    scratch = np.empty((numba.config.NUMBA_NUM_THREADS, 9, nv + 8))   # 8 spare: threads' rows apart
     for r in prange(mu):
         i = np.int64(r)
+        e = scratch[numba.get_thread_id()]
+        _row_edges(R, basis, i, e)
         sj_lo, asp_hi, cos_hi, deg = np.inf, 0.0, 0.0, False
         for j in range(mv):
-            bx, by, lb = _edge(R, basis, i, j, i + 1, j)            # bottom (u-edge at j)
-            tx, ty, lt = _edge(R, basis, i, j + 1, i + 1, j + 1)    # top (u-edge at j + 1)
-            lx, ly, ll = _edge(R, basis, i, j, i, j + 1)            # left (v-edge at i)
-            rx, ry, lr = _edge(R, basis, i + 1, j, i + 1, j + 1)    # right (v-edge at i + 1)
+            bx, by, lb = e[0, j], e[1, j], e[2, j]                  # bottom (u-edge at j)
+            tx, ty, lt = e[0, j + 1], e[1, j + 1], e[2, j + 1]      # top (u-edge at j + 1)
+            lx, ly, ll = e[3, j], e[4, j], e[5, j]                  # left (v-edge at i)
+            rx, ry, lr = e[6, j], e[7, j], e[8, j]                  # right (v-edge at i + 1)
             bad = False
             for k in range(4):      # corners b x l, b x r, t x r, t x l
                 ax, ay = (bx, by) if k < 2 else (tx, ty)
@@ -249,18 +279,21 @@ def planar_measures(R, basis, straight):
                 asp_hi = max(asp_hi, longest / shortest)
             folded[i, j] = bad
         row_sj[i], row_aspect[i], row_cos[i], row_deg[i] = sj_lo, asp_hi, cos_hi, deg
-    row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row; max, min of the v-edges
-    for r in prange(nu):
-        i = np.int64(r)
+        # the edge lengths' extremes: row i's u-edges and v-edges (and the last row's v-edges)
         uh, ul, vh, vl = 0.0, np.inf, 0.0, np.inf
         for j in range(nv):
-            if i + 1 < nu:
-                length = _edge(R, basis, i, j, i + 1, j)[2]
-                uh, ul = max(uh, length), min(ul, length)
+            length = e[2, j]
+            uh, ul = max(uh, length), min(ul, length)
             if j + 1 < nv:
-                length = _edge(R, basis, i, j, i, j + 1)[2]
+                length = e[5, j]
                 vh, vl = max(vh, length), min(vl, length)
         row_u[i, 0], row_u[i, 1], row_u[i, 2], row_u[i, 3] = uh, ul, vh, vl
+        if i == mu - 1:
+            vh, vl = 0.0, np.inf
+            for j in range(nv - 1):
+                length = e[8, j]
+                vh, vl = max(vh, length), min(vl, length)
+            row_u[nu - 1, 2], row_u[nu - 1, 3] = vh, vl
     deviation = 90.0 if row_deg.any() else math.degrees(math.asin(min(row_cos.max(), 1.0)))
     return (folded, row_sj.min(), row_aspect.max(), deviation,
             row_u[:mu, 0].max(), row_u[:mu, 1].min(), row_u[:, 2].max(), row_u[:, 3].min())
