@@ -189,19 +189,11 @@ def _edge_xy(x0, y0, x1, y1):
     return 0.0, 0.0, length
 
 
-@njit(cache=True, inline="always")
-def _edge(R, basis, i0, j0, i1, j1):
-    """The in-plane edge from node ``(i0, j0)`` to ``(i1, j1)``: unit vector (zero if degenerate), length."""
-    x0, y0 = _planar(R, basis, i0, j0)
-    x1, y1 = _planar(R, basis, i1, j1)
-    return _edge_xy(x0, y0, x1, y1)
-
-
 @njit(cache=True)
 def _row_edges(R, basis, i, e):
     """The edges of the cells of row ``i`` into ``e`` (rows of ``nv`` values): 0-2 the u-edges from
     row ``i`` to ``i + 1`` (unit x, y, length), 3-5 the v-edges of row ``i``, 6-8 those of row ``i + 1``:
-    each edge once (:func:`_edge`'s arithmetic), not once for each cell and measure."""
+    each edge once (:func:`_planar`, then :func:`_edge_xy`), not once for each cell and measure."""
     nv = R.shape[1]
     x0, y0 = _planar(R, basis, i, 0)
     x1, y1 = _planar(R, basis, i + 1, 0)
