@@ -190,12 +190,12 @@ def test_python_m_clothgrid(horn, tmp_path):
     assert "clothgrid: error:" in bad.stderr
 
 
-def test_blas_preload_in_a_fresh_interpreter():
+def test_lean_imports_blas_in_a_fresh_interpreter():
     """preload_cython_blas: Numba's kernels and BLAS work without scipy.linalg's package until it is
     imported, and then the package is whole, with the very module as its attribute."""
     code = """
 import sys
-from clothgrid.blas_preload import preload_cython_blas
+from clothgrid.lean_imports import preload_cython_blas
 assert preload_cython_blas()
 assert not preload_cython_blas()          # once
 assert "scipy.linalg" not in sys.modules
@@ -220,10 +220,50 @@ print("ok")
     assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
 
 
-def test_blas_preload_leaves_an_imported_scipy_linalg_alone():
+def test_svgpathtools_without_quad_reads_the_same_pieces(tmp_path):
+    """lean_imports.svgpathtools_without_quad: in a fresh interpreter svgpathtools imports without
+    scipy.integrate (and says so), scipy.integrate imports as usual afterwards, and an SVG pattern
+    file reads to the very same outlines as with a plain import."""
+    svg = tmp_path / "piece.svg"          # lines, a cubic and an elliptic arc, as svgpathtools parses them
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" viewBox="0 0 300 200">'
+                   '<path id="front" d="M 10 10 L 210 10 C 240 60 240 120 210 170 '
+                   'A 100 40 0 0 1 10 170 Z" fill="none" stroke="black"/></svg>')
+    code = """
+import sys, hashlib
+hook = sys.argv[1] == "hook"
+if hook:
+    from clothgrid.lean_imports import svgpathtools_without_quad
+    assert svgpathtools_without_quad() and not svgpathtools_without_quad()
+from clothgrid.readers import read_input
+got = read_input(sys.argv[2])
+pieces = got if isinstance(got, list) else [got]
+h = hashlib.sha256()
+for p in pieces:
+    h.update(repr(p.name).encode())
+    h.update(p.outline.tobytes())
+import svgpathtools.path as P
+assert P._quad_available is (not hook), P._quad_available
+assert ("scipy.integrate" in sys.modules) is (not hook)
+import scipy.integrate
+assert abs(scipy.integrate.quad(lambda x: x * x, 0, 1)[0] - 1 / 3) < 1e-12
+assert not any(type(f).__name__ == "_WithoutQuad" for f in sys.meta_path)
+print(h.hexdigest())
+"""
+    src = str(Path(clothgrid.__file__).resolve().parent.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    out = []
+    for mode in ("hook", "plain"):
+        res = subprocess.run([sys.executable, "-c", code, mode, str(svg)], capture_output=True, text=True,
+                             env=env, stdin=subprocess.DEVNULL, timeout=600)
+        assert res.returncode == 0, res.stderr
+        out.append(res.stdout.strip())
+    assert out[0] == out[1]
+
+
+def test_lean_imports_blas_leaves_an_imported_scipy_linalg_alone():
     import scipy.linalg  # noqa: F401  (imported in this process: nothing to do)
 
-    from clothgrid.blas_preload import preload_cython_blas
+    from clothgrid.lean_imports import preload_cython_blas
 
     assert not preload_cython_blas()
 

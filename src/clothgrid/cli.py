@@ -1010,10 +1010,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         the reader of the output closed the pipe. Unexpected exceptions propagate
         with their traceback.
     """
-    from .blas_preload import preload_cython_blas
+    from .lean_imports import preload_cython_blas, svgpathtools_without_quad
     from .pages import small_pages
 
     preload_cython_blas()       # Numba's BLAS check without all of scipy.linalg: 0.1 s
+    svgpathtools_without_quad() # svgpathtools without scipy.integrate (clothgrid samples paths itself): 0.4 s
     with _signals_as_interrupts(), _collector_paused(), small_pages():
         try:
             return _main(argv)
