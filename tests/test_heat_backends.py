@@ -110,9 +110,9 @@ def test_gl_operations_equal_the_cpus(rng):
             g.download(v, out)
             return out
 
-        def close(a, b, scale=None):
+        def close(a, b, scale=None, rel=2e-5):
             scale = scale if scale is not None else np.abs(a).max()
-            assert np.abs(a - b).max() <= 2e-5 * scale, (np.abs(a - b).max(), scale)
+            assert np.abs(a - b).max() <= rel * scale, (np.abs(a - b).max(), scale)
 
         (x, xg), (b, bg) = both(lambda: padded(rng.standard_normal(h.fine.shape))), \
             both(lambda: padded(rng.standard_normal(h.fine.shape)))
@@ -169,7 +169,9 @@ def test_gl_operations_equal_the_cpus(rng):
             sync(level)
             cpu.smooth(level, False)
             g.smooth(level, False)
-            close(cpu.x[level], level_back(level, "x"))
+            # after the coarse correction, float32 line solves across 10^4 contrasts: measured over 300
+            # seeds (900 sweeps) median 1.4e-7, 99 % 3.3e-6, largest 3.2e-5 of max |x| (2e-5 failed 1 in 150)
+            close(cpu.x[level], level_back(level, "x"), rel=1e-4)
         # a whole V-cycle: float32 against float64 through every level (measured: up to 1e-4 of max |z|)
         r = padded(rng.standard_normal(h.fine.shape))
         z = np.zeros_like(r)
