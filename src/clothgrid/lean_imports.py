@@ -97,7 +97,7 @@ class _AttachToPackage(importlib.abc.MetaPathFinder):
 
 
 class _Attaching(importlib.abc.Loader):
-    """A loader that runs ``loader`` and then sets ``module.cython_blas`` on what it made."""
+    """A loader that sets ``module.cython_blas`` on the new package and then runs ``loader``."""
 
     def __init__(self, loader: importlib.abc.Loader, child: ModuleType):
         self.loader = loader
