@@ -107,19 +107,15 @@ def _inside_band(lo, hi):
 
 @njit(cache=True)
 def _node_energy(X, i, j, lo, hi, lo2, hi2):
+    """The energy of the four edges at node (i, j) (:func:`_outlying`'s terms, in edge order)."""
     e = 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
         b = j + (1 if n == 2 else (-1 if n == 3 else 0))
         dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
-        d2 = dx * dx + dy * dy + 1e-300
-        if lo2 < d2 < hi2:
-            continue
-        t = 0.5 * math.log(d2)
-        if t > hi:
-            e += (t - hi) ** 2
-        elif t < lo:
-            e += (lo - t) ** 2
+        f, out = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+        if out:
+            e += f
     return e
 
 
