@@ -75,24 +75,26 @@ def preload_cython_blas() -> bool:
     except Exception:     # any surprise: leave the import to Numba, as without this module
         sys.modules.pop(_MODULE, None)
         return False
-    sys.meta_path.insert(0, _AttachToPackage(module))
+    sys.meta_path.insert(0, _WrapOnce(_PACKAGE, lambda loader: _Attaching(loader, module)))
     return True
 
 
-class _AttachToPackage(importlib.abc.MetaPathFinder):
-    """Import ``scipy.linalg`` the usual way, then set its ``cython_blas`` attribute; once."""
+class _WrapOnce(importlib.abc.MetaPathFinder):
+    """Find module ``name`` the usual way, the next time it is imported, and give it the loader
+    ``wrap(loader)``; then stand aside."""
 
-    def __init__(self, module: ModuleType):
-        self.module = module
+    def __init__(self, name: str, wrap):  # type: ignore[no-untyped-def]
+        self.name = name
+        self.wrap = wrap
 
     def find_spec(self, name, path, target=None):  # type: ignore[no-untyped-def]
-        if name != _PACKAGE:
+        if name != self.name:
             return None
         sys.meta_path.remove(self)
         spec = importlib.machinery.PathFinder.find_spec(name, path)
         if spec is None or spec.loader is None:
             return spec
-        spec.loader = _Attaching(spec.loader, self.module)
+        spec.loader = self.wrap(spec.loader)
         return spec
 
 
@@ -130,24 +132,10 @@ def svgpathtools_without_quad() -> bool:
         ``scipy.integrate`` imported already, or the hook is in place).
     """
     if (_SVG_PATH in sys.modules or _INTEGRATE in sys.modules
-            or any(isinstance(f, _WithoutQuad) for f in sys.meta_path)):
+            or any(isinstance(f, _WrapOnce) and f.name == _SVG_PATH for f in sys.meta_path)):
         return False
-    sys.meta_path.insert(0, _WithoutQuad())
+    sys.meta_path.insert(0, _WrapOnce(_SVG_PATH, _Blocking))
     return True
-
-
-class _WithoutQuad(importlib.abc.MetaPathFinder):
-    """Import ``svgpathtools.path`` the usual way, with ``scipy.integrate`` unavailable meanwhile; once."""
-
-    def find_spec(self, name, path, target=None):  # type: ignore[no-untyped-def]
-        if name != _SVG_PATH:
-            return None
-        sys.meta_path.remove(self)
-        spec = importlib.machinery.PathFinder.find_spec(name, path)
-        if spec is None or spec.loader is None:
-            return spec
-        spec.loader = _Blocking(spec.loader)
-        return spec
 
 
 class _Blocking(importlib.abc.Loader):
