@@ -55,17 +55,18 @@ MIN_PROGRESS = 0.05
 
 @njit(cache=True, inline="always")
 def _outlying(d2, lo, hi, lo2, hi2):
-    """An edge's term of the energy from its squared length ``d2`` (``1e-300`` added): 0.0 inside
-    the band (no logarithm where ``lo2 < d2 < hi2``, :func:`_inside_band`), else ``(t - hi)^2`` or
-    ``(lo - t)^2`` with ``t = log(d2) / 2``; and whether it is outside the band."""
+    """An edge's term of the energy from its squared length ``d2`` (``1e-300`` added), and the
+    term's derivative in ``t = log(d2) / 2``: ``(t - hi)^2`` and ``2 (t - hi)`` above the band,
+    ``(lo - t)^2`` and ``-2 (lo - t)`` below it, ``(0, 0)`` inside it (no logarithm where
+    ``lo2 < d2 < hi2``, :func:`_inside_band`). The derivative is nonzero exactly outside the band."""
     if lo2 < d2 < hi2:
-        return 0.0, False
+        return 0.0, 0.0
     t = 0.5 * math.log(d2)
     if t > hi:
-        return (t - hi) ** 2, True
+        return (t - hi) ** 2, 2.0 * (t - hi)
     if t < lo:
-        return (lo - t) ** 2, True
-    return 0.0, False
+        return (lo - t) ** 2, -2.0 * (lo - t)
+    return 0.0, 0.0
 
 
 @njit(cache=True)
@@ -78,14 +79,14 @@ def _energy(X, lo, hi):
     for i in range(nu - 1):
         for j in range(nv):
             dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
-            f, out = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-            if out:
+            f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+            if slope != 0.0:
                 e += f
     for i in range(nu):
         for j in range(nv - 1):
             dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
-            f, out = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-            if out:
+            f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+            if slope != 0.0:
                 e += f
     return e
 
@@ -113,8 +114,8 @@ def _node_energy(X, i, j, lo, hi, lo2, hi2):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
         b = j + (1 if n == 2 else (-1 if n == 3 else 0))
         dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
-        f, out = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-        if out:
+        f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+        if slope != 0.0:
             e += f
     return e
 
@@ -129,17 +130,9 @@ def _node_gradient(X, i, j, lo, hi, lo2, hi2):
         b = j + (1 if n == 2 else (-1 if n == 3 else 0))
         dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
         d2 = dx * dx + dy * dy + 1e-300
-        if lo2 < d2 < hi2:
-            continue
-        t = 0.5 * math.log(d2)
-        f = 0.0
-        if t > hi:
-            f = 2.0 * (t - hi)
-            e += (t - hi) ** 2
-        elif t < lo:
-            f = -2.0 * (lo - t)
-            e += (lo - t) ** 2
+        term, f = _outlying(d2, lo, hi, lo2, hi2)
         if f != 0.0:
+            e += term
             gx += f * dx / d2          # d/dx of (t - hi)^2 = 2 (t - hi) * dx / d^2
             gy += f * dy / d2
             curv += 2.0 / d2 + abs(f) / d2
@@ -183,9 +176,9 @@ def _sines_around(X, i, j, out, w):
     (16; 2.0 where there is no such corner, where it is a grid corner, whose angle is the
     outline's, and at each cell's corner opposite the node, whose sine the node does not change).
 
-    The sixteen corners' edges go into the lanes of ``w`` (``SINE_SCRATCH``), their sines are
-    taken side by side (:func:`_lane_sines`, :func:`_corner_sine`'s bits), and the corners that
-    do not count are set to 2.0 after."""
+    The counting corners' edges go into the lanes of ``w`` (``SINE_SCRATCH``; the others hold
+    zeros) and their sines are taken side by side (:func:`_lane_sines`, :func:`_corner_sine`'s
+    bits)."""
     nu, nv = X.shape[0], X.shape[1]
     m = 0
     for ci in range(i - 1, i + 1):
@@ -193,29 +186,22 @@ def _sines_around(X, i, j, out, w):
             inside = not (ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1)
             c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
             for k in range(4):
-                if inside:
-                    q, r, p = c[k], c[(k + 1) % 4], c[(k + 3) % 4]
+                q, r, p = c[k], c[(k + 1) % 4], c[(k + 3) % 4]
+                if (not inside or ((q[0] == 0 or q[0] == nu - 1) and (q[1] == 0 or q[1] == nv - 1))
+                        or (q[0] != i and q[1] != j)):
+                    out[m] = 2.0                  # does not count (no sine is 2)
+                    w[_AX + m] = w[_AY + m] = w[_BX + m] = w[_BY + m] = 0.0
+                else:
+                    out[m] = 0.0
                     w[_AX + m] = X[r[0], r[1], 0] - X[q[0], q[1], 0]
                     w[_AY + m] = X[r[0], r[1], 1] - X[q[0], q[1], 1]
                     w[_BX + m] = X[p[0], p[1], 0] - X[q[0], q[1], 0]
                     w[_BY + m] = X[p[0], p[1], 1] - X[q[0], q[1], 1]
-                else:
-                    w[_AX + m] = w[_AY + m] = w[_BX + m] = w[_BY + m] = 0.0
                 m += 1
     _lane_sines(w)
-    m = 0
-    for ci in range(i - 1, i + 1):
-        for cj in range(j - 1, j + 1):
-            inside = not (ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1)
-            c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
-            for k in range(4):
-                q = c[k]
-                if (not inside or ((q[0] == 0 or q[0] == nu - 1) and (q[1] == 0 or q[1] == nv - 1))
-                        or (q[0] != i and q[1] != j)):
-                    out[m] = 2.0
-                else:
-                    out[m] = w[_SINE + m]
-                m += 1
+    for m in range(LANES):
+        if out[m] != 2.0:
+            out[m] = w[_SINE + m]
 
 
 @njit(cache=True)
@@ -309,12 +295,12 @@ def _outside(X, lo, hi, margin):
         for j in range(nv):
             if i + 1 < nu:
                 dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
-                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1]:
+                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1] != 0.0:
                     hot[i, j] = True
                     hot[i + 1, j] = True
             if j + 1 < nv:
                 dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
-                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1]:
+                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1] != 0.0:
                     hot[i, j] = True
                     hot[i, j + 1] = True
     active = np.zeros((nu, nv), np.bool_)
