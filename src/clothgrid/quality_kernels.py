@@ -234,8 +234,7 @@ def planar_measures(R, basis, straight):
     row_aspect = np.zeros(mu)
     row_cos = np.zeros(mu)
     row_deg = np.zeros(mu, dtype=np.bool_)     # a degenerate cell in the row: deviation 90
-    row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row; max, min of the v-edges
-    row_u[nu - 1, 1] = np.inf      # the last row has no u-edges
+    row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row (the last has none); max, min of the v-edges
     scratch = np.empty((numba.config.NUMBA_NUM_THREADS, 9, nv + 8))   # 8 spare: threads' rows apart
     for r in prange(mu):
         i = np.int64(r)

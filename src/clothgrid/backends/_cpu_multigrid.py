@@ -732,7 +732,7 @@ _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, err
                          "_prolong_full", "_merge_grid", "_band_steps5u")}
 
 
-def _pick(name: str, nodes: int, finest: int = 0):
+def _pick(name: str, nodes: int, finest: int):
     """The parallel kernel ``name`` for a level of ``nodes`` nodes (in a hierarchy whose finest level
     has ``finest``), or its serial twin."""
     par, ser = _KERNELS[name]
