@@ -98,24 +98,35 @@ class _WrapOnce(importlib.abc.MetaPathFinder):
         return spec
 
 
-class _Attaching(importlib.abc.Loader):
-    """A loader that sets ``module.cython_blas`` on the new package and then runs ``loader``."""
+class _Wrapping(importlib.abc.Loader):
+    """A loader around ``loader``: the module is made and run by it (:meth:`_run`), which then
+    stays the module's loader."""
 
-    def __init__(self, loader: importlib.abc.Loader, child: ModuleType):
+    def __init__(self, loader: importlib.abc.Loader):
         self.loader = loader
-        self.child = child
 
     def create_module(self, spec):  # type: ignore[no-untyped-def]
         return self.loader.create_module(spec)
 
-    def exec_module(self, module: ModuleType) -> None:
-        module.cython_blas = self.child     # before the package's own code, which may import it
+    def _run(self, module: ModuleType) -> None:
         try:
             self.loader.exec_module(module)
-        finally:                            # the package's own loader from now on
+        finally:
             module.__loader__ = self.loader
             if module.__spec__ is not None:
                 module.__spec__.loader = self.loader
+
+
+class _Attaching(_Wrapping):
+    """Sets ``module.cython_blas`` on the new package and then runs it."""
+
+    def __init__(self, loader: importlib.abc.Loader, child: ModuleType):
+        super().__init__(loader)
+        self.child = child
+
+    def exec_module(self, module: ModuleType) -> None:
+        module.cython_blas = self.child     # before the package's own code, which may import it
+        self._run(module)
 
 
 _SVG_PATH = "svgpathtools.path"
@@ -138,24 +149,15 @@ def svgpathtools_without_quad() -> bool:
     return True
 
 
-class _Blocking(importlib.abc.Loader):
-    """A loader that runs ``loader`` with ``scipy.integrate`` marked unimportable (if it is not imported)."""
-
-    def __init__(self, loader: importlib.abc.Loader):
-        self.loader = loader
-
-    def create_module(self, spec):  # type: ignore[no-untyped-def]
-        return self.loader.create_module(spec)
+class _Blocking(_Wrapping):
+    """Runs the module with ``scipy.integrate`` marked unimportable (if it is not imported)."""
 
     def exec_module(self, module: ModuleType) -> None:
         block = _INTEGRATE not in sys.modules
         if block:
             sys.modules[_INTEGRATE] = None      # type: ignore[assignment]  # "import halted": ImportError
         try:
-            self.loader.exec_module(module)
+            self._run(module)
         finally:
             if block and sys.modules.get(_INTEGRATE, 0) is None:
                 del sys.modules[_INTEGRATE]
-            module.__loader__ = self.loader
-            if module.__spec__ is not None:
-                module.__spec__.loader = self.loader
