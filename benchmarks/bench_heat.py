@@ -21,10 +21,12 @@ Usage::
     python benchmarks/bench_heat.py --pcg 256  # also FiPy's LinearPCGSolver
     python benchmarks/bench_heat.py --layers   # the layers alone (no 1e4 block layer)
     python benchmarks/bench_heat.py --gl       # also the gl backend (float32 shaders, float64 refinement)
+    python benchmarks/bench_heat.py --cuda     # also the cuda backend (float64 on an NVIDIA GPU)
 
 ``--gl`` adds the gl backend's wall seconds (context, upload and solve; the hierarchy is built on the
 CPU as for the cpu backend), its CG iterations and float64 refinements, and the renderer: on a machine
-without a GPU that is Mesa's llvmpipe, i.e. the shaders run on the CPU, and its times are no GPU's.
+without a GPU that is Mesa's llvmpipe, i.e. the shaders run on the CPU, and its times are no GPU's. ``--cuda`` adds the cuda backend's wall seconds likewise (CuPy arrays, float64
+throughout; it needs an NVIDIA GPU) and its device.
 """
 
 from __future__ import annotations
@@ -85,7 +87,7 @@ def run_fipy(k: np.ndarray, solver: str) -> tuple[float, np.ndarray]:
     return time.perf_counter() - t0, np.asarray(T.value).reshape(n, n).T
 
 
-def main(sizes: list[int], pcg: bool = False, gl: bool = False) -> None:
+def main(sizes: list[int], pcg: bool = False, gl: bool = False, cuda: bool = False) -> None:
     import fipy
     from clothgrid.heat import HeatProblem, solve_steady
 
@@ -96,13 +98,20 @@ def main(sizes: list[int], pcg: bool = False, gl: bool = False) -> None:
     if gl:
         warm = solve_steady(HeatProblem(conductivity(64), (L, L), bottom=34, top=20), tol=1e-8, backend="gl")
         renderer = f"; gl: {warm.info['gl_renderer']}, OpenGL {warm.info['gl_version']}"
+    if cuda:
+        warm = solve_steady(HeatProblem(conductivity(64), (L, L), bottom=34, top=20), tol=1e-8, backend="cuda")
+        import cupy
+
+        name = cupy.cuda.runtime.getDeviceProperties(0)["name"]
+        renderer += f"; cuda: {name.decode() if isinstance(name, bytes) else name}, {warm.info['precision']}"
+    extra = [b for b, on in (("gl", gl), ("cuda", cuda)) if on]
     print(f"fipy {fipy.__version__} (default solver {fipy.DefaultSolver.__name__}); numpy {np.__version__}; "
           f"numba {numba.__version__}, {numba.get_num_threads()} threads, OMP_WAIT_POLICY="
           f"{os.environ.get('OMP_WAIT_POLICY')}; load average {os.getloadavg()[0]:.1f}; case {CASE}{renderer}")
     print(f"| cells | clothgrid s ({numba.get_num_threads()} threads) | clothgrid s (1 thread) | CG its | FiPy default s "
           "| FiPy / clothgrid (all threads, 1 thread) | max dT vs FiPy (K) |" + (" FiPy PCG s | ratio |" if pcg else "")
-          + (" gl s | gl CG its (refinements) | gl max dT vs FiPy (K) |" if gl else ""))
-    print("|---|---|---|---|---|---|---|" + ("---|---|" if pcg else "") + ("---|---|---|" if gl else ""))
+          + "".join(f" {b} s | {b} CG its (refinements) | {b} max dT vs FiPy (K) |" for b in extra))
+    print("|---|---|---|---|---|---|---|" + ("---|---|" if pcg else "") + "---|---|---|" * len(extra))
     for n in sizes:
         k = conductivity(n)
         tc, Tc, info = run_clothgrid(k)
@@ -113,9 +122,10 @@ def main(sizes: list[int], pcg: bool = False, gl: bool = False) -> None:
         if pcg:
             tp, _ = run_fipy(k, "pcg")
             row += f" {tp:.2f} | {tp / tc:.1f}x |"
-        if gl:
-            tg, Tg, ginfo = run_clothgrid(k, backend="gl")
-            row += f" {tg:.3f} | {ginfo['iterations']} ({ginfo['refinements']}) | {np.abs(Tg - Tf).max():.1e} |"
+        for b in extra:
+            tg, Tg, ginfo = run_clothgrid(k, backend=b)
+            row += (f" {tg:.3f} | {ginfo['iterations']} ({ginfo.get('refinements', 0)}) "
+                    f"| {np.abs(Tg - Tf).max():.1e} |")
         print(row, flush=True)
 
 
@@ -124,4 +134,4 @@ if __name__ == "__main__":
     pcg = "--pcg" in args
     if "--layers" in args:
         CASE = "layers"
-    main([int(a) for a in args if not a.startswith("--")] or [256, 1024], pcg, "--gl" in args)
+    main([int(a) for a in args if not a.startswith("--")] or [256, 1024], pcg, "--gl" in args, "--cuda" in args)

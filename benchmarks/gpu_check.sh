@@ -1,0 +1,51 @@
+#!/bin/bash
+# The GPU checks of one lent device session, in order of priority, each under its own time limit,
+# everything written under $OUT as it goes (docs/performance.md "On a GPU", docs/heat.md "Backends").
+#
+#   bash benchmarks/gpu_check.sh            # OUT defaults to /tmp/clothgrid-gpu
+#
+# On the project's device machines the Python packages the image lacks travel as wheels in .whl/
+# and the GL loader libraries as Debian packages in .gl/ (both git-ignored; see the device tool's
+# README); elsewhere install clothgrid with its `gl` and `cuda` extras, FiPy, and skip both steps.
+set -u
+OUT=${OUT:-/tmp/clothgrid-gpu}
+mkdir -p "$OUT"
+if ls .gl/*.deb >/dev/null 2>&1; then for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig; fi
+if ls .whl/*.whl >/dev/null 2>&1; then
+    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl
+    export PYTHONPATH=$PWD/src:/tmp/site
+else
+    export PYTHONPATH=$PWD/src
+fi
+egl=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+[ -f "$egl" ] && export __EGL_VENDOR_LIBRARY_FILENAMES=$egl
+export CLOTHGRID_EXPECT_GPU=1 PYTHONUNBUFFERED=1 NUMBA_CACHE_DIR=/tmp/numba-cache
+log=$OUT/log.txt
+{
+    date -u; nproc
+    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
+    python3 -c "import numpy, numba, scipy, cupy; print('numpy', numpy.__version__, 'numba', numba.__version__,
+'scipy', scipy.__version__, 'cupy', cupy.__version__, 'CUDA runtime', cupy.cuda.runtime.runtimeGetVersion())"
+    python3 -c "import numba_cuda; print('numba-cuda', numba_cuda.__version__)" 2>&1 | tail -1
+    git log -1 --format='commit %h %s' 2>/dev/null
+} >"$log" 2>&1
+
+step() {  # step SECONDS NAME COMMAND...: run COMMAND under a limit, its output to $OUT/NAME
+    local limit=$1 name=$2; shift 2
+    local t0=$SECONDS
+    timeout "$limit" "$@" >"$OUT/$name" 2>&1
+    echo "$name: exit $? after $((SECONDS - t0)) s" >>"$log"
+}
+
+# 1. the GPU tests: cuda and gl multigrid, and heat on gl and cuda (never run on a GPU before)
+step 180 tests.txt python3 -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_gl.py tests/test_heat_backends.py
+# 2. heat: cpu (all host cores, one core), gl and cuda against FiPy's direct solve, in the same run
+step 100 heat.txt python3 benchmarks/bench_heat.py 256 1024 --gl --cuda
+# 3. each cuda multigrid operation per level, and a V-cycle replayed from a CUDA graph
+step 60 ops.txt python3 benchmarks/gpu_ops.py 4096
+# 4. what the loan of 2026-11-23 left unmeasured: the paper's gl Jacobi (its own rule, the true rule)
+#    and the CPU direct solve on the GPU host; cuda multigrid again as the same-run anchor
+step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max 4096 --ref-max 1024 --timeout 60 --out "$OUT/gpu" \
+    --methods "cpu multigrid" "cuda multigrid" "gl jacobi (paper rule)" "gl jacobi (true rule)" "cpu direct"
+rm -f "$OUT/gpu/gpu.csv" "$OUT/gpu/gpu_fig5.png"   # made again from rows.jsonl by --render
+cat "$log"
