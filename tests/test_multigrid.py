@@ -13,6 +13,7 @@ from conftest import smooth_quad_sides
 from reference import exact_solution, max_rel_error, paper_weights
 
 import clothgrid
+from clothgrid.backends import get_backend
 from clothgrid.initial import boundary_grid
 from clothgrid.solvers import choose_solver
 from clothgrid.solvers.multigrid import build_hierarchy, convergence_factor
@@ -271,12 +272,15 @@ def test_discard_gives_whole_pages_back_and_keeps_the_array_usable():
 
 @pytest.mark.parametrize("weights", ["paper", "uniform", "random"])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_solve_that_gives_memory_back_is_the_same_solve(rng, monkeypatch, weights, dim):
-    """From ``DISCARD_MIN_BYTES`` on, the solve's own grid and the coarse levels give their pages
-    back (4096^2); forced here at a small size, the grid, the bound and the cycles are unchanged,
-    and the error is within the bound of an exact solve."""
+def test_solve_in_its_grids_memory_is_the_same_solve(rng, monkeypatch, weights, dim):
+    """``generate`` lets the solve overwrite its own grid: the cpu backend keeps its coarse levels
+    and scratch in the grid's memory (spare), and coarse arrays that do not fit there give their
+    pages back from ``DISCARD_MIN_BYTES`` on (forced here). The grid, the bound and the cycles are
+    those of a solve into a copy, and the error is within the bound of an exact solve."""
+    import clothgrid.backends._cpu_multigrid as cm
     import clothgrid.memory as memory
-    import clothgrid.solvers.multigrid as mg
+    from clothgrid.solvers.multigrid import solve_multigrid
+    from clothgrid.solvers.problem import Problem
 
     nu, nv = 41, 37
     sides = smooth_quad_sides(rng, nu, nv)
@@ -284,20 +288,80 @@ def test_solve_that_gives_memory_back_is_the_same_solve(rng, monkeypatch, weight
         sides = [np.c_[s, 0.1 * np.sin(s[:, 0])] for s in sides]
     b = clothgrid.Boundary.from_sides(*sides)
     w = (rng.uniform(0.5, 2.0, (nu - 1, nv)), rng.uniform(0.5, 2.0, (nu, nv - 1))) if weights == "random" else weights
-    plain = clothgrid.generate(b, solver="multigrid", weights=w)
-    monkeypatch.setattr(memory, "DISCARD_MIN_BYTES", 0)
-    monkeypatch.setattr(mg, "DISCARD_MIN_BYTES", 0)
-    freed = []
-    real = memory.discard
-    monkeypatch.setattr(memory, "discard", lambda a: freed.append(a.nbytes) or real(a))
-    monkeypatch.setattr(mg, "discard", memory.discard)
-    g = clothgrid.generate(b, solver="multigrid", weights=w)
-    assert len(freed) > 2                        # the grid, then the coarse levels' arrays
-    assert np.array_equal(g.points, plain.points)
-    assert g.info["error_estimate"] == plain.info["error_estimate"] and g.info["iterations"] == plain.info["iterations"]
     ww = make_weights(w, nu, nv)
+    r0 = boundary_grid(b)
+    r0[1:-1, 1:-1] = rng.uniform(-1, 1, (nu - 2, nv - 2, 3)) * (r0[..., :].any(axis=(0, 1)))
+    backend = get_backend("cpu")
+    copy = solve_multigrid(Problem(r0.copy(), ww, b.size), backend=backend, tol=TOL)
+    arenas: list[memory.Arena] = []
+    real = memory.Arena.empty
+    monkeypatch.setattr(memory.Arena, "empty", lambda self, *a: arenas.append(self) or real(self, *a))
+    monkeypatch.setattr(cm, "DISCARD_MIN_BYTES", 0)
+    freed = []
+    monkeypatch.setattr(cm, "discard", lambda a: freed.append(a.nbytes) or memory.discard(a))
+    grid = r0.copy()
+    own = solve_multigrid(Problem(grid, ww, b.size, overwrite=True), backend=backend, tol=TOL)
+    assert own.points is grid and any(a.used > 0 for a in arenas)   # arrays carved from the grid itself
+    assert np.array_equal(own.points, copy.points) and own.iterations == copy.iterations
+    assert own.error_estimate == copy.error_estimate
+    before = len(freed)            # (per-edge weights: the barrier solve's coarse levels, fresh)
     ref = exact_solution(boundary_grid(b), ww.wu, ww.wv)
-    assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"] <= TOL
+    assert max_rel_error(own.points, ref, b.size) <= own.error_estimate <= TOL
+    # without a spare the coarse levels are fresh and give their pages back before the download
+    again = solve_multigrid(Problem(r0.copy(), ww, b.size), backend=backend, tol=TOL)
+    assert len(freed) > before + 2 and np.array_equal(again.points, copy.points)
+
+
+@pytest.mark.parametrize("weights", ["paper", "random"])
+@pytest.mark.parametrize("spare_nodes", [0.05, 0.6, 40.0])   # 40: the scratch too
+def test_spare_memory_full_of_nan_changes_no_bit(rng, weights, spare_nodes):
+    """Every operation writes a coarse level (and the line solves their scratch) before reading it:
+    a spare whose memory holds NaN, large enough for everything, for part, or for almost nothing,
+    gives the very bits of fresh zeroed arrays, right-hand side or not; ``x0`` may view the spare."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+    from clothgrid.solvers.multigrid import fmg, vcycle
+
+    nu, nv = 45, 38
+    ww = make_weights("paper" if weights == "paper" else
+                      (rng.uniform(0.5, 2.0, (nu - 1, nv)), rng.uniform(0.5, 2.0, (nu, nv - 1))), nu, nv)
+    levels = build_hierarchy(ww)
+    x = rng.standard_normal((nu, nv, 3))
+    rhs = rng.standard_normal((nu - 2, nv - 2, 3))
+
+    def run(ops):
+        fmg(ops)
+        vcycle(ops)
+        vcycle(ops)
+        return ops.solution(), ops.max_step()
+
+    for b in (None, rhs):
+        want = run(CpuMultigrid(levels, x.copy(), b))
+        spare = np.full((int(spare_nodes * nu * nv), 3), np.nan)
+        got = run(CpuMultigrid(levels, x.copy(), b, spare=spare))
+        assert np.array_equal(got[0], want[0]) and got[1] == want[1]
+        grid = x.copy()                              # x0 a view of the spare, as solve_multigrid has it
+        got = run(CpuMultigrid(levels, grid[..., :2], None if b is None else b[..., :2], spare=grid))
+        want2 = run(CpuMultigrid(levels, x[..., :2].copy(), None if b is None else b[..., :2]))
+        assert np.array_equal(got[0], want2[0]) and got[1] == want2[1]
+
+
+def test_release_and_arena():
+    """``release`` gives a dead array's pages back from ``DISCARD_MIN_BYTES`` on; an ``Arena``
+    carves aligned arrays from its spare while they fit, then fresh zeroed ones."""
+    from clothgrid.memory import DISCARD_MIN_BYTES, Arena, release
+
+    assert release(None) == 0 and release(np.ones(1000)) == 0
+    spare = np.ones(1000)
+    arena = Arena(spare)
+    a = arena.empty((10, 7), np.float32)
+    b = arena.empty((3, 50))
+    assert arena.owns(a) and arena.owns(b) and arena.used == a.nbytes + b.nbytes
+    assert a.ctypes.data % Arena.ALIGN == 0 and b.ctypes.data % Arena.ALIGN == 0
+    assert a.flags.c_contiguous and a.shape == (10, 7) and a.dtype == np.float32
+    c = arena.empty((2000,))                         # does not fit: fresh, zeroed
+    assert not arena.owns(c) and not c.any()
+    assert not Arena(None).owns(a) and not Arena(spare[::2]).owns(Arena(spare[::2]).empty((4,)))
+    assert DISCARD_MIN_BYTES > 8000
 
 
 @pytest.mark.parametrize("plane", [(0, 2), (1, 2), (0, 1)])

@@ -167,12 +167,26 @@ def _version() -> str:
         return str(getattr(sys.modules.get(__package__ or "clothgrid"), "__version__", "unknown"))
 
 
+class _VersionAction(argparse.Action):
+    """``--version``, looked up only when asked for (``importlib.metadata`` costs 15-25 ms to import,
+    on every command if the parser looked it up when built)."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS,
+                 default: Any = argparse.SUPPRESS, help: str = "show program's version number and exit") -> None:
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        sys.stdout.write(f"clothgrid {_version()}\n")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``clothgrid`` argument parser with its ``generate`` and ``demo`` subcommands."""
     parser = _Parser(
         prog="clothgrid",
         description="Structured quad grids inside four boundary curves, for mass-spring cloth.")
-    parser.add_argument("--version", action="version", version=f"clothgrid {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     g = sub.add_parser("generate", help="generate a grid from a boundary file",

@@ -12,18 +12,18 @@ solver:
 - ``direct``: the sparse LU factors, whose fill on an ``N``-node grid was
   measured at ``N (6.5 log2 N - 52)`` entries, about 24 bytes each at peak;
 - ``jacobi``: one extra grid;
-- ``multigrid``: the solve's phases (:func:`multigrid_bytes`): the grid (24 bytes a node) and
-  the float64 iterate's parity planes (8 a coordinate) while the one is copied into the other;
-  the planes and the float32 coarse levels (8 a coordinate) during the cycles, the grid's pages
-  given back from :data:`DISCARD_MIN_BYTES` on (:func:`discard`); the planes and the grid while
-  the solution is written back, the coarse levels' pages given back. Weights without a
-  separable form add their arrays (16 bytes a node) and the stencils (56).
+- ``multigrid`` (:func:`multigrid_bytes`): the grid (24 bytes a node) and the float64 iterate's
+  parity planes (8 a coordinate) throughout; the float32 coarse levels (8 a coordinate) and the
+  line solves' scratch live in the grid's memory while its contents are dead (:class:`Arena`),
+  only what does not fit there comes on top. Weights without a separable form add their arrays
+  (16 bytes a node) and the stencils (56).
 
 The estimate printed before a solve is the larger of the solve's peak (``outputs=False``: what
 :func:`clothgrid.generate` holds) and the outputs' (the grid, uv and quads of an output file,
 one block of quality measurements). Measured (``benchmarks/bench_speed.py --memory 4096``: a fresh
 process, paper weights, the 2D T-shirt front): ``generate``'s resident peak 0.69 GB above the
-interpreter's (0.86 GB in all), estimate 0.67 GB.
+interpreter's (0.86 GB in all), estimate 0.67 GB; with the coarse levels in the grid's memory
+0.68 GB (0.85 GB in all), estimate 0.67 GB.
 
 The memory available is the system's (``MemAvailable``) or, when the process
 runs under a resource limit (``ulimit -v``: ``RLIMIT_AS``; ``ulimit -d``:
@@ -41,7 +41,8 @@ from typing import NamedTuple
 from .errors import SizeError
 
 __all__ = ["available_bytes", "system_available_bytes", "limit_headroom", "Headroom", "estimate_bytes", "check_memory",
-           "format_bytes", "discard", "FIT_FRACTION", "KEPT_BYTES_PER_NODE", "multigrid_bytes", "DISCARD_MIN_BYTES"]
+           "format_bytes", "discard", "release", "Arena", "FIT_FRACTION", "KEPT_BYTES_PER_NODE", "multigrid_bytes",
+           "DISCARD_MIN_BYTES"]
 
 PIPELINE_BYTES_PER_NODE = 80
 #: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
@@ -144,9 +145,8 @@ def multigrid_bytes(nu: int, nv: int, coords: int = 3, separable: bool = False) 
     planes = 8 * coords * n
     held = hierarchy_bytes(nu, nv, coords, separable=True) - planes          # coarse levels and scratch
     extra = 0 if separable else 16 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
-    if grid >= DISCARD_MIN_BYTES:
-        return max(grid + planes, planes + held) + extra
-    return grid + planes + held + extra
+    # the coarse levels and scratch live in the grid's memory (an Arena over it), what does not fit beside
+    return grid + planes + max(0, held - grid) + extra
 
 
 def estimate_bytes(solver: str, nu: int, nv: int, *, coords: int = 3, separable: bool = False,
@@ -232,6 +232,76 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
                         f"{have / scale:.4g} {unit_of} available{source} is {FIT_FRACTION * have / scale:.4g} "
                         f"{unit_of}: {hint}")
     return need
+
+
+def release(spare: "np.ndarray | None") -> int:
+    """:func:`discard` a dead array from :data:`DISCARD_MIN_BYTES` on (below it, faulting the pages
+    in again costs more time than the memory is worth); what a backend that keeps no arrays in host
+    memory does with the ``spare`` of :meth:`~clothgrid.backends.protocol.Backend.multigrid`.
+
+    Returns
+    -------
+    int
+        Bytes released.
+    """
+    if spare is None or spare.nbytes < DISCARD_MIN_BYTES:
+        return 0
+    return discard(spare)
+
+
+class Arena:
+    """Arrays carved in turn out of the memory of one array whose contents are dead, fresh ones
+    once it is used up.
+
+    The point is memory that is already resident: the first touch of a fresh page costs a page
+    fault and the zeroing of the page (0.3-1.5 s a GB on the development VM, where the host backs
+    the guest's memory lazily). A multigrid solve keeps its coarse levels and scratch in the
+    memory of the grid it writes its solution into (:attr:`~clothgrid.solvers.problem.Problem.overwrite`)
+    instead of in fresh pages, and gives none of that grid's pages back: at 4096^2, 270 MB of coarse
+    levels are not faulted in, nor the grid's 400 MB a second time when the solution is written.
+
+    Carved arrays hold whatever the memory held (as :func:`numpy.empty`); they are C-contiguous and
+    start on a 128-byte boundary (two cache lines: threads writing neighbouring arrays do not share
+    one).
+
+    Parameters
+    ----------
+    spare : numpy.ndarray or None
+        C-contiguous; its contents are overwritten. ``None`` (or a non-contiguous array): every
+        array is fresh.
+    """
+
+    ALIGN = 128
+
+    def __init__(self, spare: "np.ndarray | None") -> None:
+        import numpy as np
+
+        self._buf = (spare.reshape(-1).view(np.uint8)
+                     if spare is not None and spare.flags.c_contiguous and spare.nbytes else None)
+        self._pos = 0
+        #: bytes carved out of ``spare`` so far
+        self.used = 0
+
+    def empty(self, shape: tuple[int, ...], dtype: "np.typing.DTypeLike" = float) -> "np.ndarray":
+        """An array carved from the spare memory if it still fits there, else a fresh zeroed one."""
+        import numpy as np
+
+        dtype = np.dtype(dtype)
+        n = math.prod(shape) * dtype.itemsize
+        if self._buf is not None:
+            base = self._buf.ctypes.data
+            start = -(-(base + self._pos) // self.ALIGN) * self.ALIGN - base
+            if start + n <= self._buf.size:
+                self._pos = start + n
+                self.used += n
+                return self._buf[start:start + n].view(dtype).reshape(shape)
+        return np.zeros(shape, dtype)
+
+    def owns(self, a: "np.ndarray") -> bool:
+        """Whether ``a`` was carved from the spare memory."""
+        import numpy as np
+
+        return self._buf is not None and np.may_share_memory(a, self._buf)
 
 
 def discard(a) -> int:

@@ -29,6 +29,7 @@ import numba
 import numpy as np
 
 from ..jit_variants import serial_twin
+from ..memory import DISCARD_MIN_BYTES, Arena, discard
 from ..multigrid_levels import LINE_BLOCK, Level
 
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
@@ -774,9 +775,15 @@ class CpuMultigrid:
         ``(nu, nv, k)`` level-0 iterate (boundary nodes hold the data).
     rhs : numpy.ndarray, optional
         ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
+    spare : numpy.ndarray, optional
+        Memory whose contents are dead once ``x0`` and ``rhs`` have been read (``x0`` may view
+        it): the line solves' scratch and the coarse levels are carved out of it
+        (:class:`~clothgrid.memory.Arena`) as far as they fit. Its contents are undefined
+        afterwards.
     """
 
-    def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None):
+    def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
+                 spare: np.ndarray | None = None):
         self.levels = len(levels)
         self._shape = x0.shape
         k = x0.shape[2]
@@ -824,13 +831,18 @@ class CpuMultigrid:
         nthreads = numba.config.NUMBA_NUM_THREADS
         # Rows 0 .. nu-2 hold the factors g, row nu the current column's 1 / d.
         mb = max(self.mbs)
-        self._scr = {np.dtype(t): np.empty((nthreads, x0.shape[0] + 1, mb), dtype=t)
+        # x0 and rhs have been read (level 0's planes above): from here on spare's memory is free.
+        # Every operation writes a coarse level's iterate and right-hand side (boundary rows
+        # included) before it reads them, and the line solves their scratch rows, so neither
+        # needs a first value (a test runs a solve in a spare full of NaN).
+        self._arena = arena = Arena(spare)
+        self._scr = {np.dtype(t): arena.empty((nthreads, x0.shape[0] + 1, mb), t)
                      for t in (np.float64, np.float32)}
-        self._rows = np.empty((nthreads, x0.shape[1] + 2))   # restriction's residual rows, per thread
+        self._rows = arena.empty((nthreads, x0.shape[1] + 2), np.float64)   # restriction's residual rows
         for lv in levels[1:]:
             nu, nv = lv.shape
-            self.x.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
-            self.b.append(tuple(np.zeros((k, nu, n), dtype=dt) for n in ((nv + 1) // 2, nv // 2)))
+            self.x.append(tuple(arena.empty((k, nu, n), dt) for n in ((nv + 1) // 2, nv // 2)))
+            self.b.append(tuple(arena.empty((k, nu, n), dt) for n in ((nv + 1) // 2, nv // 2)))
             self.sep.append(lv.sep is not None)
             if lv.sep is not None:   # cu, kud, du over columns; md, mu, kd, ku split by row parity
                 sp = lv.sep
@@ -974,16 +986,14 @@ class CpuMultigrid:
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides).
 
-        First gives the coarse levels' pages back to the system when they are large
-        (:data:`clothgrid.memory.DISCARD_MIN_BYTES`): between cycles their contents are dead (every cycle, and the
-        full multigrid start, writes a coarse level's iterate and right-hand side before reading
-        them), so the released pages, which read as zero, change nothing; and the solution's
-        grid, often written here for the first time, does not add to them (268 MB at 4096^2
-        for two coordinates).
+        First gives the pages of the coarse levels not kept in ``spare``'s memory back to the
+        system when they are large (:data:`clothgrid.memory.DISCARD_MIN_BYTES`): between cycles
+        their contents are dead (every cycle, and the full multigrid start, writes a coarse level's
+        iterate and right-hand side before reading them), so the released pages, which read as
+        zero, change nothing; and the solution's grid, often written here for the first time, does
+        not add to them (268 MB at 4096^2 for two coordinates). ``out`` may view ``spare``.
         """
-        from ..memory import DISCARD_MIN_BYTES, discard
-
-        coarse = [a for lv in (self.x[1:] + self.b[1:]) for a in lv]
+        coarse = [a for lv in (self.x[1:] + self.b[1:]) for a in lv if not self._arena.owns(a)]
         if sum(a.nbytes for a in coarse) >= DISCARD_MIN_BYTES:
             for a in coarse:
                 discard(a)

@@ -113,17 +113,19 @@ def max_step(r: np.ndarray, wu: np.ndarray, wv: np.ndarray) -> float:
     return float(s.max())
 
 
-def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> CpuMultigrid:
+def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
+              spare: np.ndarray | None = None) -> CpuMultigrid:
     """The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) on this backend.
 
     ``levels`` from :func:`~clothgrid.multigrid_levels.build_hierarchy`; ``x0``
-    the ``(nu, nv, k)`` level-0 iterate, updated in place; ``rhs`` the optional
-    ``(nu-2, nv-2, k)`` interior right-hand side. The Numba kernels load on
-    first use.
+    the ``(nu, nv, k)`` level-0 iterate, read once; ``rhs`` the optional
+    ``(nu-2, nv-2, k)`` interior right-hand side; ``spare`` dead memory that holds the coarse levels
+    and scratch as far as they fit (:class:`~clothgrid.backends._cpu_multigrid.CpuMultigrid`). The
+    Numba kernels load on first use.
     """
     from ._cpu_multigrid import CpuMultigrid
 
-    return CpuMultigrid(levels, x0, rhs)
+    return CpuMultigrid(levels, x0, rhs, spare)
 
 
 def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> HostJacobi:

@@ -266,7 +266,8 @@ class Backend(Protocol):
     def max_step(self, r: Any, wu: Any, wv: Any) -> float:
         """``max |D^-1 (b - A r)|`` (Euclidean per node): the factor of the guaranteed error bound."""
 
-    def multigrid(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> MultigridOps:
+    def multigrid(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
+                  spare: np.ndarray | None = None) -> MultigridOps:
         """The multigrid operations on this backend.
 
         Parameters
@@ -277,6 +278,12 @@ class Backend(Protocol):
             ``(nu, nv, k)`` level-0 iterate, boundary nodes holding the data.
         rhs : numpy.ndarray, optional
             ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
+        spare : numpy.ndarray, optional
+            A C-contiguous host array whose contents are dead once ``x0`` and ``rhs`` have been
+            read (``x0`` may view it; e.g. the grid the solution is written into): the backend may
+            keep its own host arrays in its memory (the cpu's coarse levels), or give its pages
+            back (:func:`clothgrid.memory.release`; the devices'). Its contents are undefined
+            afterwards.
         """
 
     def jacobi_sweeper(self, problem: ProblemData, *, stop: str = "error") -> JacobiSweeper:

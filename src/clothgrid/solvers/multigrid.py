@@ -43,7 +43,6 @@ import numpy as np
 
 from ..backends.protocol import Backend, MultigridOps
 from ..errors import InputError
-from ..memory import DISCARD_MIN_BYTES, discard
 from ..multigrid_levels import Level, Separable, build_hierarchy, coarse_rows
 from ..weights import Weights
 from .bounds import BandBarriers, barrier_max
@@ -175,16 +174,13 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     contiguous = active == list(range(active[0], active[-1] + 1))
     # a view where the active coordinates are contiguous: no copy of the grid (16-24 MB at 1024^2)
     x0 = problem.r0[..., active[0]:active[-1] + 1] if contiguous else problem.r0[..., active]
-    ops = backend.multigrid(levels, x0)
+    # Once the iterate lives in ops, r0's contents are dead until the solution comes back into it
+    # (its boundary ring aside, kept here): the backend may use its memory (the cpu keeps its coarse
+    # levels there, already resident) or give its pages back (400 MB at 4096^2).
+    spare = problem.r0 if problem.overwrite and problem.r0.flags.c_contiguous else None
+    ring = _ring(problem.r0) if spare is not None else None
+    ops = backend.multigrid(levels, x0, spare=spare)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
-    ring = None
-    # (from DISCARD_MIN_BYTES on: below it, faulting the pages in again costs more time than the memory is worth)
-    if problem.overwrite and problem.r0.nbytes >= DISCARD_MIN_BYTES:
-        # The iterate lives in ops now, and the solution comes back into r0: until then r0's
-        # contents are dead (its boundary ring aside, kept here), and its pages go back to the
-        # system (400 MB at 4096^2). Inactive coordinates are zero, as the released pages read.
-        ring = _ring(problem.r0)
-        discard(problem.r0)
     setup = time.perf_counter() - t0
     zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
                        _barrier_solver(problem, backend, levels))
@@ -231,6 +227,8 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     else:
         out[..., active] = ops.solution()
     if ring is not None:
+        for c in set(range(out.shape[2])) - set(active):
+            out[1:-1, 1:-1, c] = 0.0     # what an inactive coordinate solves to (zero on the ring)
         _ring(out, ring)
     factors = [b / a for a, b in zip(steps, steps[1:]) if a > 0]
     extra = {"levels": len(levels), "setup_seconds": setup, "cycle_seconds": cycles,

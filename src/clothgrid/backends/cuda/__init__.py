@@ -144,17 +144,23 @@ def max_step(r: Any, wu: Any, wv: Any) -> float:
     return float((xp.sqrt(xp.sum(res * res, axis=-1)) / interior_diagonal(wu, wv)).max())
 
 
-def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> CudaMultigrid:
+def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
+              spare: np.ndarray | None = None) -> CudaMultigrid:
     """The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) on the device.
 
     ``levels`` from :func:`~clothgrid.multigrid_levels.build_hierarchy`; ``x0``
     the ``(nu, nv, k)`` level-0 iterate and ``rhs`` the optional interior
-    right-hand side, both host arrays, uploaded once.
+    right-hand side, both host arrays, uploaded once; ``spare``'s pages go back to the system
+    once they are (:func:`clothgrid.memory.release`).
     """
     require()
+    from ...memory import release
     from ._multigrid import CudaMultigrid
 
-    return CudaMultigrid(levels, x0, rhs)
+    ops = CudaMultigrid(levels, x0, rhs)
+    ops.synchronize()
+    release(spare)
+    return ops
 
 
 def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> NoReturn:

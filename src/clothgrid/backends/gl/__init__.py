@@ -129,11 +129,17 @@ def jacobi_sweeper(problem: ProblemData, *, stop: str = "error") -> GLJacobi:
     return GLJacobi(problem, stop=stop, host_fp64=HOST_FP64)
 
 
-def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None) -> GLMultigrid:
-    """The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) on the device."""
+def multigrid(levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
+              spare: np.ndarray | None = None) -> GLMultigrid:
+    """The multigrid operations (:class:`~clothgrid.backends.protocol.MultigridOps`) on the device;
+    ``spare``'s pages go back to the system once ``x0`` is uploaded (:func:`clothgrid.memory.release`)."""
+    from ...memory import release
     from ._multigrid import GLMultigrid
 
-    return GLMultigrid(levels, x0, rhs, host_fp64=HOST_FP64)
+    ops = GLMultigrid(levels, x0, rhs, host_fp64=HOST_FP64)
+    ops.synchronize()
+    release(spare)
+    return ops
 
 
 def heat_ops(hierarchy: HeatHierarchy) -> GLHeatOps:
