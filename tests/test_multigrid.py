@@ -345,6 +345,41 @@ def test_spare_memory_full_of_nan_changes_no_bit(rng, weights, spare_nodes):
         assert np.array_equal(got[0], want2[0]) and got[1] == want2[1]
 
 
+@pytest.mark.parametrize("weights", ["paper", "random"])
+def test_a_half_sweep_with_unchanged_inputs_is_skipped_bit_for_bit(rng, weights):
+    """A line solve reads only the other rows and the right-hand side: the even half-sweep that
+    starts a V-cycle right after one ended with it is skipped, and the solve's bits are those of
+    running every half-sweep (the skip switched off by forgetting what was solved last)."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+    from clothgrid.solvers.multigrid import fmg, vcycle
+
+    nu, nv = 41, 38
+    ww = make_weights("paper" if weights == "paper" else random_weights(rng, nu, nv), nu, nv)
+    levels = build_hierarchy(ww)
+    x = rng.standard_normal((nu, nv, 2))
+
+    class Forgetful(CpuMultigrid):
+        def smooth(self, level, reverse=False):
+            self._solved[level] = None
+            super().smooth(level, reverse)
+
+    runs = []
+    for cls in (CpuMultigrid, Forgetful):
+        ops = cls(levels, x.copy())
+        calls = []
+        kernel = ops._kernel
+        ops._kernel = lambda name, level: calls.append((name, level)) or kernel(name, level)
+        fmg(ops)
+        steps = []
+        for _ in range(3):
+            vcycle(ops)
+            steps.append(ops.max_step())
+        runs.append((ops.solution(), steps, sum(1 for n, lv in calls if n.startswith("_relax") and lv == 0)))
+    (skipping, steps, sweeps), (every, steps2, sweeps2) = runs
+    assert np.array_equal(skipping, every) and steps == steps2
+    assert sweeps == sweeps2 - 3          # after the start and after each of the first two cycles
+
+
 def test_release_and_arena():
     """``release`` gives a dead array's pages back from ``DISCARD_MIN_BYTES`` on; an ``Arena``
     carves aligned arrays from its spare while they fit, then fresh zeroed ones."""

@@ -824,6 +824,8 @@ class CpuMultigrid:
             self.unit0 = (np.ascontiguousarray(e[0::2]), np.ascontiguousarray(e[1::2]),
                           np.ascontiguousarray(fine.N[:, 0], dtype=np.float64))
         self.sep = [False]
+        #: per level, the row parity solved last if nothing it reads has changed since (see smooth)
+        self._solved: list[int | None] = [None] * self.levels
         dt = np.float32
         # The line solves' scratch (Thomas factors of one block of rows per thread), allocated
         # once: a fresh 1-2 MB array per block and sweep cost page faults, up to half a sweep's time.
@@ -860,10 +862,20 @@ class CpuMultigrid:
         return _pick(name, self.nodes[level], self.nodes[0])
 
     def smooth(self, level: int, reverse: bool = False) -> None:
-        """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``)."""
+        """One zebra line sweep: even rows then odd rows (odd then even if ``reverse``).
+
+        A half-sweep whose rows were the last ones solved on this level, with nothing they read
+        changed since (the other rows, the right-hand side), is skipped: a line solve reads only
+        those, so it would write the same bits again. That is level 0's even half-sweep at the
+        start of each V-cycle after the first (the previous cycle ended with it) and after the
+        full-multigrid start: two of a solve's level-0 sweeps' four halves fewer.
+        """
         (xe, xo), (be, bo), st, nv = self.x[level], self.b[level], self.st[level], self.nv[level]
         scr, mb = self._scr[xe.dtype], self.mbs[level]
         for p in ((1, 0) if reverse else (0, 1)):
+            if self._solved[level] == p:
+                continue
+            self._solved[level] = p
             own, other = (xe, xo) if p == 0 else (xo, xe)
             b = be if p == 0 else bo
             if level == 0 and self.unit0 is not None:
@@ -892,6 +904,7 @@ class CpuMultigrid:
         after pre-smoothing); ``x[l+1] = 0``."""
         (xe, xo), (be, _), st = self.x[level], self.b[level], self.st[level]
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
+        self._solved[level + 1] = None
         if level == 0 and self.unit0 is not None:
             self._kernel("_restrict5u", level)(xe, xo, be, self.unit0[0], self.unit0[2], self._has_b,
                                                     bce, bco, xce, xco, self._rows)
@@ -910,12 +923,14 @@ class CpuMultigrid:
     def prolong(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
         xce, xco = self.x[level + 1]
+        self._solved[level] = None
         self._kernel("_prolong", level)(self.x[level][0], xce, xco)
 
     def restrict_full(self, level: int) -> None:
         """Full-multigrid start: ``b[1] = P^T (b[0] - A x[0])`` with every row's residual
         (level 0), or ``b[l+1] = P^T b[l]`` (coarser levels); ``x[l+1] = 0``."""
         (bce, bco), (xce, xco) = self.b[level + 1], self.x[level + 1]
+        self._solved[level + 1] = None
         if level == 0 and self.nine0:
             re, ro = _parity_planes(self._residual9())
             self._kernel("_restrict_rhs", 0)(re, ro, self.nv[0], bce, bco, xce, xco)
@@ -931,6 +946,7 @@ class CpuMultigrid:
     def prolong_full(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on every row (full-multigrid start)."""
         xe, xo = self.x[level]
+        self._solved[level] = None
         self._kernel("_prolong_full", level)(xe, xo, *self.x[level + 1], self.nv[level])
 
     def max_step(self) -> float:
