@@ -422,7 +422,8 @@ def test_pieces_in_coordinate_planes(rng, plane):
 @pytest.mark.parametrize("has_rhs", [False, True])
 def test_unit_stencil_kernels_match_the_general_ones(rng, weights, shape, has_rhs):
     """The paper's and uniform weights run level 0 from its 1D factors (``_relax5u``,
-    ``_restrict5u``, ``_max_step5u``): the same sweeps, restriction and bound as the 2D stencil."""
+    ``_restrict5u``, ``_max_step5u``, ``_restrict5u_full``): the same sweeps, restrictions and bound
+    as the 2D stencil."""
     from clothgrid.backends._cpu_multigrid import CpuMultigrid
 
     nu, nv = shape
@@ -440,6 +441,11 @@ def test_unit_stencil_kernels_match_the_general_ones(rng, weights, shape, has_rh
     for a, b in zip(unit.b[1], plain.b[1]):
         assert np.allclose(a, b, rtol=1e-5, atol=1e-6 * (np.abs(b).max() + 1e-30))
     assert unit.max_step() == pytest.approx(plain.max_step(), rel=1e-12)
+    # the full-multigrid start's restriction: the very bits of the general kernel's
+    unit.restrict_full(0)
+    plain.restrict_full(0)
+    for a, b in zip(unit.b[1] + unit.x[1], plain.b[1] + plain.x[1]):
+        assert np.array_equal(a, b)
 
 
 _CACHE_CHILD = """

@@ -474,6 +474,56 @@ def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xc
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _restrict5u_full(xe, xo, be, bo, ee, eo, nn, has_b, nv, bce, bco, xce, xco, rows):
+    """:func:`_restrict5_full` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``, see
+    :func:`_relax5u`): the same sums in the same order (the same bits), each column's residuals in
+    contiguous per-thread rows (``rows``: at least ``nv + 2`` a thread) and stored by the coarse
+    row's parity in two strided loops, instead of a branch per coarse row."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nce, nco = bce.shape[2], bco.shape[2]
+    nc = nce + nco
+    n_odd = (nv - 3) // 2 + 1          # interior odd rows m = 0 .. n_odd-1
+    for i in numba.prange(nu):
+        _zero_rows(i, bce, bco, xce, xco)
+        if i == 0 or i == nu - 1 or nc < 3:
+            continue
+        row = rows[numba.get_thread_id()]
+        re = row[:nc]                  # even rows J = 1 .. nc-2 at re[J]
+        ro = row[nc:2 * nc]            # odd rows m at ro[m]; zero where there is none
+        ni = nn[i]
+        for c in range(k):
+            x, t = xe[c], xo[c]
+            e = ee[1:nc - 1]
+            xm, x0, xp, tlo, thi = x[i - 1, 1:nc - 1], x[i, 1:nc - 1], x[i + 1, 1:nc - 1], t[i, 0:nc - 2], t[i, 1:nc - 1]
+            r = re[1:nc - 1]
+            for q in range(nc - 2):
+                r[q] = e[q] * (xm[q] - x0[q]) + e[q] * (xp[q] - x0[q]) + ni * (tlo[q] - x0[q]) + ni * (thi[q] - x0[q])
+            if has_b:
+                bi = be[c, i, 1:nc - 1]
+                for q in range(nc - 2):
+                    r[q] += bi[q]
+            x, t = xo[c], xe[c]
+            e = eo[0:n_odd]
+            xm, x0, xp, tlo, thi = x[i - 1, 0:n_odd], x[i, 0:n_odd], x[i + 1, 0:n_odd], t[i, 0:n_odd], t[i, 1:n_odd + 1]
+            r = ro[0:n_odd]
+            for q in range(n_odd):
+                r[q] = e[q] * (xm[q] - x0[q]) + e[q] * (xp[q] - x0[q]) + ni * (tlo[q] - x0[q]) + ni * (thi[q] - x0[q])
+            if has_b:
+                bi = bo[c, i, 0:n_odd]
+                for q in range(n_odd):
+                    r[q] += bi[q]
+            for q in range(n_odd, nc):
+                ro[q] = 0.0
+            for J in range(1, nc - 1):
+                re[J] = re[J] + 0.5 * (ro[J - 1] + ro[J])
+            oe, oo = bce[c, i], bco[c, i]
+            for K in range(1, (nc - 2) // 2 + 1):      # J = 2K <= nc - 2
+                oe[K] = re[2 * K]
+            for K in range(0, (nc - 3) // 2 + 1):      # J = 2K + 1 <= nc - 2
+                oo[K] = re[2 * K + 1]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
     """``b_c = P^T b`` and ``x_c = 0`` (the full multigrid start's coarse right-hand sides)."""
     k, nu = be.shape[0], be.shape[1]
@@ -729,7 +779,8 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
 
 _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, error_model="numpy"))
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
-                         "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict_rhs",
+                         "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict5u_full",
+                         "_restrict_rhs",
                          "_prolong_full", "_merge_grid", "_band_steps5u")}
 
 
@@ -934,6 +985,11 @@ class CpuMultigrid:
         if level == 0 and self.nine0:
             re, ro = _parity_planes(self._residual9())
             self._kernel("_restrict_rhs", 0)(re, ro, self.nv[0], bce, bco, xce, xco)
+        elif level == 0 and self.unit0 is not None:
+            (xe, xo), (be, bo) = self.x[0], self.b[0]
+            ee, eo, nn = self.unit0
+            self._kernel("_restrict5u_full", 0)(xe, xo, be, bo, ee, eo, nn, self._has_b, self.nv[0],
+                                                     bce, bco, xce, xco, self._rows)
         elif level == 0:
             (xe, xo), (be, bo) = self.x[0], self.b[0]
             Ee, Eo, Ne, No = self.st[0]
