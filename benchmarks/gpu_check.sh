@@ -3,6 +3,10 @@
 # everything written under $OUT as it goes (docs/performance.md "On a GPU", docs/heat.md "Backends").
 #
 #   bash benchmarks/gpu_check.sh            # OUT defaults to /tmp/clothgrid-gpu
+#   STEPS="tests bench" MAX=4096 METHODS="cpu multigrid;cuda multigrid;gl multigrid" bash benchmarks/gpu_check.sh
+#
+# STEPS picks the checks (default: tests heat ops bench); METHODS (';'-separated) and MAX the
+# solvers and the largest side of the bench step.
 #
 # On the project's device machines the Python packages the image lacks travel as wheels in .whl/
 # and the GL loader libraries as Debian packages in .gl/ (both git-ignored; see the device tool's
@@ -30,22 +34,28 @@ log=$OUT/log.txt
     git log -1 --format='commit %h %s' 2>/dev/null
 } >"$log" 2>&1
 
+STEPS=${STEPS:-tests heat ops bench}
+METHODS=${METHODS:-cpu multigrid;cuda multigrid;gl jacobi (paper rule);gl jacobi (true rule);cpu direct}
+MAX=${MAX:-4096}
+IFS=';' read -r -a methods <<<"$METHODS"
+
 step() {  # step SECONDS NAME COMMAND...: run COMMAND under a limit, its output to $OUT/NAME
     local limit=$1 name=$2; shift 2
+    case " $STEPS " in *" ${name%.txt} "*) ;; *) return ;; esac
     local t0=$SECONDS
     timeout "$limit" "$@" >"$OUT/$name" 2>&1
     echo "$name: exit $? after $((SECONDS - t0)) s" >>"$log"
 }
 
 # 1. the GPU tests: cuda and gl multigrid, and heat on gl and cuda (never run on a GPU before)
-step 180 tests.txt python3 -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_gl.py tests/test_heat_backends.py
+step 230 tests.txt python3 -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_gl.py tests/test_heat_backends.py
 # 2. heat: cpu (all host cores, one core), gl and cuda against FiPy's direct solve, in the same run
 step 100 heat.txt python3 benchmarks/bench_heat.py 256 1024 --gl --cuda
 # 3. each cuda multigrid operation per level, and a V-cycle replayed from a CUDA graph
 step 60 ops.txt python3 benchmarks/gpu_ops.py 4096
 # 4. what the loan of 2026-11-23 left unmeasured: the paper's gl Jacobi (its own rule, the true rule)
 #    and the CPU direct solve on the GPU host; cuda multigrid again as the same-run anchor
-step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max 4096 --ref-max 1024 --timeout 60 --out "$OUT/gpu" \
-    --methods "cpu multigrid" "cuda multigrid" "gl jacobi (paper rule)" "gl jacobi (true rule)" "cpu direct"
+step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max "$MAX" --ref-max 1024 --timeout 60 --out "$OUT/gpu" \
+    --methods "${methods[@]}"
 rm -f "$OUT/gpu/gpu.csv" "$OUT/gpu/gpu_fig5.png"   # made again from rows.jsonl by --render
 cat "$log"
