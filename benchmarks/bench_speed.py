@@ -125,7 +125,8 @@ wall = time.perf_counter() - t
 # the fork across exec (a parent that had held 2 GB made a 0.85 GB child read 2.1 GB)
 peak = status("VmHWM")
 i = g.info
-print(wall, i["solve_seconds"], i["iterations"], i["error_estimate"], peak, before, i["memory_estimate"])
+print(wall, i["solve_seconds"], i["iterations"], i["error_estimate"], peak, before, i["memory_estimate"],
+      i.get("setup_seconds", 0.0), i.get("cycle_seconds", 0.0), i.get("download_seconds", 0.0))
 """
 
 
@@ -133,9 +134,9 @@ def memory_row(piece: Path, n: int) -> None:
     """``generate`` at ``n x n`` in a fresh process: time, peak resident memory, the estimate (``--memory``)."""
     out = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(piece), f"{n}x{n}"], check=True,
                          capture_output=True, text=True).stdout.split()
-    wall, solve, cycles, bound, peak, before, est = (float(x) for x in out)
-    print(f"| {n}^2 | generate, paper weights, fresh process: {wall:.2f} s (solve {solve:.2f} s, {cycles:.0f} V-cycles, "
-          f"bound {bound:.2g}); peak resident {peak / 1e9:.3f} GB, {(peak - before) / 1e9:.3f} GB above the "
+    wall, solve, cycles, bound, peak, before, est, setup, cyc, down = (float(x) for x in out)
+    print(f"| {n}^2 | generate, paper weights, fresh process: {wall:.2f} s (solve {solve:.2f} s: set-up {setup:.2f}, "
+          f"{cycles:.0f} V-cycles {cyc:.2f}, download {down:.2f}; bound {bound:.2g}); peak resident {peak / 1e9:.3f} GB, {(peak - before) / 1e9:.3f} GB above the "
           f"interpreter's; estimate {est / 1e9:.3f} GB ({(est / (peak - before) - 1) * 100:+.0f} %) | {solve:.3g} | | |",
           flush=True)
 
