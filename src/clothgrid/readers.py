@@ -166,11 +166,12 @@ def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | N
     pattern file gives a :class:`~clothgrid.patterns.piece.Pieces` list
     (the skipped outlines in ``.skipped``, the pieces that cannot be made in ``.failed``).
     """
-    from .patterns.annotations import LINES
-
     path = Path(path)
-    if line is not None and line not in LINES:
-        raise InputError(f"--line {line!r}: use 'sew' or 'cut'")
+    if line is not None:
+        from .patterns.annotations import LINES     # (5 ms to import: only when a line is asked for)
+
+        if line not in LINES:
+            raise InputError(f"--line {line!r}: use 'sew' or 'cut'")
     reader = reader_for(path, READERS, "input")
     options = {k: v for k, v in (("units", units), ("rel_tol", rel_tol), ("line", line))
                if v is not None}
