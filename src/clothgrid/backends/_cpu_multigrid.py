@@ -473,6 +473,20 @@ def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xc
                     bco[c, i, J // 2] = r
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _res5u_row(x, t, b, e, ni, c, i, a, z, ob, has_b, out):
+    """:func:`_res5_row` for a unit-stencil level 0 (``e[q]`` the coupling along ``i`` of row
+    ``m = a + q``, ``ni`` the column's along ``j``): the same sums in the same order."""
+    xm, x0, xp = x[c, i - 1, a:z], x[c, i, a:z], x[c, i + 1, a:z]
+    tlo, thi = t[c, i, a + ob:z + ob], t[c, i, a + ob + 1:z + ob + 1]
+    for q in range(z - a):
+        out[q] = e[q] * (xm[q] - x0[q]) + e[q] * (xp[q] - x0[q]) + ni * (tlo[q] - x0[q]) + ni * (thi[q] - x0[q])
+    if has_b:
+        bi = b[c, i, a:z]
+        for q in range(z - a):
+            out[q] += bi[q]
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5u_full(xe, xo, be, bo, ee, eo, nn, has_b, nv, bce, bco, xce, xco, rows):
     """:func:`_restrict5_full` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``, see
@@ -492,26 +506,8 @@ def _restrict5u_full(xe, xo, be, bo, ee, eo, nn, has_b, nv, bce, bco, xce, xco, 
         ro = row[nc:2 * nc]            # odd rows m at ro[m]; zero where there is none
         ni = nn[i]
         for c in range(k):
-            x, t = xe[c], xo[c]
-            e = ee[1:nc - 1]
-            xm, x0, xp, tlo, thi = x[i - 1, 1:nc - 1], x[i, 1:nc - 1], x[i + 1, 1:nc - 1], t[i, 0:nc - 2], t[i, 1:nc - 1]
-            r = re[1:nc - 1]
-            for q in range(nc - 2):
-                r[q] = e[q] * (xm[q] - x0[q]) + e[q] * (xp[q] - x0[q]) + ni * (tlo[q] - x0[q]) + ni * (thi[q] - x0[q])
-            if has_b:
-                bi = be[c, i, 1:nc - 1]
-                for q in range(nc - 2):
-                    r[q] += bi[q]
-            x, t = xo[c], xe[c]
-            e = eo[0:n_odd]
-            xm, x0, xp, tlo, thi = x[i - 1, 0:n_odd], x[i, 0:n_odd], x[i + 1, 0:n_odd], t[i, 0:n_odd], t[i, 1:n_odd + 1]
-            r = ro[0:n_odd]
-            for q in range(n_odd):
-                r[q] = e[q] * (xm[q] - x0[q]) + e[q] * (xp[q] - x0[q]) + ni * (tlo[q] - x0[q]) + ni * (thi[q] - x0[q])
-            if has_b:
-                bi = bo[c, i, 0:n_odd]
-                for q in range(n_odd):
-                    r[q] += bi[q]
+            _res5u_row(xe, xo, be, ee[1:nc - 1], ni, c, i, 1, nc - 1, -1, has_b, re[1:])
+            _res5u_row(xo, xe, bo, eo[0:n_odd], ni, c, i, 0, n_odd, 0, has_b, ro)
             for q in range(n_odd, nc):
                 ro[q] = 0.0
             for J in range(1, nc - 1):
