@@ -149,12 +149,18 @@ def test_multigrid_within_tol_of_the_reference(rng, weights, size):
 @pytest.mark.parametrize("init", ["tfi", "zero"])
 def test_multigrid_3d_and_host_fp64(rng, fp64, init, fmg, monkeypatch):
     """gl runs the CPU's cycles, with and without the full-multigrid start."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
     from clothgrid.solvers import multigrid
 
     monkeypatch.setattr(multigrid, "FULL_MULTIGRID_START", fmg)
     b = quad(rng, 40, 29, dim=3)
     g = clothgrid.generate(b, backend="gl", init=init)
+    # The cpu's own stopping figure is the sharper band-barrier bound, which gl does not compute: on
+    # about 1 random quad in 40 it stopped a cycle sooner (its bound just under the tolerance after
+    # 2 cycles, gl's max|D^-1 r| max z after 3). The cycles are compared under the same bound.
+    monkeypatch.setattr(CpuMultigrid, "band_steps", lambda self, barriers: None)
     c = clothgrid.generate(b, backend="cpu", solver="multigrid", init=init)
+    assert c.info["bound_method"] == g.info["bound_method"] == "max step"
     ref = reference(b)
     assert np.ptp(ref[..., 2]) > 0.01
     err = max_rel_error(g.points, ref, b.size)
