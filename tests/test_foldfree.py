@@ -12,6 +12,7 @@ import clothgrid
 from clothgrid import Boundary, InputError, generate, quality
 from clothgrid.cli import main
 from clothgrid.foldfree import corner_jacobians, untangle
+from clothgrid.grid import Grid
 from conftest import regions_with_corners, smooth_quad_sides
 
 REGIONS = regions_with_corners()
@@ -194,11 +195,13 @@ def test_the_coloured_parallel_sweeps_match_the_ordered_ones(monkeypatch):
     """Large active sets are swept in four colours, each colour in parallel: at 512^2 (11,482 nodes)
     the relaxed grid is as good as the ordered sweeps' (no fold, the smallest scaled Jacobian and
     the count of cells with a corner under 30 degrees within a few per cent), and every node that
-    moved is an active one."""
+    moved is an active one. Both take the plain step here (the ordered sweeps' ``OVERRELAX`` is
+    another step rule, not another order)."""
     import clothgrid.foldfree as ff
     from clothgrid.foldfree_kernels import cell_min_sine
     from clothgrid.grid import Grid
 
+    monkeypatch.setattr(ff, "OVERRELAX", 1.0)
     b = clothgrid.load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
     length = generate(b, (512, 512), weights="uniform", functional="length")
     got = {}
@@ -303,3 +306,27 @@ def test_plane_coordinates_of_an_xy_piece_without_the_matrix_product(clockwise):
     R3 = R @ tilt.T + [1.0, 2.0, 3.0]
     c3, b3 = plane_frame(R3, 3)
     assert np.array_equal(to_plane(R3, c3, b3), (R3 - c3) @ b3.T)
+
+
+def test_over_relaxed_ordered_sweeps_untangle_with_fewer_sweeps(monkeypatch):
+    """The ordered sweeps' over-relaxed Newton step (``OVERRELAX``) against the plain one on the
+    Roache regions at 80 x 80 nodes, both weights: both untangle every region; the over-relaxed
+    sweeps take at most three quarters of the plain sweeps in all (0.56 when measured) and leave a
+    smallest corner Jacobian no worse than 0.9 of the plain one's on every region."""
+    import clothgrid.foldfree as ff
+
+    omega = ff.OVERRELAX
+    assert omega > 1.0
+    sweeps = {1.0: 0, omega: 0}
+    for path in REGIONS:
+        for weights in ("paper", "uniform"):
+            length = generate(clothgrid.load_boundary(path), 80, weights=weights)
+            jmin = {}
+            for w in (1.0, omega):
+                monkeypatch.setattr(ff, "OVERRELAX", w)
+                pts, info = ff.relax(length.points, dim=length.dim)
+                assert info["untangled"] and quality(Grid.from_points(pts, info={}, dim=length.dim)).folded == 0
+                sweeps[w] += info["sweeps"]
+                jmin[w] = info["min_corner_jacobian"]
+            assert jmin[omega] >= 0.9 * jmin[1.0], (path.stem, weights, jmin)
+    assert sweeps[omega] <= 0.75 * sweeps[1.0], sweeps

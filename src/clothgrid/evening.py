@@ -42,12 +42,25 @@ SPREAD_OK = 3.0
 BAND = 1.4
 #: Most Gauss-Seidel sweeps.
 MAX_SWEEPS = 100
-#: Once the sweeps have made :data:`WORK_BUDGET` node moves (about 0.3 s), the energy is measured
-#: every :data:`CHECK_SWEEPS` sweeps and the evening stops when it fell by less than
-#: :data:`MIN_PROGRESS` (a fraction) since the last measurement. On a large graded grid point
-#: Gauss-Seidel lowers it by about 2 % per 10 sweeps (1024^2: 100 sweeps over 101,521 nodes,
-#: 2.6 s, spread 16.8 -> 16.7), a polish not worth its time; real pieces at the default edge
-#: length stay far below the budget and are evened as before.
+#: Over-relaxation of a node's step in the ordered sweeps (an active set below
+#: :data:`~clothgrid.foldfree.PARALLEL_NODES` nodes, every real piece at the default edge length):
+#: the first step tried is this many times the inverse of the node's curvature estimate (still at
+#: most a quarter of the mean edge, halved until it lowers the energy and keeps the angles).
+#: Outlying lengths spread along a grid line about one node a sweep: with the plain step (1) the
+#: 294 evened survey pieces still moved in their last 50 of 100 sweeps; with 3 they reach as low
+#: a spread in about a third of the sweeps. On the 1024^2 T-shirt's large active set the
+#: over-relaxed step (capped at a quarter edge everywhere) raised the spread: the coloured sweeps
+#: take the plain step (docs/performance.md, "Eighth pass").
+OVERRELAX = 3.0
+#: The ordered sweeps measure the energy every :data:`SMALL_CHECK_SWEEPS` sweeps and stop when it
+#: fell by less than :data:`SMALL_MIN_PROGRESS` (a fraction) since the last measurement.
+SMALL_CHECK_SWEEPS = 5
+SMALL_MIN_PROGRESS = 0.03
+#: The coloured sweeps, once they have made :data:`WORK_BUDGET` node moves (about 0.3 s), measure
+#: the energy every :data:`CHECK_SWEEPS` sweeps and stop when it fell by less than
+#: :data:`MIN_PROGRESS` since the last measurement. On a large graded grid point Gauss-Seidel
+#: lowers it by about 2 % per 10 sweeps (1024^2: 100 sweeps over 101,521 nodes, 2.6 s, spread
+#: 16.8 -> 16.7), a polish not worth its time.
 WORK_BUDGET = 1_000_000
 CHECK_SWEEPS = 10
 MIN_PROGRESS = 0.05
@@ -205,16 +218,17 @@ def _sines_around(X, i, j, out, w):
 
 
 @njit(cache=True)
-def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w):
-    """One line-searched gradient step of node (i, j) that lowers its energy and keeps every corner
-    of its cells at the floor or no worse; the move, or -1.0 where it did not move."""
+def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega):
+    """One line-searched gradient step of node (i, j) (the first ``omega`` times the inverse
+    curvature, :data:`OVERRELAX`) that lowers its energy and keeps every corner of its cells at the
+    floor or no worse; the move, or -1.0 where it did not move."""
     gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi, lo2, hi2)
     g = math.sqrt(gx * gx + gy * gy)
     if g < 1e-9:
         return -1.0
     x0, y0 = X[i, j, 0], X[i, j, 1]
     have_before = False      # the sines before the move: needed only where a corner ends below the floor
-    step = min(1.0 / curv, 0.25 / g) if curv > 0 else 0.25 / g
+    step = min(omega / curv, 0.25 / g) if curv > 0 else 0.25 / g
     for _ in range(8):
         xt, yt = x0 - step * gx, y0 - step * gy
         X[i, j, 0] = xt
@@ -242,7 +256,7 @@ def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w):
 
 
 @njit(cache=True)
-def _sweep(X, lo, hi, floor, active):
+def _sweep(X, lo, hi, floor, active, omega):
     """One Gauss-Seidel sweep over the interior nodes; the largest move, the nodes moved."""
     nu, nv = X.shape[0], X.shape[1]
     lo2, hi2 = _inside_band(lo, hi)
@@ -252,7 +266,7 @@ def _sweep(X, lo, hi, floor, active):
         for j in range(1, nv - 1):
             if not active[i, j]:
                 continue
-            d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w)
+            d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
             if d >= 0.0:
                 biggest = max(biggest, d)
                 moved += 1
@@ -260,7 +274,7 @@ def _sweep(X, lo, hi, floor, active):
 
 
 @njit(cache=True, parallel=True)
-def _sweep_coloured(X, lo, hi, floor, active):
+def _sweep_coloured(X, lo, hi, floor, active, omega):
     """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
     (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet)."""
     nu, nv = X.shape[0], X.shape[1]
@@ -278,7 +292,7 @@ def _sweep_coloured(X, lo, hi, floor, active):
             for j in range(1 + cj, nv - 1, 2):
                 if not active[i, j]:
                     continue
-                d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w)
+                d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
                 if d >= 0.0:
                     row_big[i] = max(row_big[i], d)
                     row_moved[i] += 1
@@ -338,9 +352,10 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     spread_ok : float
         A grid whose edge spread is at most this is returned as it is.
     max_sweeps : int
-        Most Gauss-Seidel sweeps; fewer on a large grid where, past
-        :data:`WORK_BUDGET` node moves, the energy falls by less than
-        :data:`MIN_PROGRESS` over :data:`CHECK_SWEEPS` sweeps.
+        Most Gauss-Seidel sweeps; fewer where the energy falls slowly
+        (:data:`SMALL_MIN_PROGRESS` over :data:`SMALL_CHECK_SWEEPS` sweeps for
+        an active set below ``PARALLEL_NODES``, else, past :data:`WORK_BUDGET`
+        node moves, :data:`MIN_PROGRESS` over :data:`CHECK_SWEEPS`).
     margin : int
         Nodes within this many grid lines of an outlying edge are moved.
     copy : bool
@@ -385,16 +400,18 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         active, count = _outside(X, lo, hi, margin)
         info["active"] = int(count)
         energy = _energy(X, lo, hi) if count else 0.0
-        sweep_once = _sweep_coloured if count >= PARALLEL_NODES else _sweep
+        ordered = count < PARALLEL_NODES
+        sweep_once, omega = (_sweep, OVERRELAX) if ordered else (_sweep_coloured, 1.0)
+        check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
         for sweep in range(max_sweeps if count else 0):
-            biggest, moved = sweep_once(X, lo, hi, floor, active)
+            biggest, moved = sweep_once(X, lo, hi, floor, active, omega)
             info["sweeps"] = sweep + 1
             info["moved"] += int(moved)
             if moved == 0 or biggest < 1e-4:
                 break
-            if (sweep + 1) % CHECK_SWEEPS == 0:
+            if (sweep + 1) % check == 0:
                 now = _energy(X, lo, hi)
-                if (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - MIN_PROGRESS) * energy:
+                if (ordered or (sweep + 1) * count >= WORK_BUDGET) and now > (1.0 - progress) * energy:
                     break
                 energy = now
     if info["moved"] == 0:                 # as it was, bit for bit

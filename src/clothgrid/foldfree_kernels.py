@@ -217,9 +217,10 @@ def _lane_sums(w, d4, want):
 
 
 @njit(cache=True)
-def _relax_node(X, i, j, delta2, w):
-    """One Newton step (line-searched) of node (i, j) on the energy of its four cells; its move.
-    ``w``: the node energy's scratch (a row of :func:`new_scratch`)."""
+def _relax_node(X, i, j, delta2, w, omega):
+    """One Newton step (line-searched, the first try ``omega`` times the step, then halved) of node
+    (i, j) on the energy of its four cells; its move. ``w``: the node energy's scratch (a row of
+    :func:`new_scratch`)."""
     px = X[i, j, 0]
     py = X[i, j, 1]
     loc = 0.0                # local cell area: mean squared length of the 4 edges at the node
@@ -249,7 +250,7 @@ def _relax_node(X, i, j, delta2, w):
     if step > lim and step > 0.0:
         dx *= lim / step
         dy *= lim / step
-    t = 1.0
+    t = omega
     for _ls in range(12):
         E1 = _moved_energy(w, px + t * dx, py + t * dy, d4)
         if E1 < E:
@@ -261,7 +262,7 @@ def _relax_node(X, i, j, delta2, w):
 
 
 @njit(cache=True)
-def sweep_nodes(X, nodes, delta2, sweeps, tol):
+def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0):
     """Gauss-Seidel sweeps of node-wise Newton steps over ``nodes`` ((K, 2) int64).
 
     Returns ``(sweeps done, largest move of the last sweep)``; moves are
@@ -275,7 +276,7 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol):
         done += 1
         big = 0.0
         for q in range(nodes.shape[0]):
-            mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w)
+            mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w, omega)
             if mv > big:
                 big = mv
         last = big
@@ -285,7 +286,7 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol):
 
 
 @njit(cache=True, parallel=True)
-def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol):
+def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
     """:func:`sweep_nodes` in four colours, the nodes of each colour in parallel.
 
     ``nodes`` are sorted by colour ``2 (i mod 2) + (j mod 2)`` and colour ``c`` is
@@ -300,7 +301,7 @@ def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol):
         done += 1
         for c in range(4):
             for q in prange(starts[c], starts[c + 1]):
-                moves[q] = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, scratch[numba.get_thread_id()])
+                moves[q] = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, scratch[numba.get_thread_id()], omega)
         big = moves.max() if nodes.shape[0] else 0.0
         last = big
         if big < tol:
