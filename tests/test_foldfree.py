@@ -167,12 +167,14 @@ def test_a_wild_outline_gets_no_more_folds_and_the_untangling_stops_when_it_stal
 
 
 def test_the_margin_cap_keeps_the_quality_of_the_wide_margin(monkeypatch):
-    """At 512^2 an eighth of the shorter side is 64 lines; capped at ``MAX_MARGIN`` (32) the relax
-    moves under a third of the nodes and leaves the same grid quality: no fold, the same smallest
-    scaled Jacobian, about as many cells with a corner under 30 degrees."""
+    """At 512^2 an eighth of the shorter side is 64 lines; capped at ``MAX_MARGIN`` (8) the relax
+    moves under a third of the nodes of the uncapped margin and leaves a grid as good where it
+    counts: no fold, a smallest scaled Jacobian and corner Jacobian no smaller. The wide smoothing
+    lifts more cells' smallest corner over 30 degrees (and stretches edges: spread 15.1 against
+    12.6), so the narrow margin may leave up to 30 % more cells under it (380 against 308 when
+    measured; under 20 degrees, 6 against 4)."""
     import clothgrid.foldfree as ff
     from clothgrid.foldfree_kernels import cell_min_sine
-    from clothgrid.grid import Grid
 
     b = clothgrid.load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
     length = generate(b, (512, 512), weights="uniform", functional="length")
@@ -183,12 +185,30 @@ def test_the_margin_cap_keeps_the_quality_of_the_wide_margin(monkeypatch):
         pts, info = ff.relax(length.points, dim=length.dim)
         q = quality(Grid.from_points(pts, info={}, dim=length.dim))
         sines = cell_min_sine(np.ascontiguousarray(pts[..., :2]))
-        got[cap] = (info["moved"], q.folded, q.min_scaled_jacobian, int((sines < 0.5).sum()))
-    (moved, folded, sj, poor), (moved_w, folded_w, sj_w, poor_w) = got[32], got[10**9]
+        got[cap] = (info["moved"], q.folded, q.min_scaled_jacobian, info["min_corner_jacobian"],
+                    int((sines < 0.5).sum()))
+    (moved, folded, sj, cj, poor), (moved_w, folded_w, sj_w, cj_w, poor_w) = got[8], got[10**9]
     assert folded == folded_w == 0
     assert moved < moved_w / 3
-    assert sj == pytest.approx(sj_w, abs=1e-3)
-    assert poor <= 1.1 * poor_w + 5
+    assert sj >= sj_w - 1e-3 and cj >= cj_w - 1e-3
+    assert poor <= 1.3 * poor_w + 5
+
+
+def test_folds_the_narrow_margin_leaves_are_untangled_on_the_wide_one(monkeypatch):
+    """Where the rounds on the narrow margin leave folds, they run again on up to ``WIDE_MARGIN``
+    lines before every node is untangled: on the tie at 80 x 80 with no margin at all (the folded
+    and poor cells' own nodes) folds remain, and the wide margin (10 lines) untangles it, moving
+    a fifth of the interior nodes."""
+    import clothgrid.foldfree as ff
+
+    monkeypatch.setattr(ff, "MAX_MARGIN", 0)
+    length = generate(clothgrid.load_boundary(TIE), 80, weights="paper")
+    said = []
+    pts, info = ff.relax(length.points, dim=length.dim, margin=0, progress=said.append)
+    assert len(said) == 2 and "within 0 lines" in said[0] and not said[0].endswith(" 0 folded corners left")
+    assert "within 10 lines" in said[1] and said[1].endswith(" 0 folded corners left")
+    assert info["untangled"] and quality(Grid.from_points(pts, info={}, dim=length.dim)).folded == 0
+    assert 0 < info["moved"] < 78 * 78 / 4
 
 
 def test_the_coloured_parallel_sweeps_match_the_ordered_ones(monkeypatch):

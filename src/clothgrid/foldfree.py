@@ -342,10 +342,16 @@ def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_it
 POOR_SINE = 0.34
 #: Nodes within this many grid lines of a poor cell are moved with it.
 MARGIN = 4
-#: Largest margin (grid lines) that the eighth of the shorter grid side sets: on fine grids a fold
-#: is a few cells wide, and 32 lines round it gave the same grid quality as 128 at 1024^2 (smallest
-#: scaled Jacobian, angles, folds; docs/performance.md) with a tenth of the nodes to move.
-MAX_MARGIN = 32
+#: Largest margin (grid lines) that the eighth of the shorter grid side sets first. On fine grids a
+#: fold is often a few cells wide: on the T-shirt front at 512^2 to 2048^2, 8 lines round the poor
+#: cells left a larger smallest corner Jacobian and angle and a smaller edge spread than 32 (1024^2:
+#: 0.080 against 0.054, 16.7 against 16.1 degrees, 9.6 against 14.8), moving a third of the nodes
+#: (docs/performance.md, "Eighth pass").
+MAX_MARGIN = 8
+#: Where folds remain after the rounds on :data:`MAX_MARGIN`, the rounds run again on a margin of up
+#: to this many lines (the eighth of the shorter grid side) before every node is untangled: some
+#: folds of fine grids reach further (32 lines round it gave the same grid quality as 128 at 1024^2).
+WIDE_MARGIN = 32
 #: Most untangling rounds of :func:`relax` per active set.
 RELAX_ROUNDS = 30
 #: Most Gauss-Seidel sweeps per round.
@@ -453,10 +459,11 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     The energy is :func:`untangle`'s, minimised node by node (Newton steps,
     :mod:`clothgrid.foldfree_kernels`) over the interior nodes within
     ``margin`` grid lines (at least an eighth of the shorter grid side, up to
-    :data:`MAX_MARGIN`) of a
-    cell that is folded or has a corner angle whose sine is below
-    ``poor_sine``. Where folds remain, every interior node is untangled; then
-    the active nodes are smoothed. Cost follows the size of the poor region.
+    :data:`MAX_MARGIN`) of a cell that is folded or has a corner angle whose
+    sine is below ``poor_sine``. Where folds remain, the nodes within up to
+    :data:`WIDE_MARGIN` lines of a poor or folded cell are untangled, and where
+    folds still remain every interior node; then the nodes moved are smoothed.
+    Cost follows the size of the poor region.
 
     Parameters
     ----------
@@ -508,8 +515,19 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         return R, stats
     m = max(nu, nv) if whole else max(margin, min(min(nu, nv) // 8, MAX_MARGIN))
     nodes = _active_nodes(poor, m)
+    wide = max(margin, min(min(nu, nv) // 8, WIDE_MARGIN))
+    retry = not quick and not whole and wide > m
+    start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
+    if bad and retry:
+        # Failed rounds can leave more folds than they found (the all-node untangling then took
+        # 8x as long on fine real pieces): the wide rounds start from the grid as it came.
+        Xs[nodes[:, 0], nodes[:, 1]] = start
+        m = wide
+        nodes = _active_nodes(poor, m)
+        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
+        say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and not quick:
         Xs = _relax_all(Xs, stats, say)
         nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
