@@ -161,9 +161,12 @@ def test_a_wild_outline_gets_no_more_folds_and_the_untangling_stops_when_it_stal
     assert info["folded_before"] > 0
     assert info["folded"] == info["folded_before"] == quality(grid).folded
     assert "foldfree_rejected" in info and info["functional"] == "length"
-    # 8 rounds on the poor cells' nodes, then every node until it stalls: far fewer than the cap
-    assert info["foldfree"]["rounds"] <= 8 + 2 * RELAX_ROUNDS
-    assert info["foldfree"]["rounds"] < 8 + 2 * RELAX_STALL + 20, info["foldfree"]
+    # 8 rounds on the poor cells' nodes, then every node (first on the coarser grids, which stop on
+    # the strict stall rule) until it stalls: all the grids' rounds together under the every-node
+    # cap of the finest alone (46 when measured, 21 of them on the two coarser grids)
+    assert info["foldfree"]["levels"] >= 2
+    assert info["foldfree"]["rounds"] < 2 * RELAX_ROUNDS, info["foldfree"]
+    assert RELAX_STALL < 10
 
 
 def test_the_margin_cap_keeps_the_quality_of_the_wide_margin(monkeypatch):
@@ -332,9 +335,11 @@ def test_over_relaxed_ordered_sweeps_untangle_with_fewer_sweeps(monkeypatch):
     """The ordered sweeps' over-relaxed Newton step (``OVERRELAX``) against the plain one on the
     Roache regions at 80 x 80 nodes, both weights: both untangle every region; the over-relaxed
     sweeps take at most three quarters of the plain sweeps in all (0.56 when measured) and leave a
-    smallest corner Jacobian no worse than 0.9 of the plain one's on every region."""
+    smallest corner Jacobian no worse than 0.9 of the plain one's on every region. One grid each
+    (no coarser grid first, ``COARSE_RELAX``): the sweeps counted are all of the same grid."""
     import clothgrid.foldfree as ff
 
+    monkeypatch.setattr(ff, "COARSE_RELAX", 10**9)
     omega = ff.OVERRELAX
     assert omega > 1.0
     sweeps = {1.0: 0, omega: 0}
@@ -350,3 +355,31 @@ def test_over_relaxed_ordered_sweeps_untangle_with_fewer_sweeps(monkeypatch):
                 jmin[w] = info["min_corner_jacobian"]
             assert jmin[omega] >= 0.9 * jmin[1.0], (path.stem, weights, jmin)
     assert sweeps[omega] <= 0.75 * sweeps[1.0], sweeps
+
+
+def test_every_node_is_untangled_from_the_grid_of_every_other_line(monkeypatch):
+    """Where the active sets leave folds, every node is untangled starting from the relaxed grid of
+    every other line (recursively, ``COARSE_RELAX``): forced there on the Roache regions at 80 x 80
+    (no margin at all), it untangles every region, through at least two grids, and leaves a
+    smallest corner Jacobian at least 0.8 of the one-grid untangling's (0.86-1.50 when measured,
+    in 0.4 of its time)."""
+    import clothgrid.foldfree as ff
+
+    monkeypatch.setattr(ff, "MAX_MARGIN", 0)
+    monkeypatch.setattr(ff, "WIDE_MARGIN", 0)
+    least = ff.COARSE_RELAX
+    for path in REGIONS:
+        length = generate(clothgrid.load_boundary(path), 80, weights="paper")
+        got = {}
+        for coarse in (least, 10**9):
+            monkeypatch.setattr(ff, "COARSE_RELAX", coarse)
+            said = []
+            pts, info = ff.relax(length.points, dim=length.dim, margin=0, progress=said.append)
+            assert info["untangled"] and quality(Grid.from_points(pts, info={}, dim=length.dim)).folded == 0
+            for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
+                assert np.array_equal(pts[sl], length.points[sl])
+            got[coarse] = (info, said)
+        (multi, said), (single, _) = got[least], got[10**9]
+        assert multi["levels"] >= 2 and "levels" not in single
+        assert any("every other line first" in s for s in said), said
+        assert multi["min_corner_jacobian"] >= 0.8 * single["min_corner_jacobian"], (path.stem, multi, single)

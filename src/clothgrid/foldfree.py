@@ -212,6 +212,11 @@ def _minimise(energy: _Energy, x: np.ndarray, max_iter: int, gtol: float) -> tup
     return res.x, int(res.nit)
 
 
+def _every_other(n: int) -> np.ndarray:
+    """The indices of every other grid line of ``n``, both ends included (a coarser grid's lines)."""
+    return np.unique(np.round(np.linspace(0, n - 1, (n + 1) // 2)).astype(np.int64))
+
+
 def _prolong(Xc: np.ndarray, ic: np.ndarray, jc: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Fine start from a coarse grid: bilinear in index space, boundary mismatch spread by TFI."""
     nu, nv = X.shape[:2]
@@ -246,8 +251,7 @@ def _solve(X: np.ndarray, max_iter: int, smooth_iter: int, say: Callable[[str], 
     jmin = float(corner_jacobians(Xs).min())
     if jmin <= 0 and min(nu, nv) > COARSE:
         # Multilevel: untangle every other grid line first, then start from its interpolation.
-        ic = np.unique(np.round(np.linspace(0, nu - 1, (nu + 1) // 2)).astype(np.int64))
-        jc = np.unique(np.round(np.linspace(0, nv - 1, (nv + 1) // 2)).astype(np.int64))
+        ic, jc = _every_other(nu), _every_other(nv)
         Xc = _solve(Xs[np.ix_(ic, jc)], max_iter, smooth_iter, say, stats, level + 1)
         Xs = _prolong(Xc, ic, jc, Xs)
         jmin = float(corner_jacobians(Xs).min())
@@ -365,6 +369,9 @@ RELAX_SWEEPS = 60
 #: it saved no sweep and left a smaller corner Jacobian: the coloured sweeps take the plain step
 #: (docs/performance.md, "Eighth pass").
 OVERRELAX = 1.7
+#: Grids with at least this many nodes on their shorter side untangle every node on the grid of
+#: every other line first (:func:`_relax_all`).
+COARSE_RELAX = 20
 #: Untangling every node stops after this many rounds in a row without fewer folded corners
 #: (a wild outline ran all 60 rounds, minutes at 770 x 385 nodes, and ended with more folds).
 RELAX_STALL = 6
@@ -421,12 +428,14 @@ def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:
 
 
 def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], rounds: int,
-                  stall: int | None) -> tuple[float, int]:
-    """Untangling rounds over ``nodes`` (delta by Escobar's rule) until no corner is folded."""
+                  stall: int | None, strict: bool = False) -> tuple[float, int]:
+    """Untangling rounds over ``nodes`` (delta by Escobar's rule) until no corner is folded, or
+    until ``stall`` rounds in a row did not lower the count of folded corners below the last
+    round's (``strict``: below the fewest so far)."""
     from .foldfree_kernels import corner_min
 
     jmin, bad = corner_min(Xs, True)
-    stalled = 0
+    stalled, fewest = 0, bad
     while bad and rounds > 0 and len(nodes):
         rounds -= 1
         stats["rounds"] += 1
@@ -437,19 +446,92 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
         stats["sweeps"] += int(done)
         before = bad
         jmin, bad = corner_min(Xs, True)
-        stalled = stalled + 1 if bad >= before else 0
+        # strict (a coarser grid's start): counts that go up and down without a new low ran all 60
+        # rounds on a wild outline's coarser grids; on the grid asked for, counts that rise for
+        # rounds before they fall untangled the Roache annulus and plow on one grid
+        if strict:
+            stalled, fewest = (0, bad) if bad < fewest else (stalled + 1, fewest)
+        else:
+            stalled = stalled + 1 if bad >= before else 0
         if stall is not None and stalled >= stall:
             break
     return float(jmin), int(bad)
 
 
-def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None]) -> np.ndarray:
-    """Untangle every interior node (after the active set could not)."""
+def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None], coarse: bool = False) -> np.ndarray:
+    """Untangle every interior node (after the active sets could not).
+
+    On a grid of at least :data:`COARSE_RELAX` nodes a side, the grid of every other line is
+    relaxed first (:func:`_relax_scaled`, recursively) and its interpolation (what its boundary
+    misses spread inward by TFI, as in :func:`untangle`) replaces the interior unless it has more
+    folded corners; folds left are untangled on the poor cells' narrow margin, and only where those
+    rounds fail on every node. ``coarse``: this grid is itself a finer one's start (its rounds
+    stop on the stricter stall rule of :func:`_relax_rounds`).
+    """
+    from .foldfree_kernels import corner_min
+
     nu, nv = Xs.shape[:2]
+    if min(nu, nv) >= COARSE_RELAX:
+        ic, jc = _every_other(nu), _every_other(nv)
+        Xc = np.ascontiguousarray(Xs[np.ix_(ic, jc)])
+        poor = _poor_cells(Xc, POOR_SINE)
+        say(f"relax {nu}x{nv}: every node; the {len(ic)}x{len(jc)} grid of every other line first")
+        if poor.any():
+            _relax_scaled(Xc, poor, stats, say, MARGIN, False, False, coarse=True)
+        stats["levels"] = stats.get("levels", 1) + 1
+        before = corner_min(Xs, True)[1]
+        kept = Xs[1:-1, 1:-1].copy()
+        Xs[1:-1, 1:-1] = _prolong(Xc, ic, jc, Xs)[1:-1, 1:-1]
+        jmin, bad = corner_min(Xs, True)
+        if bad > before:
+            # A coarse grid that could not be untangled either (a wild outline): its interpolation
+            # has more folds than the grid it would replace, and every node is untangled from that.
+            Xs[1:-1, 1:-1] = kept
+            say(f"relax {nu}x{nv}: the coarser grid's start has {bad} folded corners, not kept")
+        else:
+            if bad:
+                nodes = _active_nodes(_poor_cells(Xs, POOR_SINE), max(MARGIN, min(min(nu, nv) // 8, MAX_MARGIN)))
+                jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
+            say(f"relax {nu}x{nv}: from the coarser grid, {bad} folded corners left")
+            if not bad:
+                return Xs
     nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse)
     say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
     return Xs
+
+
+def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: Callable[[str], None],
+                  margin: int, whole: bool, quick: bool, coarse: bool = False) -> np.ndarray:
+    """:func:`relax`'s work on the scaled planar grid ``Xs`` (in place) with ``poor`` cells: the
+    narrow then the wide active set, every node where folds remain, then the smoothing; the
+    ``(K, 2)`` nodes moved. ``coarse``: a finer grid's start (:func:`_relax_all`)."""
+    from .foldfree_kernels import corner_min
+
+    nu, nv = Xs.shape[:2]
+    m = max(nu, nv) if whole else max(margin, min(min(nu, nv) // 8, MAX_MARGIN))
+    nodes = _active_nodes(poor, m)
+    wide = max(margin, min(min(nu, nv) // 8, WIDE_MARGIN))
+    retry = not quick and not whole and wide > m
+    start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
+    say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
+    if bad and retry:
+        # Failed rounds can leave more folds than they found (the all-node untangling then took
+        # 8x as long on fine real pieces): the wide rounds start from the grid as it came.
+        Xs[nodes[:, 0], nodes[:, 1]] = start
+        m = wide
+        nodes = _active_nodes(poor, m)
+        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
+        say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
+    if bad and not quick:
+        _relax_all(Xs, stats, say, coarse)
+        nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
+        jmin, bad = corner_min(Xs, True)
+    if bad == 0 and len(nodes):
+        done, _ = _sweeps(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
+        stats["sweeps"] += int(done)
+    return nodes
 
 
 def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
@@ -487,9 +569,11 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     points : numpy.ndarray
         ``(nu, nv, 3)`` nodes.
     info : dict
-        ``moved`` (nodes smoothed), ``sweeps``, ``rounds``, ``untangled``,
-        ``min_corner_jacobian`` (smallest ``a x b / (|a|^2 + |b|^2)``, 1/2
-        for a square, grid-corner terms aside), ``seconds``, ``method``.
+        ``moved`` (nodes smoothed), ``sweeps`` and ``rounds`` (on every grid),
+        ``untangled``, ``min_corner_jacobian`` (smallest ``a x b / (|a|^2 +
+        |b|^2)``, 1/2 for a square, grid-corner terms aside), ``seconds``,
+        ``method``, and ``levels`` (the grids, where every node was untangled
+        from coarser ones).
     """
     from .foldfree_kernels import corner_min
 
@@ -514,29 +598,8 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         jmin, bad = corner_min(Xs, True)
         stats.update(untangled=bad == 0, min_corner_jacobian=float(jmin), seconds=time.perf_counter() - t0)
         return R, stats
-    m = max(nu, nv) if whole else max(margin, min(min(nu, nv) // 8, MAX_MARGIN))
-    nodes = _active_nodes(poor, m)
-    wide = max(margin, min(min(nu, nv) // 8, WIDE_MARGIN))
-    retry = not quick and not whole and wide > m
-    start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
-    say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
-    if bad and retry:
-        # Failed rounds can leave more folds than they found (the all-node untangling then took
-        # 8x as long on fine real pieces): the wide rounds start from the grid as it came.
-        Xs[nodes[:, 0], nodes[:, 1]] = start
-        m = wide
-        nodes = _active_nodes(poor, m)
-        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2)
-        say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
-    if bad and not quick:
-        Xs = _relax_all(Xs, stats, say)
-        nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
-        jmin, bad = corner_min(Xs, True)
-    if bad == 0 and len(nodes):
-        done, _ = _sweeps(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
-        stats["sweeps"] += int(done)
-        jmin, bad = corner_min(Xs, True)
+    nodes = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
+    jmin, bad = corner_min(Xs, True)
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
     Xs *= scale
     Xs += shift
