@@ -363,7 +363,7 @@ RELAX_SWEEPS = 60
 #: Over-relaxation of the ordered sweeps (an active set below :data:`PARALLEL_NODES`): a node's
 #: Newton step is first tried this many times over, then halved until the energy falls.
 #: Gauss-Seidel passes a correction about one node a sweep. On the Roache regions at 80^2 (both
-#: weights) 1.7 took 0.56 of the plain step's (1.0) sweeps and left the smallest corner Jacobian
+#: weights) 1.7 took 0.68 of the plain step's (1.0) sweeps and left the smallest corner Jacobian
 #: 0.95-2.5x the plain one; over the survey's pieces the whole auto step ran in about half the time
 #: and the smallest angle rose from 4.1 to 6.4 degrees. On the 1024^2 T-shirt's large active set
 #: it saved no sweep and left a smaller corner Jacobian: the coloured sweeps take the plain step
