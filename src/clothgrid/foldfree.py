@@ -395,6 +395,17 @@ def _sweeps(Xs: np.ndarray, nodes: np.ndarray, delta2: float, sweeps: int, tol: 
     return sweep_nodes_coloured(Xs, np.ascontiguousarray(nodes[order]), starts, delta2, sweeps, tol, 1.0)
 
 
+def _margin(nu: int, nv: int, least: int, cap: int) -> int:
+    """Grid lines round a poor cell: an eighth of the shorter grid side, at least ``least``, at most
+    ``cap`` (unless ``least`` is more)."""
+    return max(least, min(min(nu, nv) // 8, cap))
+
+
+def _interior_nodes(nu: int, nv: int) -> np.ndarray:
+    """``(K, 2)`` every interior node of an ``nu x nv`` grid, row by row."""
+    return np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
+
+
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
     """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells)."""
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
@@ -490,12 +501,12 @@ def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None]
             say(f"relax {nu}x{nv}: the coarser grid's start has {bad} folded corners, not kept")
         else:
             if bad:
-                nodes = _active_nodes(_poor_cells(Xs, POOR_SINE), max(MARGIN, min(min(nu, nv) // 8, MAX_MARGIN)))
+                nodes = _active_nodes(_poor_cells(Xs, POOR_SINE), _margin(nu, nv, MARGIN, MAX_MARGIN))
                 jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
             say(f"relax {nu}x{nv}: from the coarser grid, {bad} folded corners left")
             if not bad:
                 return Xs
-    nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
+    nodes = _interior_nodes(nu, nv)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse)
     say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
     return Xs
@@ -509,9 +520,9 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     from .foldfree_kernels import corner_min
 
     nu, nv = Xs.shape[:2]
-    m = max(nu, nv) if whole else max(margin, min(min(nu, nv) // 8, MAX_MARGIN))
+    m = max(nu, nv) if whole else _margin(nu, nv, margin, MAX_MARGIN)
     nodes = _active_nodes(poor, m)
-    wide = max(margin, min(min(nu, nv) // 8, WIDE_MARGIN))
+    wide = _margin(nu, nv, margin, WIDE_MARGIN)
     retry = not quick and not whole and wide > m
     start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
@@ -526,7 +537,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
         say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and not quick:
         _relax_all(Xs, stats, say, coarse)
-        nodes = np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
+        nodes = _interior_nodes(nu, nv)
         jmin, bad = corner_min(Xs, True)
     if bad == 0 and len(nodes):
         done, _ = _sweeps(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
