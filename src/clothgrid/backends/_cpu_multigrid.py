@@ -436,6 +436,16 @@ def _prolong(xe, xce, xco):
 
 
 @numba.njit(inline="always", error_model="numpy")
+def _add_rhs_row(b, c, i, a, z, has_b, out):
+    """``out[q] += b[c, i, a + q]`` where level 0 has a right-hand side (:func:`_res5_row`,
+    :func:`_res5u_row`)."""
+    if has_b:
+        bi = b[c, i, a:z]
+        for q in range(z - a):
+            out[q] += bi[q]
+
+
+@numba.njit(inline="always", error_model="numpy")
 def _res5_row(x, t, b, Eo, No, Nt, c, i, a, z, ob, has_b, out):
     """``out[q]`` = residual of level 0 at own-parity rows ``m = a + q`` (``m < z``) of column ``i``."""
     elo, ehi, nlo, nhi = Eo[i - 1, a:z], Eo[i, a:z], Nt[i, a + ob:z + ob], No[i, a:z]
@@ -444,10 +454,7 @@ def _res5_row(x, t, b, Eo, No, Nt, c, i, a, z, ob, has_b, out):
     for q in range(z - a):
         out[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
                   + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
-    if has_b:
-        bi = b[c, i, a:z]
-        for q in range(z - a):
-            out[q] += bi[q]
+    _add_rhs_row(b, c, i, a, z, has_b, out)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
@@ -481,10 +488,7 @@ def _res5u_row(x, t, b, e, ni, c, i, a, z, ob, has_b, out):
     tlo, thi = t[c, i, a + ob:z + ob], t[c, i, a + ob + 1:z + ob + 1]
     for q in range(z - a):
         out[q] = e[q] * (xm[q] - x0[q]) + e[q] * (xp[q] - x0[q]) + ni * (tlo[q] - x0[q]) + ni * (thi[q] - x0[q])
-    if has_b:
-        bi = b[c, i, a:z]
-        for q in range(z - a):
-            out[q] += bi[q]
+    _add_rhs_row(b, c, i, a, z, has_b, out)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
