@@ -28,16 +28,32 @@ def _corner_sines(P: np.ndarray) -> np.ndarray:
     return s
 
 
-def test_evening_never_lowers_a_corner_below_the_floor_and_lowers_the_spread(rng):
+def _holds_the_floor(P0: np.ndarray, P: np.ndarray) -> bool:
+    """Every corner of ``P`` at the evening's floor, or no worse than in ``P0`` (grid corners aside)."""
     floor = math.sin(math.radians(FLOOR_DEG))
+    before, after = _corner_sines(P0), _corner_sines(P)
+    return bool((np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)).all())
+
+
+def _evening_energy(P: np.ndarray, P0: np.ndarray) -> float:
+    """The evening's energy of ``P``, edge lengths over the geometric mean of ``P0``'s."""
+    import clothgrid.evening as ev
+
+    def lengths(Q):
+        return np.concatenate([np.linalg.norm(np.diff(Q[..., :2], axis=a), axis=-1).ravel() for a in (0, 1)])
+
+    mean = np.exp(np.mean(np.log(lengths(P0))))
+    t = np.abs(np.log(lengths(P) / mean))
+    return float((np.maximum(0.0, t - math.log(ev.BAND)) ** 2).sum())
+
+
+def test_evening_never_lowers_a_corner_below_the_floor_and_lowers_the_spread(rng):
     lowered = 0
     for _ in range(12):
         b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
         length = generate(b, weights="paper")            # the paper's weights crowd the lines
         out, info = even_edges(length.points, dim=2)
-        before, after = _corner_sines(length.points), _corner_sines(out)
-        ok = np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)
-        assert ok.all()                                   # per corner: at the floor, or no worse
+        assert _holds_the_floor(length.points, out)      # per corner: at the floor, or no worse
         assert quality(Grid.from_points(out, dim=2)).folded <= quality(length).folded
         for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
             assert np.array_equal(out[sl], length.points[sl])
@@ -105,19 +121,9 @@ def test_evening_stops_when_progress_is_slow(monkeypatch, coloured):
     monkeypatch.setattr(ev, slow, 0.5)                        # and now every progress does
     short, info = even_edges(length.points, dim=2)
     assert info["sweeps"] == getattr(ev, check) < info_full["sweeps"]
-    floor = math.sin(math.radians(FLOOR_DEG))
-    before, after = _corner_sines(length.points), _corner_sines(short)
-    assert (np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)).all()
-
-    def energy(P):          # the evening's energy, lengths over the length grid's geometric mean
-        lengths = np.concatenate([np.linalg.norm(np.diff(P[..., :2], axis=a), axis=-1).ravel() for a in (0, 1)])
-        t = np.abs(np.log(lengths / mean))
-        return float((np.maximum(0.0, t - math.log(ev.BAND)) ** 2).sum())
-
+    assert _holds_the_floor(length.points, short)
     P0 = length.points
-    mean = np.exp(np.mean(np.log(np.concatenate([np.linalg.norm(np.diff(P0[..., :2], axis=a), axis=-1).ravel()
-                                                  for a in (0, 1)]))))
-    assert energy(full) < energy(short) < energy(P0)
+    assert _evening_energy(full, P0) < _evening_energy(short, P0) < _evening_energy(P0, P0)
 
 
 def test_over_relaxed_ordered_sweeps_reach_a_lower_energy_in_as_many_sweeps(monkeypatch, rng):
@@ -125,7 +131,6 @@ def test_over_relaxed_ordered_sweeps_reach_a_lower_energy_in_as_many_sweeps(monk
     of sweeps on fresh pieces: a lower energy on most, the floor held on all."""
     import clothgrid.evening as ev
 
-    floor = math.sin(math.radians(FLOOR_DEG))
     lower = tried = 0
     for _ in range(16):
         if tried == 6:
@@ -140,13 +145,8 @@ def test_over_relaxed_ordered_sweeps_reach_a_lower_energy_in_as_many_sweeps(monk
         if ip["moved"] == 0 or io["moved"] == 0:
             continue
         tried += 1
-        lengths = lambda P: np.concatenate([np.linalg.norm(np.diff(P[..., :2], axis=a), axis=-1).ravel()
-                                            for a in (0, 1)])
-        mean = np.exp(np.mean(np.log(lengths(P0))))
-        energy = lambda P: float((np.maximum(0.0, np.abs(np.log(lengths(P) / mean)) - math.log(ev.BAND)) ** 2).sum())
-        lower += energy(over) < energy(plain)
-        before, after = _corner_sines(P0), _corner_sines(over)
-        assert (np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)).all()
+        lower += _evening_energy(over, P0) < _evening_energy(plain, P0)
+        assert _holds_the_floor(P0, over)
     assert tried >= 4 and lower >= tried - 1, (lower, tried)
 
 
@@ -164,9 +164,7 @@ def test_the_coloured_parallel_evening_holds_the_floor_and_lowers_the_energy_as_
         got[threshold] = even_edges(length.points, dim=2)
     (ordered, info_o), (coloured, info_c) = got[10**12], got[0]
     assert not np.array_equal(ordered, coloured)             # another order
-    floor = math.sin(math.radians(FLOOR_DEG))
-    before, after = _corner_sines(length.points), _corner_sines(coloured)
-    assert (np.isnan(before) | (after >= np.minimum(before, floor) - 1e-12)).all()
+    assert _holds_the_floor(length.points, coloured)
     assert info_c["spread_after"] < info_c["spread_before"]
     assert info_c["spread_after"] <= 1.1 * info_o["spread_after"]
     for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
