@@ -279,3 +279,52 @@ def test_a_degenerate_outline_is_skipped_when_marked_else_failed(tmp_path, capsy
     out = capsys.readouterr().out
     assert out.splitlines()[0].endswith("1 piece, 1 failed (coordinates in mm), 1 closed outline skipped as annotations")
     assert "edge: FAILED (cannot be read): only 2 distinct points" in out and "  tick: mark" in out
+
+
+# --------------------------------------------------------------------------- the distance kernel
+
+
+def _numpy_distance(points, poly, monkeypatch):
+    """``_dist_to_polyline`` by its NumPy form whatever the size."""
+    from clothgrid.patterns import annotations
+
+    monkeypatch.setattr(annotations, "KERNEL_PAIRS", np.inf)
+    return annotations._dist_to_polyline(points, poly)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_distance_kernel_is_the_numpy_form_bit_for_bit(rng, dim, monkeypatch):
+    """Fresh outlines (repeated points: zero-length segments) against outlines of 1 to 300 points:
+    the kernel's distances are the NumPy form's exactly, and the true distances (a point's distance
+    to every segment by its own projection, min over segments) within rounding."""
+    from clothgrid.patterns.distance_kernels import dist_to_polyline
+
+    for _ in range(20):
+        pts = rng.normal(size=(int(rng.integers(1, 200)), dim)) * 100.0
+        poly = rng.normal(size=(int(rng.integers(1, 300)), dim)) * 100.0
+        poly[int(rng.integers(0, len(poly)))] = poly[0]
+        got = dist_to_polyline(pts, poly)
+        assert np.array_equal(got, _numpy_distance(pts, poly, monkeypatch))
+        a, b = poly, np.roll(poly, -1, axis=0)
+        true = np.full(len(pts), np.inf)
+        for s in range(len(poly)):
+            ab = b[s] - a[s]
+            t = np.zeros(len(pts)) if not ab.any() else np.clip((pts - a[s]) @ ab / (ab @ ab), 0, 1)
+            true = np.minimum(true, np.linalg.norm(pts - (a[s] + t[:, None] * ab), axis=1))
+        assert np.allclose(got, true, rtol=1e-12, atol=1e-9)
+
+
+def test_large_pairs_take_the_kernel(monkeypatch):
+    """The classification's large comparisons (a 400-point outline against 2000 segments) go to the
+    kernel; a small one stays in NumPy (no compiled code needed to read a small file)."""
+    from clothgrid.patterns import annotations, distance_kernels
+
+    calls = []
+    real = distance_kernels.dist_to_polyline
+    monkeypatch.setattr(distance_kernels, "dist_to_polyline", lambda p, q: calls.append(len(p)) or real(p, q))
+    t = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
+    circle = np.column_stack([np.cos(t), np.sin(t)]) * 50.0
+    big = annotations._dist_to_polyline(circle[::5] * 1.1, circle)
+    assert calls == [400] and np.allclose(big, 5.0, atol=1e-3)
+    annotations._dist_to_polyline(circle[:4], circle[:8])
+    assert calls == [400]

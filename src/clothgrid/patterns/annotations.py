@@ -122,8 +122,18 @@ def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return (crosses & (x < xs)).sum(axis=1) % 2 == 1
 
 
+#: Point-segment pairs from which :func:`_dist_to_polyline` takes the Numba kernel (the same bits;
+#: below it NumPy, which needs no compiled code loaded: a reader may run without the grid solver).
+KERNEL_PAIRS = 1 << 15
+
+
 def _dist_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Distance of each point to the closed polyline ``poly``."""
+    if len(points) * len(poly) >= KERNEL_PAIRS:
+        from .distance_kernels import dist_to_polyline
+
+        return dist_to_polyline(np.ascontiguousarray(points, dtype=np.float64),
+                                np.ascontiguousarray(poly, dtype=np.float64))
     a = poly
     b = roll(poly, -1)
     ab = b - a
