@@ -521,7 +521,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
 
     nu, nv = Xs.shape[:2]
     m = max(nu, nv) if whole else _margin(nu, nv, margin, MAX_MARGIN)
-    nodes = _active_nodes(poor, m)
+    nodes = _interior_nodes(nu, nv) if whole else _active_nodes(poor, m)   # whole: the same nodes, undilated
     wide = _margin(nu, nv, margin, WIDE_MARGIN)
     retry = not quick and not whole and wide > m
     start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)

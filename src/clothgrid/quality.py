@@ -17,7 +17,7 @@ from .errors import InputError
 from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, plane_axes, vector_area
 from .grid import Grid
 
-__all__ = ["Quality", "quality", "sim_figures", "targets_met", "TARGET_MIN_ANGLE_DEG",
+__all__ = ["Quality", "quality", "sim_figures", "edge_spread", "targets_met", "TARGET_MIN_ANGLE_DEG",
            "FLOOR_MIN_ANGLE_DEG", "TARGET_EDGE_SPREAD"]
 
 #: Largest distance of the boundary loop from its best-fit plane, relative to
@@ -347,10 +347,26 @@ def _angle_and_edge_extremes(P: np.ndarray) -> tuple[float, float, np.ndarray, f
         keep = np.ones(nc, bool)
         keep[0, 0] = keep[-1, 0] = keep[0, -1] = keep[-1, -1] = False
         amin, amax = amin[keep], amax[keep]
+    lo, hi = _edge_extremes(P)
+    return float(amin.min()), float(amax.max()), corners, lo, hi
+
+
+def _edge_extremes(P: np.ndarray) -> tuple[float, float]:
+    """Shortest and longest edge of an ``(nu, nv, 3)`` grid (NumPy)."""
     eu = np.linalg.norm(np.diff(P, axis=0), axis=-1)
     ev = np.linalg.norm(np.diff(P, axis=1), axis=-1)
-    return (float(amin.min()), float(amax.max()), corners, float(min(eu.min(), ev.min())),
-            float(max(eu.max(), ev.max())))
+    return float(min(eu.min(), ev.min())), float(max(eu.max(), ev.max()))
+
+
+def edge_spread(points: np.ndarray) -> float:
+    """Longest over shortest edge of a small grid (``inf`` where an edge has no length): the
+    ``edge_spread`` of :func:`sim_figures` without its angles (the corner choice scores thousands
+    of coarse grids)."""
+    P = np.asarray(points, dtype=np.float64)
+    if P.shape[-1] == 2:
+        P = np.concatenate([P, np.zeros(P.shape[:-1] + (1,))], axis=-1)
+    lo, hi = _edge_extremes(P)
+    return hi / lo if lo > 0 else float("inf")
 
 
 def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[str, Any]:

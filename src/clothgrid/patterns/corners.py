@@ -330,14 +330,46 @@ def _side_points(outline: np.ndarray, a: int, b: int) -> np.ndarray:
     return outline[np.arange(a, b + 1) % n]
 
 
-def _sides_grid(sides: Sequence[np.ndarray], nu: int, nv: int) -> np.ndarray:
-    """A ``(nu, nv, 3)`` transfinite grid (eq. 4) of four sides (outline order), sampled by arc length."""
-    from ..boundary import resample_polyline
+class _SideSampler:
+    """A side's arc-length parametrisation, computed once and sampled at any node count:
+    :func:`clothgrid.boundary.resample_polyline` (no kept vertices) without its input checks and
+    its per-call arc length, the same arithmetic and so the same bits (a coarse grid samples each
+    side twice, and the corner choice makes some 2,700 coarse grids over the survey's files)."""
+
+    __slots__ = ("pts", "sk", "q", "length")
+
+    def __init__(self, points: np.ndarray):
+        from ..boundary import _arc_length, _to3d
+        from ..errors import BoundaryError
+
+        pts = _to3d(np.asarray(points, dtype=np.float64))
+        if len(pts) < 2:
+            raise BoundaryError(f"a polyline needs at least 2 points, got {len(pts)}")
+        s = _arc_length(pts)
+        if s[-1] <= 0.0:
+            raise BoundaryError("cannot resample a polyline of zero length")
+        nz = np.concatenate([[True], np.diff(s) > 0.0])     # strictly increasing for interp
+        self.pts, self.sk, self.q, self.length = pts, s[nz], np.ascontiguousarray(pts[nz].T), s[-1]
+
+    def sample(self, n: int) -> np.ndarray:
+        """``(n, 3)`` points equally spaced in arc length, the ends exactly the side's."""
+        t = np.linspace(0.0, self.length, n)
+        out = np.empty((n, 3))
+        for k in range(3):
+            out[:, k] = np.interp(t, self.sk, self.q[k])
+        out[0], out[-1] = self.pts[0], self.pts[-1]
+        return out
+
+
+def _sides_grid(sides: Sequence[Any], nu: int, nv: int) -> np.ndarray:
+    """A ``(nu, nv, 3)`` transfinite grid (eq. 4) of four sides (outline order, point arrays or
+    :class:`_SideSampler`), sampled by arc length."""
     from ..initial import transfinite
 
+    sm = [sd if isinstance(sd, _SideSampler) else _SideSampler(sd) for sd in sides]
     r = np.zeros((nu, nv, 3))
-    r[:, 0], r[-1, :] = resample_polyline(sides[0], nu), resample_polyline(sides[1], nv)
-    r[:, -1], r[0, :] = resample_polyline(sides[2], nu)[::-1], resample_polyline(sides[3], nv)[::-1]
+    r[:, 0], r[-1, :] = sm[0].sample(nu), sm[1].sample(nv)
+    r[:, -1], r[0, :] = sm[2].sample(nu)[::-1], sm[3].sample(nv)[::-1]
     return transfinite(r)
 
 
@@ -355,14 +387,17 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
 
     c = list(corners)
     sides = [_side_points(outline, c[k], c[(k + 1) % 4]) for k in range(4)]
-    lens = [float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides]
     area = abs(signed_area(outline))
-    h = math.sqrt(area / cells) if area > 0 else max(lens) / 8
+    if area > 0:
+        h = math.sqrt(area / cells)
+    else:
+        h = max(float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides) / 8
+    sm = [_SideSampler(sd) for sd in sides]
     # node counts on the typical u- and v-line (as for the full grid: nodes_for_edge_length)
-    lu, lv = line_lengths(_sides_grid(sides, 33, 33))
+    lu, lv = line_lengths(_sides_grid(sm, 33, 33))
     nu = int(min(64, max(3, round(lu / h) + 1)))
     nv = int(min(64, max(3, round(lv / h) + 1)))
-    r = _sides_grid(sides, nu, nv)
+    r = _sides_grid(sm, nu, nv)
     out, _ = relax(r, dim=2, whole=True, quick=True)
     return out
 
@@ -374,7 +409,7 @@ def grid_score(points: np.ndarray) -> float:
     folds its cell) but not for the angles (their angle is the outline's).
     """
     from ..foldfree_kernels import cell_min_sine
-    from ..quality import sim_figures
+    from ..quality import edge_spread
 
     X = np.ascontiguousarray(points[..., :2])
     s = cell_min_sine(X)
@@ -386,7 +421,7 @@ def grid_score(points: np.ndarray) -> float:
     folded = float(np.mean(s <= 0))       # a corner cell folds where its corner is concave
     if folded > 0:
         return -10.0 - folded
-    spread = sim_figures(points)["edge_spread"]
+    spread = edge_spread(points)
     return float(2.0 * sv.min() + sv.mean() - 0.25 * math.log10(spread))
 
 
