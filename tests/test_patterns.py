@@ -791,3 +791,32 @@ def test_open_paths_and_polylines_are_both_counted_in_the_error(tmp_path):
     path = _svg(tmp_path, '<polyline points="0,0 50,0 50,50"/><path d="M 10 10 L 20 20"/>')
     with pytest.raises(InputError, match=r"\(2 open paths were skipped"):
         read_pieces(path)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_side_sampler_is_resample_polyline_bit_for_bit(rng, dim):
+    """The corner choice's coarse grids sample each side once parametrised (corners._SideSampler):
+    on fresh polylines (repeated points among them) the samples are resample_polyline's exactly,
+    and so is the transfinite grid of four sides; a side of no length is the same BoundaryError."""
+    from clothgrid.boundary import resample_polyline
+    from clothgrid.errors import BoundaryError
+    from clothgrid.initial import transfinite
+    from clothgrid.patterns.corners import _SideSampler, _sides_grid
+
+    for _ in range(10):
+        sides = []
+        for _k in range(4):
+            pts = np.cumsum(rng.normal(size=(int(rng.integers(3, 40)), dim)), axis=0) * 10.0
+            k = int(rng.integers(1, len(pts)))
+            pts[k] = pts[k - 1]                                  # a zero-length segment
+            sides.append(pts)
+        for sd in sides:
+            for n in (2, 3, int(rng.integers(4, 70))):
+                assert np.array_equal(_SideSampler(sd).sample(n), resample_polyline(sd, n))
+        nu, nv = (int(x) for x in rng.integers(3, 40, size=2))
+        r = np.zeros((nu, nv, 3))
+        r[:, 0], r[-1, :] = resample_polyline(sides[0], nu), resample_polyline(sides[1], nv)
+        r[:, -1], r[0, :] = resample_polyline(sides[2], nu)[::-1], resample_polyline(sides[3], nv)[::-1]
+        assert np.array_equal(_sides_grid(sides, nu, nv), transfinite(r))
+    with pytest.raises(BoundaryError, match="zero length"):
+        _SideSampler(np.zeros((3, dim)))

@@ -301,3 +301,17 @@ def test_angle_kernel_gives_every_corners_extremes(monkeypatch, seed):
     assert got == pytest.approx(ref, rel=1e-12, abs=1e-12)
     if seed in (1, 2):
         assert amin == 0.0          # folded corners count as 0
+
+
+def test_edge_spread_is_sim_figures_spread(rng):
+    """quality.edge_spread (the corner choice's score) is sim_figures' edge spread exactly, 2D and 3D
+    fresh grids, and inf where an edge has no length."""
+    from clothgrid.quality import edge_spread, sim_figures
+
+    for _ in range(10):
+        nu, nv = (int(x) for x in rng.integers(2, 30, size=2))
+        p = rng.normal(size=(nu, nv, 3))
+        assert edge_spread(p) == sim_figures(p)["edge_spread"]
+        assert edge_spread(p[..., :2]) == sim_figures(p[..., :2])["edge_spread"]
+    p[0, 1] = p[0, 0]
+    assert edge_spread(p) == math.inf == sim_figures(p)["edge_spread"]
