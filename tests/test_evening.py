@@ -106,20 +106,21 @@ def test_evening_stops_when_progress_is_slow(monkeypatch, coloured):
     rng = np.random.default_rng(7)   # a piece whose spread both runs lower (some they raise: then no move is kept)
     b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
     length = generate(b, weights="paper")
+    one = dict(dim=2, wide_band=None)                         # one stage: its sweeps are the count
     if coloured:
         monkeypatch.setattr(ff, "PARALLEL_NODES", 0)
         check, slow = "CHECK_SWEEPS", "MIN_PROGRESS"
-        full, info_full = even_edges(length.points, dim=2)
+        full, info_full = even_edges(length.points, **one)
         monkeypatch.setattr(ev, "WORK_BUDGET", 10**12)       # never reached: the same as before
-        same, info_same = even_edges(length.points, dim=2)
+        same, info_same = even_edges(length.points, **one)
         assert np.array_equal(same, full) and info_same["sweeps"] == info_full["sweeps"]
         monkeypatch.setattr(ev, "WORK_BUDGET", 1)             # reached at once
     else:
         check, slow = "SMALL_CHECK_SWEEPS", "SMALL_MIN_PROGRESS"
         monkeypatch.setattr(ev, slow, -np.inf)                # no progress counts as slow
-        full, info_full = even_edges(length.points, dim=2)
+        full, info_full = even_edges(length.points, **one)
     monkeypatch.setattr(ev, slow, 0.5)                        # and now every progress does
-    short, info = even_edges(length.points, dim=2)
+    short, info = even_edges(length.points, **one)
     assert info["sweeps"] == getattr(ev, check) < info_full["sweeps"]
     assert _holds_the_floor(length.points, short)
     P0 = length.points
@@ -140,7 +141,7 @@ def test_over_relaxed_ordered_sweeps_reach_a_lower_energy_in_as_many_sweeps(monk
         got = {}
         for omega in (1.0, ev.OVERRELAX):
             monkeypatch.setattr(ev, "OVERRELAX", omega)
-            got[omega] = even_edges(P0, dim=2, max_sweeps=10, spread_ok=1.0)
+            got[omega] = even_edges(P0, dim=2, max_sweeps=10, spread_ok=1.0, wide_band=None)
         (plain, ip), (over, io) = got[1.0], got[ev.OVERRELAX]
         if ip["moved"] == 0 or io["moved"] == 0:
             continue
@@ -161,7 +162,7 @@ def test_the_coloured_parallel_evening_holds_the_floor_and_lowers_the_energy_as_
     got = {}
     for threshold in (10**12, 0):
         monkeypatch.setattr(ff, "PARALLEL_NODES", threshold)
-        got[threshold] = even_edges(length.points, dim=2)
+        got[threshold] = even_edges(length.points, dim=2, wide_band=None)     # BAND's stage alone
     (ordered, info_o), (coloured, info_c) = got[10**12], got[0]
     assert not np.array_equal(ordered, coloured)             # another order
     assert _holds_the_floor(length.points, coloured)
@@ -173,9 +174,9 @@ def test_the_coloured_parallel_evening_holds_the_floor_and_lowers_the_energy_as_
 
 def test_evening_never_returns_a_larger_spread():
     """The sweeps lower an energy of the outlying edges, not the spread itself: on this piece
-    (found among 700 fresh ones) they left it larger, 76.7 -> 79.4; the grid comes back as it was."""
-    rng = np.random.default_rng(0)
-    for _ in range(18):
+    (found among 1200 fresh ones) they left it larger, 24.7 -> 25.3; the grid comes back as it was."""
+    rng = np.random.default_rng(1)
+    for _ in range(95):
         b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
     length = generate(b, weights="paper")
     out, info = even_edges(length.points, dim=2)
@@ -261,3 +262,68 @@ def test_evening_in_the_callers_array_with_copy_false(rng):
         got, info2 = even_edges(mine, dim=2, copy=False)
         assert np.array_equal(got, want) and info2["moved"] == info["moved"]
         assert got is mine                                      # written into the caller's array
+
+
+def test_the_wide_stage_first_lowers_the_spread_further(rng):
+    """The wide band first (``WIDE_BAND``), then ``BAND``, against ``BAND`` alone on fresh pieces
+    (the paper's weights crowd the lines): over 100 pieces of 5 seeds the two stages were worse on 3
+    (by 3 % at most) and better by a tenth or more on 28."""
+    import clothgrid.evening as ev
+
+    better = 0
+    for _ in range(24):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 61, 41, amp=0.15))
+        P0 = generate(b, weights="paper").points
+        two, i2 = even_edges(P0, dim=2)
+        one, i1 = even_edges(P0, dim=2, wide_band=None)
+        if i2["moved"]:
+            assert [s["band"] for s in i2["stages"]][0] == ev.WIDE_BAND
+        assert [s["band"] for s in i1["stages"]] in ([], [ev.BAND])
+        assert _holds_the_floor(P0, two)
+        assert i2["spread_after"] <= 1.1 * i1["spread_after"]
+        better += i2["spread_after"] < 0.9 * i1["spread_after"]
+    assert better >= 1
+
+
+def test_the_last_stage_widens_where_its_nodes_are_too_many(monkeypatch):
+    """Where ``BAND``'s active set has ``PARALLEL_NODES`` nodes or more, the last stage takes the
+    narrowest band of ``FINAL_BANDS`` whose set is smaller (ordered sweeps); where every set is
+    that large, only the wide stage runs (in colours)."""
+    import clothgrid.evening as ev
+    import clothgrid.foldfree as ff
+
+    rng = np.random.default_rng(7)
+    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
+    P0 = generate(b, weights="paper").points
+    full = even_edges(P0, dim=2)[1]["stages"]
+    assert [s["band"] for s in full] == [ev.WIDE_BAND, ev.BAND]
+    limit = full[1]["active"]                     # BAND's set is now too many; a wider one's is not
+    monkeypatch.setattr(ff, "PARALLEL_NODES", limit)
+    out, info = even_edges(P0, dim=2)
+    bands = [s["band"] for s in info["stages"]]
+    assert bands[0] == ev.WIDE_BAND and len(bands) == 2 and bands[1] in ev.FINAL_BANDS
+    assert info["stages"][1]["active"] < limit
+    assert _holds_the_floor(P0, out) and info["spread_after"] < info["spread_before"]
+    monkeypatch.setattr(ff, "PARALLEL_NODES", 0)  # every set too many: the wide stage alone
+    out, info = even_edges(P0, dim=2)
+    assert [s["band"] for s in info["stages"]] == [ev.WIDE_BAND]
+    assert _holds_the_floor(P0, out)
+
+
+def test_a_spread_the_same_to_rounding_keeps_the_evened_grid(monkeypatch):
+    """On this fresh piece the longest edge is one the sweeps do not move: scaled to a mean edge of
+    1 and back it comes out longer in its last bits (73.04184938339515 -> ...705). The evened grid is
+    kept (``SPREAD_ROUNDING``); with no allowance it was thrown away for that."""
+    import clothgrid.evening as ev
+
+    rng = np.random.default_rng(0)
+    for _ in range(28):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
+    P0 = generate(b, weights="paper").points
+    out, info = even_edges(P0, dim=2)
+    assert info["moved"] > 0 and "rejected_spread" not in info and not np.array_equal(out, P0)
+    assert info["spread_before"] < info["spread_after"] <= info["spread_before"] * (1 + ev.SPREAD_ROUNDING)
+    assert _holds_the_floor(P0, out)
+    monkeypatch.setattr(ev, "SPREAD_ROUNDING", 0.0)
+    out, info = even_edges(P0, dim=2)
+    assert info["moved"] == 0 and info["rejected_spread"] > info["spread_before"] and np.array_equal(out, P0)
