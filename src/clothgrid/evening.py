@@ -282,20 +282,17 @@ def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega):
 
 
 @njit(cache=True)
-def _sweep(X, lo, hi, floor, active, omega):
-    """One Gauss-Seidel sweep over the interior nodes; the largest move, the nodes moved."""
-    nu, nv = X.shape[0], X.shape[1]
+def _sweep(X, lo, hi, floor, nodes, omega):
+    """One Gauss-Seidel sweep over ``nodes`` (``(K, 2)``, row by row: the active nodes in the order
+    a scan of the grid meets them, without the scan); the largest move, the nodes moved."""
     lo2, hi2 = _inside_band(lo, hi)
     biggest, moved = 0.0, 0
     before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
-    for i in range(1, nu - 1):
-        for j in range(1, nv - 1):
-            if not active[i, j]:
-                continue
-            d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
-            if d >= 0.0:
-                biggest = max(biggest, d)
-                moved += 1
+    for q in range(nodes.shape[0]):
+        d = _even_node(X, nodes[q, 0], nodes[q, 1], lo, hi, lo2, hi2, floor, before, after, need, w, omega)
+        if d >= 0.0:
+            biggest = max(biggest, d)
+            moved += 1
     return biggest, moved
 
 
@@ -368,7 +365,10 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
     energy = _energy(X, lo, hi)
     ordered = count < PARALLEL_NODES
-    sweep_once, omega = (_sweep, OVERRELAX) if ordered else (_sweep_coloured, 1.0)
+    if ordered:     # the list of the active nodes: a sweep of a few thousand no longer scans the grid
+        sweep_once, omega, active = _sweep, OVERRELAX, np.argwhere(active)
+    else:
+        sweep_once, omega = _sweep_coloured, 1.0
     check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
     for sweep in range(max_sweeps):
         biggest, moved = sweep_once(X, lo, hi, floor, active, omega)
