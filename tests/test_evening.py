@@ -97,7 +97,7 @@ def test_evening_on_a_real_sleeve(tmp_path):
 @pytest.mark.parametrize("coloured", [False, True])
 def test_evening_stops_when_progress_is_slow(monkeypatch, coloured):
     """The ordered sweeps stop once ``SMALL_CHECK_SWEEPS`` sweeps lower the energy by less than
-    ``SMALL_MIN_PROGRESS``; the coloured ones (a large active set) likewise with ``CHECK_SWEEPS`` and
+    ``SMALL_MIN_PROGRESS`` (and their nodes' edge spread by less than ``SMALL_MIN_SPREAD_PROGRESS``); the coloured ones (a large active set) likewise with ``CHECK_SWEEPS`` and
     ``MIN_PROGRESS``, but only past ``WORK_BUDGET`` node moves (below it they run as before, bit for
     bit). The floor holds either way, and the sweeps left out would have lowered the energy."""
     import clothgrid.evening as ev
@@ -119,6 +119,7 @@ def test_evening_stops_when_progress_is_slow(monkeypatch, coloured):
         check, slow = "SMALL_CHECK_SWEEPS", "SMALL_MIN_PROGRESS"
         monkeypatch.setattr(ev, slow, -np.inf)                # no progress counts as slow
         full, info_full = even_edges(length.points, **one)
+        monkeypatch.setattr(ev, "SMALL_MIN_SPREAD_PROGRESS", 0.5)     # (the spread's: both must be slow)
     monkeypatch.setattr(ev, slow, 0.5)                        # and now every progress does
     short, info = even_edges(length.points, **one)
     assert info["sweeps"] == getattr(ev, check) < info_full["sweeps"]
@@ -264,12 +265,14 @@ def test_evening_in_the_callers_array_with_copy_false(rng):
         assert got is mine                                      # written into the caller's array
 
 
-def test_the_wide_stage_first_lowers_the_spread_further(rng):
-    """The wide band first (``WIDE_BAND``), then ``BAND``, against ``BAND`` alone on fresh pieces
-    (the paper's weights crowd the lines): over 100 pieces of 5 seeds the two stages were worse on 3
-    (by 3 % at most) and better by a tenth or more on 28."""
+def test_the_wide_stage_first_lowers_the_spread_further():
+    """The wide band first (``WIDE_BAND``), then ``BAND``, against ``BAND`` alone on 24 pieces (the
+    paper's weights crowd the lines; fixed: over 200 fresh ones of 10 seeds the two stages were
+    better by a tenth or more on 33, worse by a tenth on 1, by 2.5x: a heuristic, measured here
+    as it stands): better by a tenth on 6 of these, worse by 1 % at most, the floor held."""
     import clothgrid.evening as ev
 
+    rng = np.random.default_rng(3)
     better = 0
     for _ in range(24):
         b = Boundary.from_sides(*smooth_quad_sides(rng, 61, 41, amp=0.15))
@@ -280,9 +283,9 @@ def test_the_wide_stage_first_lowers_the_spread_further(rng):
             assert [s["band"] for s in i2["stages"]][0] == ev.WIDE_BAND
         assert [s["band"] for s in i1["stages"]] in ([], [ev.BAND])
         assert _holds_the_floor(P0, two)
-        assert i2["spread_after"] <= 1.1 * i1["spread_after"]
+        assert i2["spread_after"] <= 1.01 * i1["spread_after"]
         better += i2["spread_after"] < 0.9 * i1["spread_after"]
-    assert better >= 1
+    assert better >= 5
 
 
 def test_the_last_stage_widens_where_its_nodes_are_too_many(monkeypatch):
@@ -327,3 +330,34 @@ def test_a_spread_the_same_to_rounding_keeps_the_evened_grid(monkeypatch):
     monkeypatch.setattr(ev, "SPREAD_ROUNDING", 0.0)
     out, info = even_edges(P0, dim=2)
     assert info["moved"] == 0 and info["rejected_spread"] > info["spread_before"] and np.array_equal(out, P0)
+
+
+def test_ordered_sweeps_go_on_while_the_spread_falls(monkeypatch):
+    """The energy's progress alone does not stop the ordered sweeps while the spread of the edges at
+    their nodes still falls by ``SMALL_MIN_SPREAD_PROGRESS`` over ``SMALL_CHECK_SWEEPS`` sweeps (the
+    extreme edges still moving): with every energy progress slow, a spread rule that nothing meets
+    runs the sweeps on, one that everything meets stops them at the first check."""
+    import clothgrid.evening as ev
+
+    rng = np.random.default_rng(7)
+    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
+    P0 = generate(b, weights="paper").points
+    monkeypatch.setattr(ev, "SMALL_MIN_PROGRESS", 0.5)
+    monkeypatch.setattr(ev, "SMALL_MIN_SPREAD_PROGRESS", -np.inf)       # the spread never slow
+    on, info_on = even_edges(P0, dim=2, wide_band=None)
+    monkeypatch.setattr(ev, "SMALL_MIN_SPREAD_PROGRESS", 0.5)           # always slow
+    stop, info_stop = even_edges(P0, dim=2, wide_band=None)
+    assert info_stop["sweeps"] == ev.SMALL_CHECK_SWEEPS < info_on["sweeps"]
+    assert info_on["spread_after"] < info_stop["spread_after"]
+    assert _holds_the_floor(P0, on) and _holds_the_floor(P0, stop)
+
+
+def test_node_spread_is_the_spread_of_the_edges_at_the_nodes(rng):
+    """``_node_spread`` against NumPy: longest over shortest of the edges touching the listed nodes."""
+    from clothgrid.evening import _node_spread
+
+    X = np.ascontiguousarray(rng.normal(size=(9, 7, 2)))
+    nodes = np.array([[1, 1], [4, 3], [7, 5]], dtype=np.int64)
+    ls = [np.linalg.norm(X[i, j] - X[i + di, j + dj]) for i, j in nodes
+          for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1))]
+    assert _node_spread(X, nodes) == pytest.approx(max(ls) / min(ls), rel=1e-12)

@@ -76,12 +76,17 @@ MAX_SWEEPS = 100
 #: over-relaxed step (capped at a quarter edge everywhere) raised the spread: the coloured sweeps
 #: take the plain step (docs/performance.md, "Eighth pass").
 OVERRELAX = 3.0
-#: The ordered sweeps measure the energy every :data:`SMALL_CHECK_SWEEPS` sweeps and stop when it
-#: fell by less than :data:`SMALL_MIN_PROGRESS` (a fraction) since the last measurement. With the
-#: wide first stage, 0.06 evened the survey's pieces in 1.09 s against 1.70 s at 0.03, the spreads
-#: within 0.5 % (median) and 0.4 % (mean).
+#: The ordered sweeps measure the energy and the spread of the edges at their nodes every
+#: :data:`SMALL_CHECK_SWEEPS` sweeps, and stop when since the last measurement the energy fell by
+#: less than :data:`SMALL_MIN_PROGRESS` and that spread by less than
+#: :data:`SMALL_MIN_SPREAD_PROGRESS` (fractions). The energy alone (3 % before the wide stage came)
+#: stops either too early or too late: at 6 %, 51 of the survey's pieces at 5 mm edges ended with a
+#: spread over 5 % larger (a GLX sleeve 4.52 -> 5.88, the extreme edges still moving), at 3 % the
+#: evening took 1.75 s of the survey at 10 mm where it takes 1.1-1.2 s now (docs/performance.md,
+#: "Ninth pass").
 SMALL_CHECK_SWEEPS = 5
 SMALL_MIN_PROGRESS = 0.06
+SMALL_MIN_SPREAD_PROGRESS = 0.01
 #: The coloured sweeps, once they have made :data:`WORK_BUDGET` node moves (about 0.3 s), measure
 #: the energy every :data:`CHECK_SWEEPS` sweeps and stop when it fell by less than
 #: :data:`MIN_PROGRESS` since the last measurement. On a large graded grid point Gauss-Seidel
@@ -370,6 +375,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
     else:
         sweep_once, omega = _sweep_coloured, 1.0
     check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
+    spread = _node_spread(X, active) if ordered else 0.0
     for sweep in range(max_sweeps):
         biggest, moved = sweep_once(X, lo, hi, floor, active, omega)
         out["sweeps"] = sweep + 1
@@ -378,10 +384,30 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
             break
         if (sweep + 1) % check == 0:
             now = _energy(X, lo, hi)
-            if (ordered or (sweep + 1) * count >= WORK_BUDGET) and now > (1.0 - progress) * energy:
+            if ordered:
+                was, spread = spread, _node_spread(X, active)
+                if now > (1.0 - progress) * energy and spread > (1.0 - SMALL_MIN_SPREAD_PROGRESS) * was:
+                    break
+            elif (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - progress) * energy:
                 break
             energy = now
     return out
+
+
+@njit(cache=True)
+def _node_spread(X, nodes):
+    """Longest over shortest of the edges at ``nodes`` (``(K, 2)`` interior nodes)."""
+    lo, hi = np.inf, 0.0
+    for q in range(nodes.shape[0]):
+        i, j = nodes[q, 0], nodes[q, 1]
+        for n in range(4):
+            a = i + (1 if n == 0 else (-1 if n == 1 else 0))
+            b = j + (1 if n == 2 else (-1 if n == 3 else 0))
+            dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
+            d2 = dx * dx + dy * dy
+            lo = min(lo, d2)
+            hi = max(hi, d2)
+    return math.sqrt(hi / lo) if lo > 0.0 else np.inf
 
 
 def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int, wide_ran: bool
@@ -425,8 +451,9 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         A grid whose edge spread is at most this is returned as it is.
     max_sweeps : int
         Most Gauss-Seidel sweeps a stage; fewer where the energy falls slowly
-        (:data:`SMALL_MIN_PROGRESS` over :data:`SMALL_CHECK_SWEEPS` sweeps for
-        an active set below ``PARALLEL_NODES``, else, past :data:`WORK_BUDGET`
+        (:data:`SMALL_MIN_PROGRESS` and :data:`SMALL_MIN_SPREAD_PROGRESS` over
+        :data:`SMALL_CHECK_SWEEPS` sweeps for an active set below
+        ``PARALLEL_NODES``, else, past :data:`WORK_BUDGET`
         node moves, :data:`MIN_PROGRESS` over :data:`CHECK_SWEEPS`).
     margin : int
         Nodes within this many grid lines of an outlying edge are moved.
