@@ -24,7 +24,7 @@ which reaches only the few most outlying edges (the ones that set the spread),
 then with ``BAND``. Run alone, the narrow band's sweeps move every node near a
 mildly outlying edge and stall while the extreme edges are still far out: on the
 T-shirt front the spread stayed at 7.9-10.9 from 128^2 to 1024^2 nodes, where
-the two stages reach 3.9-6.9. Where the narrow band's nodes are too many for the
+the two stages reach 3.9-6.2. Where the narrow band's nodes are too many for the
 ordered sweeps (:data:`~clothgrid.foldfree.PARALLEL_NODES`) the second stage takes
 the narrowest of :data:`FINAL_BANDS` whose nodes are not (docs/performance.md,
 "Ninth pass").
@@ -56,13 +56,13 @@ SPREAD_ROUNDING = 1e-9
 #: Edges within this factor of the geometric mean length are left alone (the last stage's band).
 BAND = 1.4
 #: The first stage's band: only edges outside this factor of the mean move nodes. Over the 455
-#: survey pieces, 2.5 then 1.4 left 79 pieces with a spread above 5 where 1.4 alone left 119
-#: (2.0 then 1.4: 84; 1.7 then 1.4: 102).
+#: survey pieces (under the energy rule alone, 3 %), 2.5 then 1.4 left 79 pieces with a spread
+#: above 5 where 1.4 alone left 119 (2.0 then 1.4: 84; 1.7 then 1.4: 102); now 81.
 WIDE_BAND = 2.5
 #: Bands the last stage widens to, narrowest first, where ``band``'s active set has
 #: :data:`~clothgrid.foldfree.PARALLEL_NODES` nodes or more: the ordered, over-relaxed sweeps
 #: on a few thousand nodes lower the spread further than the coloured ones on a hundred thousand
-#: (1024^2 T-shirt front: 1.7's 7,180 nodes reach 6.9; 1.4's 101,736, budget-limited, 9.6).
+#: (1024^2 T-shirt front: 1.7's 7,180 nodes reach 6.2; 1.4's 101,736, budget-limited, 9.6).
 FINAL_BANDS = (1.7, 2.0)
 #: Most Gauss-Seidel sweeps.
 MAX_SWEEPS = 100
