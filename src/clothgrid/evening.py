@@ -386,7 +386,8 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
             now = _energy(X, lo, hi)
             if ordered:
                 was, spread = spread, _node_spread(X, active)
-                if now > (1.0 - progress) * energy and spread > (1.0 - SMALL_MIN_SPREAD_PROGRESS) * was:
+                # (a spread that stays infinite, a zero-length edge no move could lengthen, is slow)
+                if now > (1.0 - progress) * energy and not spread < (1.0 - SMALL_MIN_SPREAD_PROGRESS) * was:
                     break
             elif (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - progress) * energy:
                 break
