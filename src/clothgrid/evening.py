@@ -82,7 +82,7 @@ OVERRELAX = 3.0
 #: :data:`SMALL_MIN_SPREAD_PROGRESS` (fractions). The energy alone (3 % before the wide stage came)
 #: stops either too early or too late: at 6 %, 51 of the survey's pieces at 5 mm edges ended with a
 #: spread over 5 % larger (a GLX sleeve 4.52 -> 5.88, the extreme edges still moving), at 3 % the
-#: evening took 1.75 s of the survey at 10 mm where it takes 1.1-1.2 s now (docs/performance.md,
+#: evening took 1.75 s of the survey at 10 mm where it takes 1.4 s now (docs/performance.md,
 #: "Ninth pass").
 SMALL_CHECK_SWEEPS = 5
 SMALL_MIN_PROGRESS = 0.06
