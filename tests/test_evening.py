@@ -361,3 +361,15 @@ def test_node_spread_is_the_spread_of_the_edges_at_the_nodes(rng):
     ls = [np.linalg.norm(X[i, j] - X[i + di, j + dj]) for i, j in nodes
           for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1))]
     assert _node_spread(X, nodes) == pytest.approx(max(ls) / min(ls), rel=1e-12)
+
+
+@pytest.mark.parametrize("kw", [dict(band=1.0), dict(band=0.5), dict(band=float("nan")), dict(band=float("inf")),
+                                dict(band=True), dict(band="1.4"), dict(wide_band=1.0), dict(wide_band=-2.5),
+                                dict(wide_band=float("nan"))])
+def test_a_band_that_is_not_a_factor_above_1_is_an_input_error(kw):
+    from clothgrid.errors import InputError
+
+    t = np.linspace(0, 1, 9)
+    b = Boundary.from_sides(np.c_[t, 0 * t], np.c_[1 + 0 * t, t], np.c_[t, 1 + 0 * t], np.c_[0 * t, t])
+    with pytest.raises(InputError, match="band"):
+        even_edges(generate(b, weights="paper").points, dim=2, **kw)

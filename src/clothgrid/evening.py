@@ -466,6 +466,12 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         The first stage's band (:data:`WIDE_BAND`); None, or a band no wider
         than ``band``: the last stage only.
 
+    Raises
+    ------
+    InputError
+        Not an ``(nu, nv, 3)`` grid of finite nodes, not planar, or a band
+        that is not a finite number greater than 1.
+
     Returns
     -------
     points : numpy.ndarray
@@ -479,8 +485,15 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         where the sweeps left it larger, the input grid is returned, ``moved`` is 0 and ``rejected_spread`` holds
         the spread they reached.
     """
+    from .errors import InputError
     from .foldfree import _grid_copy, _with_interior, plane_frame, to_plane
 
+    for name, value in (("band", band), ("wide_band", wide_band)):
+        if value is None and name == "wide_band":
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not (1.0 < float(value) < math.inf):
+            raise InputError(f"{name} must be a finite number greater than 1, not {value!r}")
     t0 = time.perf_counter()
     R = _grid_copy(points, "even_edges", copy=copy)
     centre, basis = plane_frame(R, dim)
