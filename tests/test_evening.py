@@ -352,15 +352,32 @@ def test_ordered_sweeps_go_on_while_the_spread_falls(monkeypatch):
     assert _holds_the_floor(P0, on) and _holds_the_floor(P0, stop)
 
 
-def test_node_spread_is_the_spread_of_the_edges_at_the_nodes(rng):
-    """``_node_spread`` against NumPy: longest over shortest of the edges touching the listed nodes."""
-    from clothgrid.evening import _node_spread
+def test_stage_energy_is_the_energy_and_spread_of_the_edges_at_the_nodes(rng):
+    """``_stage_energy`` against NumPy: the evening's energy of the edges touching the listed nodes
+    (each once), and the longest over the shortest of them; with every interior node listed, plus
+    the edges between boundary nodes, the whole grid's energy (``_energy``)."""
+    from clothgrid.evening import _energy, _stage_energy
 
     X = np.ascontiguousarray(rng.normal(size=(9, 7, 2)))
-    nodes = np.array([[1, 1], [4, 3], [7, 5]], dtype=np.int64)
-    ls = [np.linalg.norm(X[i, j] - X[i + di, j + dj]) for i, j in nodes
-          for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1))]
-    assert _node_spread(X, nodes) == pytest.approx(max(ls) / min(ls), rel=1e-12)
+    lo, hi = -math.log(1.4), math.log(1.4)
+    mask = np.zeros((9, 7), bool)
+    mask[[1, 4, 4, 7], [1, 3, 4, 5]] = True            # (4, 3) and (4, 4) share an edge
+    nodes = np.argwhere(mask)
+    edges = {tuple(sorted([(int(i), int(j)), (int(i) + di, int(j) + dj)])) for i, j in nodes
+             for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1))}
+    ls = np.array([np.linalg.norm(X[p] - X[q]) for p, q in edges])
+    t = np.abs(np.log(ls))
+    e, spread = _stage_energy(X, lo, hi, nodes, mask)
+    assert len(edges) == 15
+    assert e == pytest.approx(float((np.maximum(0.0, t - hi) ** 2).sum()), rel=1e-12)
+    assert spread == pytest.approx(ls.max() / ls.min(), rel=1e-12)
+    inner = np.zeros((9, 7), bool)
+    inner[1:-1, 1:-1] = True
+    ring = [np.linalg.norm(X[i + 1, j] - X[i, j]) for i in range(8) for j in (0, 6)]
+    ring += [np.linalg.norm(X[i, j + 1] - X[i, j]) for i in (0, 8) for j in range(6)]
+    t = np.abs(np.log(np.array(ring)))
+    whole = _stage_energy(X, lo, hi, np.argwhere(inner), inner)[0] + float((np.maximum(0.0, t - hi) ** 2).sum())
+    assert whole == pytest.approx(_energy(X, lo, hi), rel=1e-12)
 
 
 @pytest.mark.parametrize("kw", [dict(band=1.0), dict(band=0.5), dict(band=float("nan")), dict(band=float("inf")),

@@ -370,12 +370,16 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
     energy = _energy(X, lo, hi)
     ordered = count < PARALLEL_NODES
-    if ordered:     # the list of the active nodes: a sweep of a few thousand no longer scans the grid
-        sweep_once, omega, active = _sweep, OVERRELAX, np.argwhere(active)
+    if ordered:
+        # the list of the active nodes: a sweep of a few thousand no longer scans the grid, and the
+        # energy is re-measured on their edges only (the rest of the grid's is a constant)
+        mask, active = active, np.argwhere(active)
+        part, spread = _stage_energy(X, lo, hi, active, mask)
+        rest = energy - part
+        sweep_once, omega = _sweep, OVERRELAX
     else:
         sweep_once, omega = _sweep_coloured, 1.0
     check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
-    spread = _node_spread(X, active) if ordered else 0.0
     for sweep in range(max_sweeps):
         biggest, moved = sweep_once(X, lo, hi, floor, active, omega)
         out["sweeps"] = sweep + 1
@@ -383,22 +387,27 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
         if moved == 0 or biggest < 1e-4:
             break
         if (sweep + 1) % check == 0:
-            now = _energy(X, lo, hi)
             if ordered:
-                was, spread = spread, _node_spread(X, active)
+                was = spread
+                part, spread = _stage_energy(X, lo, hi, active, mask)
+                now = rest + part
                 # (a spread that stays infinite, a zero-length edge no move could lengthen, is slow)
                 if now > (1.0 - progress) * energy and not spread < (1.0 - SMALL_MIN_SPREAD_PROGRESS) * was:
                     break
-            elif (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - progress) * energy:
-                break
+            else:
+                now = _energy(X, lo, hi)
+                if (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - progress) * energy:
+                    break
             energy = now
     return out
 
 
 @njit(cache=True)
-def _node_spread(X, nodes):
-    """Longest over shortest of the edges at ``nodes`` (``(K, 2)`` interior nodes)."""
-    lo, hi = np.inf, 0.0
+def _stage_energy(X, lo, hi, nodes, active):
+    """The energy of the edges at ``nodes`` (``(K, 2)`` interior nodes, ``active`` their mask; an
+    edge between two of them counted once), and the longest over the shortest of those edges."""
+    lo2, hi2 = _inside_band(lo, hi)
+    e, short, long = 0.0, np.inf, 0.0
     for q in range(nodes.shape[0]):
         i, j = nodes[q, 0], nodes[q, 1]
         for n in range(4):
@@ -406,9 +415,14 @@ def _node_spread(X, nodes):
             b = j + (1 if n == 2 else (-1 if n == 3 else 0))
             dx, dy = X[i, j, 0] - X[a, b, 0], X[i, j, 1] - X[a, b, 1]
             d2 = dx * dx + dy * dy
-            lo = min(lo, d2)
-            hi = max(hi, d2)
-    return math.sqrt(hi / lo) if lo > 0.0 else np.inf
+            short = min(short, d2)
+            long = max(long, d2)
+            if n % 2 == 1 and active[a, b]:
+                continue                    # the edge back to an active node: counted there
+            f, slope = _outlying(d2 + 1e-300, lo, hi, lo2, hi2)
+            if slope != 0.0:
+                e += f
+    return e, (math.sqrt(long / short) if short > 0.0 else np.inf)
 
 
 def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int, wide_ran: bool
