@@ -794,14 +794,15 @@ def test_open_paths_and_polylines_are_both_counted_in_the_error(tmp_path):
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_side_sampler_is_resample_polyline_bit_for_bit(rng, dim):
-    """The corner choice's coarse grids sample each side once parametrised (corners._SideSampler):
-    on fresh polylines (repeated points among them) the samples are resample_polyline's exactly,
-    and so is the transfinite grid of four sides; a side of no length is the same BoundaryError."""
-    from clothgrid.boundary import resample_polyline
+def test_arc_sampler_is_resample_polyline_and_spaces_by_arc_length(rng, dim):
+    """The corner choice's coarse grids sample each side from one ArcSampler, the parametrisation
+    resample_polyline samples once: on fresh polylines (repeated points among them) its samples are
+    resample_polyline's exactly, equally spaced in arc length to rounding, the ends exact, and the
+    transfinite grid of four sides is the same from samplers as from point arrays; a side of no
+    length is the same BoundaryError."""
+    from clothgrid.boundary import ArcSampler, resample_polyline
     from clothgrid.errors import BoundaryError
-    from clothgrid.initial import transfinite
-    from clothgrid.patterns.corners import _SideSampler, _sides_grid
+    from clothgrid.patterns.corners import _side_sampler, _sides_grid
 
     for _ in range(10):
         sides = []
@@ -811,12 +812,20 @@ def test_side_sampler_is_resample_polyline_bit_for_bit(rng, dim):
             pts[k] = pts[k - 1]                                  # a zero-length segment
             sides.append(pts)
         for sd in sides:
+            arc = _side_sampler(sd)
             for n in (2, 3, int(rng.integers(4, 70))):
-                assert np.array_equal(_SideSampler(sd).sample(n), resample_polyline(sd, n))
+                got = arc.sample(n)
+                assert np.array_equal(got, resample_polyline(sd, n))
+                assert np.array_equal(got[0, :dim], sd[0]) and np.array_equal(got[-1, :dim], sd[-1])
+                # each sample on the polyline at its arc position: the distances along it are equal
+                t = np.linspace(0.0, arc.s[-1], n)
+                ref = np.stack([np.interp(t, arc.s[np.r_[True, np.diff(arc.s) > 0]],
+                                          np.pad(sd, ((0, 0), (0, 3 - dim)))[np.r_[True, np.diff(arc.s) > 0], c])
+                                for c in range(3)], -1)
+                assert np.allclose(got, ref, rtol=0, atol=1e-9 * arc.s[-1])
         nu, nv = (int(x) for x in rng.integers(3, 40, size=2))
-        r = np.zeros((nu, nv, 3))
-        r[:, 0], r[-1, :] = resample_polyline(sides[0], nu), resample_polyline(sides[1], nv)
-        r[:, -1], r[0, :] = resample_polyline(sides[2], nu)[::-1], resample_polyline(sides[3], nv)[::-1]
-        assert np.array_equal(_sides_grid(sides, nu, nv), transfinite(r))
+        assert np.array_equal(_sides_grid([_side_sampler(sd) for sd in sides], nu, nv), _sides_grid(sides, nu, nv))
     with pytest.raises(BoundaryError, match="zero length"):
-        _SideSampler(np.zeros((3, dim)))
+        ArcSampler(np.zeros((3, 3)))
+    with pytest.raises(BoundaryError, match="at least 2 points"):
+        ArcSampler(np.zeros((1, 3)))

@@ -330,43 +330,20 @@ def _side_points(outline: np.ndarray, a: int, b: int) -> np.ndarray:
     return outline[np.arange(a, b + 1) % n]
 
 
-class _SideSampler:
-    """A side's arc-length parametrisation, computed once and sampled at any node count:
-    :func:`clothgrid.boundary.resample_polyline` (no kept vertices) without its input checks and
-    its per-call arc length, the same arithmetic and so the same bits (a coarse grid samples each
-    side twice, and the corner choice makes some 2,700 coarse grids over the survey's files)."""
+def _side_sampler(side: np.ndarray) -> Any:
+    """A side's :class:`~clothgrid.boundary.ArcSampler` (its points are the piece's, checked)."""
+    from ..boundary import ArcSampler, _to3d
 
-    __slots__ = ("pts", "sk", "q", "length")
-
-    def __init__(self, points: np.ndarray):
-        from ..boundary import _arc_length, _to3d
-        from ..errors import BoundaryError
-
-        pts = _to3d(np.asarray(points, dtype=np.float64))
-        if len(pts) < 2:
-            raise BoundaryError(f"a polyline needs at least 2 points, got {len(pts)}")
-        s = _arc_length(pts)
-        if s[-1] <= 0.0:
-            raise BoundaryError("cannot resample a polyline of zero length")
-        nz = np.concatenate([[True], np.diff(s) > 0.0])     # strictly increasing for interp
-        self.pts, self.sk, self.q, self.length = pts, s[nz], np.ascontiguousarray(pts[nz].T), s[-1]
-
-    def sample(self, n: int) -> np.ndarray:
-        """``(n, 3)`` points equally spaced in arc length, the ends exactly the side's."""
-        t = np.linspace(0.0, self.length, n)
-        out = np.empty((n, 3))
-        for k in range(3):
-            out[:, k] = np.interp(t, self.sk, self.q[k])
-        out[0], out[-1] = self.pts[0], self.pts[-1]
-        return out
+    return ArcSampler(_to3d(np.asarray(side, dtype=np.float64)))
 
 
 def _sides_grid(sides: Sequence[Any], nu: int, nv: int) -> np.ndarray:
     """A ``(nu, nv, 3)`` transfinite grid (eq. 4) of four sides (outline order, point arrays or
-    :class:`_SideSampler`), sampled by arc length."""
+    :class:`~clothgrid.boundary.ArcSampler`), sampled by arc length."""
+    from ..boundary import ArcSampler
     from ..initial import transfinite
 
-    sm = [sd if isinstance(sd, _SideSampler) else _SideSampler(sd) for sd in sides]
+    sm = [sd if isinstance(sd, ArcSampler) else _side_sampler(sd) for sd in sides]
     r = np.zeros((nu, nv, 3))
     r[:, 0], r[-1, :] = sm[0].sample(nu), sm[1].sample(nv)
     r[:, -1], r[0, :] = sm[2].sample(nu)[::-1], sm[3].sample(nv)[::-1]
@@ -392,7 +369,7 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
         h = math.sqrt(area / cells)
     else:
         h = max(float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides) / 8
-    sm = [_SideSampler(sd) for sd in sides]
+    sm = [_side_sampler(sd) for sd in sides]
     # node counts on the typical u- and v-line (as for the full grid: nodes_for_edge_length)
     lu, lv = line_lengths(_sides_grid(sm, 33, 33))
     nu = int(min(64, max(3, round(lu / h) + 1)))
