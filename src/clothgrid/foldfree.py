@@ -474,8 +474,10 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
     return float(jmin), int(bad)
 
 
-def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None], coarse: bool = False) -> np.ndarray:
-    """Untangle every interior node (after the active sets could not).
+def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable[[str], None],
+               coarse: bool = False) -> int:
+    """Untangle every interior node of ``Xs`` (in place, after the active sets could not, leaving
+    ``folded`` folded corners); the folded corners left.
 
     On a grid of at least :data:`COARSE_RELAX` nodes a side, the grid of every other line is
     relaxed first (:func:`_relax_scaled`, recursively) and its interpolation (what its boundary
@@ -495,11 +497,10 @@ def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None]
         if poor.any():
             _relax_scaled(Xc, poor, stats, say, MARGIN, False, False, coarse=True)
         stats["levels"] = stats.get("levels", 1) + 1
-        before = corner_min(Xs, True)[1]
         kept = Xs[1:-1, 1:-1].copy()
         Xs[1:-1, 1:-1] = _prolong(Xc, ic, jc, Xs)[1:-1, 1:-1]
         jmin, bad = corner_min(Xs, True)
-        if bad > before:
+        if bad > folded:
             # A coarse grid that could not be untangled either (a wild outline): its interpolation
             # has more folds than the grid it would replace, and every node is untangled from that.
             Xs[1:-1, 1:-1] = kept
@@ -510,11 +511,11 @@ def _relax_all(Xs: np.ndarray, stats: dict[str, Any], say: Callable[[str], None]
                 jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
             say(f"relax {nu}x{nv}: from the coarser grid, {bad} folded corners left")
             if not bad:
-                return Xs
+                return 0
     nodes = _interior_nodes(nu, nv)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse)
     say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
-    return Xs
+    return bad
 
 
 def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: Callable[[str], None],
@@ -522,8 +523,6 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     """:func:`relax`'s work on the scaled planar grid ``Xs`` (in place) with ``poor`` cells: the
     narrow then the wide active set, every node where folds remain, then the smoothing; the
     ``(K, 2)`` nodes moved. ``coarse``: a finer grid's start (:func:`_relax_all`)."""
-    from .foldfree_kernels import corner_min
-
     nu, nv = Xs.shape[:2]
     m = max(nu, nv) if whole else _margin(nu, nv, margin, MAX_MARGIN)
     nodes = _interior_nodes(nu, nv) if whole else _active_nodes(poor, m)   # whole: the same nodes, undilated
@@ -541,9 +540,8 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
         jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
         say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and not quick:
-        _relax_all(Xs, stats, say, coarse)
+        bad = _relax_all(Xs, bad, stats, say, coarse)
         nodes = _interior_nodes(nu, nv)
-        jmin, bad = corner_min(Xs, True)
     if bad == 0 and len(nodes):
         done, _ = _sweeps(Xs, nodes, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
         stats["sweeps"] += int(done)
