@@ -802,7 +802,7 @@ def test_arc_sampler_is_resample_polyline_and_spaces_by_arc_length(rng, dim):
     length is the same BoundaryError."""
     from clothgrid.boundary import ArcSampler, resample_polyline
     from clothgrid.errors import BoundaryError
-    from clothgrid.patterns.corners import _side_sampler, _sides_grid
+    from clothgrid.patterns.corners import _sides_grid
 
     for _ in range(10):
         sides = []
@@ -812,7 +812,7 @@ def test_arc_sampler_is_resample_polyline_and_spaces_by_arc_length(rng, dim):
             pts[k] = pts[k - 1]                                  # a zero-length segment
             sides.append(pts)
         for sd in sides:
-            arc = _side_sampler(sd)
+            arc = ArcSampler(sd)
             for n in (2, 3, int(rng.integers(4, 70))):
                 got = arc.sample(n)
                 assert np.array_equal(got, resample_polyline(sd, n))
@@ -824,8 +824,8 @@ def test_arc_sampler_is_resample_polyline_and_spaces_by_arc_length(rng, dim):
                                 for c in range(3)], -1)
                 assert np.allclose(got, ref, rtol=0, atol=1e-9 * arc.s[-1])
         nu, nv = (int(x) for x in rng.integers(3, 40, size=2))
-        assert np.array_equal(_sides_grid([_side_sampler(sd) for sd in sides], nu, nv), _sides_grid(sides, nu, nv))
+        assert np.array_equal(_sides_grid([ArcSampler(sd) for sd in sides], nu, nv), _sides_grid(sides, nu, nv))
     with pytest.raises(BoundaryError, match="zero length"):
-        ArcSampler(np.zeros((3, 3)))
+        ArcSampler(np.zeros((3, dim)))
     with pytest.raises(BoundaryError, match="at least 2 points"):
         ArcSampler(np.zeros((1, 3)))

@@ -173,7 +173,7 @@ def resample_polyline(points: Any, n: int, keep: Any = None) -> np.ndarray:
         exactly ``points[0]`` and ``points[-1]``.
     """
     n = _check_count(n, "the number of points")
-    arc = ArcSampler(_to3d(_as_points(points, "the polyline")))
+    arc = ArcSampler(_as_points(points, "the polyline"))
     pts, s = arc.pts, arc.s
     cuts = sorted({int(i) for i in (keep if keep is not None else ()) if 0 < int(i) < len(pts) - 1})
     if cuts and n > 2:
@@ -195,9 +195,9 @@ class ArcSampler:
 
     Parameters
     ----------
-    pts : numpy.ndarray
-        ``(m, 3)`` float64 points, ``m >= 2``, finite (not checked); consecutive duplicates are
-        allowed.
+    pts : array_like
+        ``(m, 2)`` or ``(m, 3)`` points, ``m >= 2``, finite (not checked); consecutive duplicates
+        are allowed.
 
     Raises
     ------
@@ -207,7 +207,8 @@ class ArcSampler:
 
     __slots__ = ("pts", "s", "_sk", "_q")
 
-    def __init__(self, pts: np.ndarray):
+    def __init__(self, pts: Any):
+        pts = _to3d(np.asarray(pts, dtype=np.float64))
         if len(pts) < 2:
             raise BoundaryError(f"a polyline needs at least 2 points, got {len(pts)}")
         s = _arc_length(pts)

@@ -330,20 +330,13 @@ def _side_points(outline: np.ndarray, a: int, b: int) -> np.ndarray:
     return outline[np.arange(a, b + 1) % n]
 
 
-def _side_sampler(side: np.ndarray) -> Any:
-    """A side's :class:`~clothgrid.boundary.ArcSampler` (its points are the piece's, checked)."""
-    from ..boundary import ArcSampler, _to3d
-
-    return ArcSampler(_to3d(np.asarray(side, dtype=np.float64)))
-
-
 def _sides_grid(sides: Sequence[Any], nu: int, nv: int) -> np.ndarray:
     """A ``(nu, nv, 3)`` transfinite grid (eq. 4) of four sides (outline order, point arrays or
     :class:`~clothgrid.boundary.ArcSampler`), sampled by arc length."""
     from ..boundary import ArcSampler
     from ..initial import transfinite
 
-    sm = [sd if isinstance(sd, ArcSampler) else _side_sampler(sd) for sd in sides]
+    sm = [sd if isinstance(sd, ArcSampler) else ArcSampler(sd) for sd in sides]   # the piece's points: checked
     r = np.zeros((nu, nv, 3))
     r[:, 0], r[-1, :] = sm[0].sample(nu), sm[1].sample(nv)
     r[:, -1], r[0, :] = sm[2].sample(nu)[::-1], sm[3].sample(nv)[::-1]
@@ -358,6 +351,7 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
     equal size, the interior by transfinite interpolation (eq. 4), then
     relaxed by :func:`clothgrid.foldfree.relax` over the whole grid.
     """
+    from ..boundary import ArcSampler
     from ..foldfree import relax
     from ..geometry import signed_area
     from ..quality import line_lengths
@@ -369,7 +363,7 @@ def coarse_grid(outline: np.ndarray, corners: Sequence[int], cells: int = COARSE
         h = math.sqrt(area / cells)
     else:
         h = max(float(np.hypot(*np.diff(sd, axis=0).T).sum()) for sd in sides) / 8
-    sm = [_side_sampler(sd) for sd in sides]
+    sm = [ArcSampler(sd) for sd in sides]
     # node counts on the typical u- and v-line (as for the full grid: nodes_for_edge_length)
     lu, lv = line_lengths(_sides_grid(sm, 33, 33))
     nu = int(min(64, max(3, round(lu / h) + 1)))
