@@ -358,15 +358,24 @@ def _edge_extremes(P: np.ndarray) -> tuple[float, float]:
     return float(min(eu.min(), ev.min())), float(max(eu.max(), ev.max()))
 
 
+def _xyz(points: np.ndarray) -> np.ndarray:
+    """``points`` as a C-contiguous float64 ``(nu, nv, 3)`` array (``z = 0`` added to 2D points)."""
+    P = np.ascontiguousarray(points, dtype=np.float64)
+    if P.shape[-1] == 2:
+        P = np.concatenate([P, np.zeros(P.shape[:-1] + (1,))], axis=-1)
+    return P
+
+
+def _spread(lo: float, hi: float) -> float:
+    """Longest over shortest edge, ``inf`` where an edge has no length."""
+    return hi / lo if lo > 0 else float("inf")
+
+
 def edge_spread(points: np.ndarray) -> float:
     """Longest over shortest edge of a small grid (``inf`` where an edge has no length): the
     ``edge_spread`` of :func:`sim_figures` without its angles (the corner choice scores thousands
     of coarse grids)."""
-    P = np.asarray(points, dtype=np.float64)
-    if P.shape[-1] == 2:
-        P = np.concatenate([P, np.zeros(P.shape[:-1] + (1,))], axis=-1)
-    lo, hi = _edge_extremes(P)
-    return hi / lo if lo > 0 else float("inf")
+    return _spread(*_edge_extremes(_xyz(points)))
 
 
 def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[str, Any]:
@@ -389,9 +398,7 @@ def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[st
         ``shortest_edge``, ``longest_edge``, ``edge_spread`` (longest / shortest
         over all edges), ``shortest_vs_target`` (shortest edge / ``edge_length``).
     """
-    P = np.ascontiguousarray(points, dtype=np.float64)
-    if P.shape[-1] == 2:
-        P = np.concatenate([P, np.zeros(P.shape[:-1] + (1,))], axis=-1)
+    P = _xyz(points)
     if (P.shape[0] - 1) * (P.shape[1] - 1) > KERNEL_CELLS:
         from .quality_kernels import angle_and_edge_extremes
     else:
@@ -403,7 +410,7 @@ def sim_figures(points: np.ndarray, edge_length: float | None = None) -> dict[st
         "min_angle_deg": float(amin), "max_angle_deg": float(amax),
         "corner_cell_angles_deg": grid_corners,
         "shortest_edge": lo, "longest_edge": hi,
-        "edge_spread": hi / lo if lo > 0 else float("inf"),
+        "edge_spread": _spread(lo, hi),
         "shortest_vs_target": (lo / float(edge_length)) if edge_length else None,
     }
 
