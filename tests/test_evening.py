@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -45,6 +46,17 @@ def _evening_energy(P: np.ndarray, P0: np.ndarray) -> float:
     mean = np.exp(np.mean(np.log(lengths(P0))))
     t = np.abs(np.log(lengths(P) / mean))
     return float((np.maximum(0.0, t - math.log(ev.BAND)) ** 2).sum())
+
+
+@functools.lru_cache(maxsize=None)
+def _crowded(seed: int) -> np.ndarray:
+    """The paper-weights length grid (read-only points) of a 161 x 121 piece drawn from ``seed``:
+    its lines crowd towards the sides, so its edge spread is large and its evening's active set
+    runs to thousands of nodes (made once, shared by the tests that even it)."""
+    rng = np.random.default_rng(seed)
+    P = generate(Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12)), weights="paper").points
+    P.flags.writeable = False
+    return P
 
 
 def test_evening_never_lowers_a_corner_below_the_floor_and_lowers_the_spread(rng):
@@ -103,28 +115,25 @@ def test_evening_stops_when_progress_is_slow(monkeypatch, coloured):
     import clothgrid.evening as ev
     import clothgrid.foldfree as ff
 
-    rng = np.random.default_rng(7)   # a piece whose spread both runs lower (some they raise: then no move is kept)
-    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
-    length = generate(b, weights="paper")
+    P0 = _crowded(7)   # a piece whose spread both runs lower (some they raise: then no move is kept)
     one = dict(dim=2, wide_band=None)                         # one stage: its sweeps are the count
     if coloured:
         monkeypatch.setattr(ff, "PARALLEL_NODES", 0)
         check, slow = "CHECK_SWEEPS", "MIN_PROGRESS"
-        full, info_full = even_edges(length.points, **one)
+        full, info_full = even_edges(P0, **one)
         monkeypatch.setattr(ev, "WORK_BUDGET", 10**12)       # never reached: the same as before
-        same, info_same = even_edges(length.points, **one)
+        same, info_same = even_edges(P0, **one)
         assert np.array_equal(same, full) and info_same["sweeps"] == info_full["sweeps"]
         monkeypatch.setattr(ev, "WORK_BUDGET", 1)             # reached at once
     else:
         check, slow = "SMALL_CHECK_SWEEPS", "SMALL_MIN_PROGRESS"
         monkeypatch.setattr(ev, slow, -np.inf)                # no progress counts as slow
-        full, info_full = even_edges(length.points, **one)
+        full, info_full = even_edges(P0, **one)
         monkeypatch.setattr(ev, "SMALL_MIN_SPREAD_PROGRESS", 0.5)     # (the spread's: both must be slow)
     monkeypatch.setattr(ev, slow, 0.5)                        # and now every progress does
-    short, info = even_edges(length.points, **one)
+    short, info = even_edges(P0, **one)
     assert info["sweeps"] == getattr(ev, check) < info_full["sweeps"]
-    assert _holds_the_floor(length.points, short)
-    P0 = length.points
+    assert _holds_the_floor(P0, short)
     assert _evening_energy(full, P0) < _evening_energy(short, P0) < _evening_energy(P0, P0)
 
 
@@ -157,20 +166,18 @@ def test_the_coloured_parallel_evening_holds_the_floor_and_lowers_the_energy_as_
     per corner and the spread falls about as far as with the ordered sweeps."""
     import clothgrid.foldfree as ff
 
-    rng = np.random.default_rng(11)
-    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
-    length = generate(b, weights="paper")
+    P0 = _crowded(11)
     got = {}
     for threshold in (10**12, 0):
         monkeypatch.setattr(ff, "PARALLEL_NODES", threshold)
-        got[threshold] = even_edges(length.points, dim=2, wide_band=None)     # BAND's stage alone
+        got[threshold] = even_edges(P0, dim=2, wide_band=None)     # BAND's stage alone
     (ordered, info_o), (coloured, info_c) = got[10**12], got[0]
     assert not np.array_equal(ordered, coloured)             # another order
-    assert _holds_the_floor(length.points, coloured)
+    assert _holds_the_floor(P0, coloured)
     assert info_c["spread_after"] < info_c["spread_before"]
     assert info_c["spread_after"] <= 1.1 * info_o["spread_after"]
     for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
-        assert np.array_equal(coloured[sl], length.points[sl])
+        assert np.array_equal(coloured[sl], P0[sl])
 
 
 def test_evening_never_returns_a_larger_spread():
@@ -295,9 +302,7 @@ def test_the_last_stage_widens_where_its_nodes_are_too_many(monkeypatch):
     import clothgrid.evening as ev
     import clothgrid.foldfree as ff
 
-    rng = np.random.default_rng(7)
-    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
-    P0 = generate(b, weights="paper").points
+    P0 = _crowded(7)
     full = even_edges(P0, dim=2)[1]["stages"]
     assert [s["band"] for s in full] == [ev.WIDE_BAND, ev.BAND]
     limit = full[1]["active"]                     # BAND's set is now too many; a wider one's is not
@@ -339,9 +344,7 @@ def test_ordered_sweeps_go_on_while_the_spread_falls(monkeypatch):
     runs the sweeps on, one that everything meets stops them at the first check."""
     import clothgrid.evening as ev
 
-    rng = np.random.default_rng(7)
-    b = Boundary.from_sides(*smooth_quad_sides(rng, 161, 121, amp=0.12))
-    P0 = generate(b, weights="paper").points
+    P0 = _crowded(7)
     monkeypatch.setattr(ev, "SMALL_MIN_PROGRESS", 0.5)
     monkeypatch.setattr(ev, "SMALL_MIN_SPREAD_PROGRESS", -np.inf)       # the spread never slow
     on, info_on = even_edges(P0, dim=2, wide_band=None)
