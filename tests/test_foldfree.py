@@ -19,6 +19,11 @@ REGIONS = regions_with_corners()
 TIE = Path(__file__).parent / "data" / "regions" / "roache-tie.json"
 
 
+def _folded(points: np.ndarray, dim: int) -> int:
+    """Folded cells of a relaxed grid (clothgrid.quality)."""
+    return quality(Grid.from_points(points, info={}, dim=dim)).folded
+
+
 def test_the_eight_roache_regions_are_there():
     assert sorted(p.stem for p in REGIONS) == [
         "roache-" + n for n in ("annulus", "dome", "horn", "nhorseshoe", "plow", "shell", "swan", "tie")]
@@ -210,7 +215,7 @@ def test_folds_the_narrow_margin_leaves_are_untangled_on_the_wide_one(monkeypatc
     pts, info = ff.relax(length.points, dim=length.dim, margin=0, progress=said.append)
     assert len(said) == 2 and "within 0 lines" in said[0] and not said[0].endswith(" 0 folded corners left")
     assert "within 10 lines" in said[1] and said[1].endswith(" 0 folded corners left")
-    assert info["untangled"] and quality(Grid.from_points(pts, info={}, dim=length.dim)).folded == 0
+    assert info["untangled"] and _folded(pts, length.dim) == 0
     assert 0 < info["moved"] < 78 * 78 / 4
 
 
@@ -222,7 +227,6 @@ def test_the_coloured_parallel_sweeps_match_the_ordered_ones(monkeypatch):
     another step rule, not another order)."""
     import clothgrid.foldfree as ff
     from clothgrid.foldfree_kernels import cell_min_sine
-    from clothgrid.grid import Grid
 
     monkeypatch.setattr(ff, "OVERRELAX", 1.0)
     b = clothgrid.load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
@@ -350,7 +354,7 @@ def test_over_relaxed_ordered_sweeps_untangle_with_fewer_sweeps(monkeypatch):
             for w in (1.0, omega):
                 monkeypatch.setattr(ff, "OVERRELAX", w)
                 pts, info = ff.relax(length.points, dim=length.dim)
-                assert info["untangled"] and quality(Grid.from_points(pts, info={}, dim=length.dim)).folded == 0
+                assert info["untangled"] and _folded(pts, length.dim) == 0
                 sweeps[w] += info["sweeps"]
                 jmin[w] = info["min_corner_jacobian"]
             assert jmin[omega] >= 0.9 * jmin[1.0], (path.stem, weights, jmin)
@@ -375,7 +379,7 @@ def test_every_node_is_untangled_from_the_grid_of_every_other_line(monkeypatch):
             monkeypatch.setattr(ff, "COARSE_RELAX", coarse)
             said = []
             pts, info = ff.relax(length.points, dim=length.dim, margin=0, progress=said.append)
-            assert info["untangled"] and quality(Grid.from_points(pts, info={}, dim=length.dim)).folded == 0
+            assert info["untangled"] and _folded(pts, length.dim) == 0
             for sl in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
                 assert np.array_equal(pts[sl], length.points[sl])
             got[coarse] = (info, said)
