@@ -286,25 +286,54 @@ def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega):
     return -1.0
 
 
+@njit(cache=True, inline="always")
+def _settled(i, j, moved_at, failed_at):
+    """Whether node (i, j) last failed to move (at ``failed_at``, a visit count) and neither it nor
+    any of its 8 neighbours has moved since (``moved_at``, the visit counts of their last moves):
+    :func:`_even_node` reads nothing else of the grid, so it would fail again, and is not called."""
+    if failed_at < 0:
+        return False
+    for a in range(i - 1, i + 2):
+        for b in range(j - 1, j + 2):
+            if moved_at[a, b] > failed_at:
+                return False
+    return True
+
+
 @njit(cache=True)
-def _sweep(X, lo, hi, floor, nodes, omega):
+def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
     """One Gauss-Seidel sweep over ``nodes`` (``(K, 2)``, row by row: the active nodes in the order
-    a scan of the grid meets them, without the scan); the largest move, the nodes moved."""
+    a scan of the grid meets them, without the scan); the largest move, the nodes moved.
+
+    ``sweep`` counts the stage's sweeps; ``moved_at`` (the grid's shape) and ``failed_at`` (``K``)
+    hold the visit counts (``sweep * K + q``, -1 for none) of each node's last move and, per listed
+    node, of its last failed step since: a node that failed and whose neighbourhood has not moved
+    since is skipped (:func:`_settled`; the same grid, a quarter of the survey's visits fewer)."""
     lo2, hi2 = _inside_band(lo, hi)
     biggest, moved = 0.0, 0
     before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
-    for q in range(nodes.shape[0]):
-        d = _even_node(X, nodes[q, 0], nodes[q, 1], lo, hi, lo2, hi2, floor, before, after, need, w, omega)
+    K = nodes.shape[0]
+    for q in range(K):
+        i, j = nodes[q, 0], nodes[q, 1]
+        if _settled(i, j, moved_at, failed_at[q]):
+            continue
+        clock = sweep * K + q
+        d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
         if d >= 0.0:
             biggest = max(biggest, d)
             moved += 1
+            moved_at[i, j] = clock
+            failed_at[q] = -1
+        else:
+            failed_at[q] = clock
     return biggest, moved
 
 
 @njit(cache=True, parallel=True)
-def _sweep_coloured(X, lo, hi, floor, active, omega):
+def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at):
     """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
-    (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet)."""
+    (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet).
+    ``failed_at`` has the grid's shape here, and a visit's count is ``4 sweep + colour``."""
     nu, nv = X.shape[0], X.shape[1]
     lo2, hi2 = _inside_band(lo, hi)
     row_big = np.zeros(nu)
@@ -312,18 +341,23 @@ def _sweep_coloured(X, lo, hi, floor, active, omega):
     for c in range(4):
         ci, cj = c // 2, c % 2
         rows = (nu - 2 - ci + 1) // 2
+        clock = 4 * sweep + c
         for r in prange(rows):
             i = 1 + ci + 2 * r
             # one block a row, 128 bytes unused at its end: blocks of two threads never share a cache line
             block = np.empty(48 + SINE_SCRATCH + 16)
             before, after, need, w = block[0:16], block[16:32], block[32:48], block[48:48 + SINE_SCRATCH]
             for j in range(1 + cj, nv - 1, 2):
-                if not active[i, j]:
+                if not active[i, j] or _settled(i, j, moved_at, failed_at[i, j]):
                     continue
                 d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
                 if d >= 0.0:
                     row_big[i] = max(row_big[i], d)
                     row_moved[i] += 1
+                    moved_at[i, j] = clock
+                    failed_at[i, j] = -1
+                else:
+                    failed_at[i, j] = clock
     return row_big.max(), row_moved.sum()
 
 
@@ -377,11 +411,14 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
         part, spread = _stage_energy(X, lo, hi, active, mask)
         rest = energy - part
         sweep_once, omega = _sweep, OVERRELAX
+        failed_at = np.full(len(active), -1, np.int64)
     else:
         sweep_once, omega = _sweep_coloured, 1.0
+        failed_at = np.full(X.shape[:2], -1, np.int64)
+    moved_at = np.full(X.shape[:2], -1, np.int64)
     check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
     for sweep in range(max_sweeps):
-        biggest, moved = sweep_once(X, lo, hi, floor, active, omega)
+        biggest, moved = sweep_once(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
         out["sweeps"] = sweep + 1
         out["moved"] += int(moved)
         if moved == 0 or biggest < 1e-4:
