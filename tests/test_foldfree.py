@@ -267,6 +267,23 @@ def test_corner_measures_of_large_grids_run_in_parallel_with_the_same_results(rn
         (jmin_p, bad_p), sine_p = out[0]
         assert jmin_s == jmin_p and bad_s == bad_p and np.array_equal(sine_s, sine_p)
         assert bad_s == int((corner_jacobians(X) <= 0).sum()) > 0
+        assert np.array_equal(sine_s, _cell_min_sine_numpy(X))
+
+
+def _cell_min_sine_numpy(X: np.ndarray) -> np.ndarray:
+    """Each cell's smallest corner sine, corner by corner in NumPy: at corner ``k`` (quad order
+    (i, j), (i+1, j), (i+1, j+1), (i, j+1)) the edges to corners ``k+1`` and ``k-1``,
+    ``a x b / (|a| |b|)``, -1 where an edge has zero length."""
+    c = [X[:-1, :-1], X[1:, :-1], X[1:, 1:], X[:-1, 1:]]
+    best = np.full(c[0].shape[:2], np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(4):
+            a, b = c[(k + 1) % 4] - c[k], c[(k + 3) % 4] - c[k]
+            la = np.sqrt(a[..., 0] * a[..., 0] + a[..., 1] * a[..., 1])
+            lb = np.sqrt(b[..., 0] * b[..., 0] + b[..., 1] * b[..., 1])
+            v = np.where((la == 0) | (lb == 0), -1.0, (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]) / (la * lb))
+            best = np.minimum(best, v)
+    return best
 
 
 def test_node_energy_lanes_match_one_triangle_at_a_time():
