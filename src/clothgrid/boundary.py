@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .errors import BoundaryError, InputError
-from .geometry import PLANAR_TOL, best_fit_plane, plane_axes, roll
+from .geometry import PLANAR_TOL, best_fit_plane, cross, plane_axes, roll
 from .limits import MAX_OUTLINE_POINTS, check_coordinates
 
 __all__ = ["Boundary", "resample_polyline", "ArcSampler"]
@@ -621,7 +621,7 @@ class Boundary:
         """
         origin, _, normal, _ = self._plane()
         p = self.outline() - origin
-        area = 0.5 * np.cross(p, roll(p, -1)).sum(axis=0)
+        area = 0.5 * cross(p, roll(p, -1)).sum(axis=0)
         return -1.0 if float(area @ normal) < 0 else 1.0
 
     @property

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PLANAR_TOL", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
+__all__ = ["PLANAR_TOL", "cross", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
            "spike_points", "SPIKE_TURN_DEG", "untie_loops", "roll"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
@@ -19,6 +19,18 @@ def roll(p: np.ndarray, shift: int) -> np.ndarray:
     if s == 0:
         return np.array(p, copy=True)
     return np.concatenate((p[n - s:], p[:n - s]))
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of ``(..., 3)`` arrays, the same arithmetic (``a1 b2 - a2 b1``, ...) without its
+    dispatch: several times faster on the single vectors and small outlines that every piece's
+    plane frame, quality and corner scoring take, the same bits."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.subtract(a[..., 1] * b[..., 2], a[..., 2] * b[..., 1], out=out[..., 0])
+    np.subtract(a[..., 2] * b[..., 0], a[..., 0] * b[..., 2], out=out[..., 1])
+    np.subtract(a[..., 0] * b[..., 1], a[..., 1] * b[..., 0], out=out[..., 2])
+    return out
 
 
 def boundary_loop(points: np.ndarray) -> np.ndarray:
@@ -40,7 +52,7 @@ def signed_area(loop: np.ndarray) -> float:
 def vector_area(loop: np.ndarray) -> np.ndarray:
     """Vector area ``1/2 sum p_k x p_{k+1}`` of a closed 3D polygon ``(n, 3)``."""
     p = loop - loop.mean(axis=0)
-    return 0.5 * np.cross(p, roll(p, -1)).sum(axis=0)
+    return 0.5 * cross(p, roll(p, -1)).sum(axis=0)
 
 
 def best_fit_plane(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -61,9 +73,9 @@ def best_fit_plane(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 def plane_axes(normal: np.ndarray) -> np.ndarray:
     """``(2, 3)`` orthonormal in-plane axes ``e1, e2`` with ``e1 x e2 = normal`` (a unit vector)."""
-    e1 = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 = cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
-    return np.stack([e1, np.cross(normal, e1)])
+    return np.stack([e1, cross(normal, e1)])
 
 
 def plane_frame(points: np.ndarray, fit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
