@@ -494,9 +494,10 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
             done, _ = _sweeps(Xs, nodes, delta2, sweeps - part, 1e-3)   # the round goes on as one
             stats["sweeps"] += int(done)
         jmin, bad = corner_min(Xs, True)
-        # strict (a coarser grid's start): counts that go up and down without a new low ran all 60
-        # rounds on a wild outline's coarser grids; on the grid asked for, counts that rise for
-        # rounds before they fall untangled the Roache annulus and plow on one grid
+        # strict (a coarser grid's start, or every node after one): counts that go up and down
+        # without a new low ran all 60 rounds on a wild outline's grids; on one grid alone (below
+        # COARSE_RELAX), counts that rise for rounds before they fall untangled the Roache annulus
+        # and plow
         if strict:
             stalled, fewest = (0, bad) if bad < fewest else (stalled + 1, fewest)
         else:
@@ -551,7 +552,9 @@ def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable
             if not bad:
                 return 0, smoothed
     nodes = _interior_nodes(nu, nv)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse)
+    # after a coarser grid's start that failed, the strict stall rule (a wild outline: its count
+    # rose from the start and fell by a few corners a round, for all 2 * RELAX_ROUNDS rounds)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse or min(nu, nv) >= COARSE_RELAX)
     say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
     return bad, False
 
@@ -567,7 +570,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     wide = _margin(nu, nv, margin, WIDE_MARGIN)
     retry = not quick and not whole and wide > m
     start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS, give_up=True)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS, give_up=not whole and min(nu, nv) >= COARSE_RELAX)
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and retry:
         # Failed rounds can leave more folds than they found (the all-node untangling then took
@@ -575,7 +578,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
         Xs[nodes[:, 0], nodes[:, 1]] = start
         m = wide
         nodes = _active_nodes(poor, m)
-        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, give_up=True)
+        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, give_up=not whole and min(nu, nv) >= COARSE_RELAX)
         say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     smooth = nodes
     if bad and not quick:
