@@ -473,3 +473,19 @@ def test_an_active_set_whose_first_sweeps_add_folds_is_given_up(monkeypatch):
     assert info["min_corner_jacobian"] >= 0.8 * info_kept["min_corner_jacobian"], (info, info_kept)
     assert info["sweeps"] < info_kept["sweeps"]
     assert _folded(given, length.dim) == 0
+
+
+@pytest.mark.skipif(not (Path(__file__).resolve().parents[2] / "shared" / "patterns").is_dir(),
+                    reason="../shared/patterns is not here")
+def test_the_wide_active_set_is_not_given_up():
+    """Only the narrow set is given up early: a GarmentCode front torso at 2 mm edges (628 folded
+    cells in its length grid) gives its narrow set up and still untangles, where giving the wide
+    set up as well left 2 folded cells."""
+    from clothgrid.pipeline import generate_piece
+    from clothgrid.readers import read_pieces
+
+    src = Path(__file__).resolve().parents[2] / "shared" / "patterns" / "gcn_rand_L12WU7204Q_specification.json"
+    piece = next(p for p in read_pieces(src) if p.name == "left_ftorso")
+    grid = generate_piece(piece, edge_length="2mm")
+    assert grid.info["folded_before"] > 0 and grid.info["folded"] == 0 == quality(grid).folded
+    assert grid.info["foldfree"].get("given_up") == 1, grid.info["foldfree"]

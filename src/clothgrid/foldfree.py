@@ -385,13 +385,15 @@ OVERRELAX = 1.7
 #: degree, 7 up (docs/performance.md, "Tenth pass").
 SMOOTH_MARGIN = 10
 SMOOTH_SINE = 0.57
-#: The first untangling round on an active set (the poor cells' margins) stops after this many sweeps
-#: where it has more folded corners than it started with, and the set is given up (the wider one, or
-#: every node, from a coarser grid, comes next). Over the survey's pieces no set that went on to
-#: untangle had more at 10 or 20 sweeps, while 14 of the 24 that failed had (319: 220 -> 286 -> 316
-#: folded corners, then 489 after 60 sweeps and two more rounds); the relax took 0.84 of its time at
-#: 10 mm edges and at 5 mm, with the same grids where no set is given up (docs/performance.md,
-#: "Tenth pass").
+#: The first untangling round on the narrow active set (the poor cells' margin) of a grid with a
+#: coarser grid to come (:data:`COARSE_RELAX`) stops after this many sweeps where it has more folded
+#: corners than it started with, and the set is given up (the wide set, or every node from the
+#: coarser grid, comes next). Over the survey's pieces no set that went on to untangle had more at
+#: 10 or 20 sweeps, while 14 of the 24 that failed had (fs_wahid piece 4: 220 -> 286 -> 316 folded
+#: corners, then 489 after its 60 sweeps and two more rounds); the relax took 0.84 of its time at
+#: 10 mm and 5 mm edges, with the same grids where no set is given up. The wide set is not given
+#: up (giving it up too left a GarmentCode torso with 2 folded cells at 2 mm), nor a coarser grid's
+#: (docs/performance.md, "Tenth pass").
 GIVE_UP_SWEEPS = 20
 #: Grids with at least this many nodes on their shorter side untangle every node on the grid of
 #: every other line first (:func:`_relax_all`).
@@ -570,7 +572,9 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     wide = _margin(nu, nv, margin, WIDE_MARGIN)
     retry = not quick and not whole and wide > m
     start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS, give_up=not whole and min(nu, nv) >= COARSE_RELAX)
+    # the narrow set may be given up early where a coarser grid is to come (GIVE_UP_SWEEPS)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS,
+                              give_up=not (whole or coarse) and min(nu, nv) >= COARSE_RELAX)
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and retry:
         # Failed rounds can leave more folds than they found (the all-node untangling then took
@@ -578,7 +582,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
         Xs[nodes[:, 0], nodes[:, 1]] = start
         m = wide
         nodes = _active_nodes(poor, m)
-        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, give_up=not whole and min(nu, nv) >= COARSE_RELAX)
+        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
         say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     smooth = nodes
     if bad and not quick:
