@@ -470,7 +470,8 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
     """Untangling rounds of ``sweeps`` sweeps over ``nodes`` (delta by Escobar's rule) until no
     corner is folded, or until ``stall`` rounds in a row did not lower the count of folded corners
     below the last round's (``strict``: below the fewest so far). ``give_up``: the rounds end after
-    the first :data:`GIVE_UP_SWEEPS` sweeps where those left more folded corners than there were."""
+    the first :data:`GIVE_UP_SWEEPS` sweeps where those left more folded corners than there were,
+    or none."""
     from .foldfree_kernels import corner_min
 
     jmin, bad = corner_min(Xs, True)
@@ -478,24 +479,26 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
     while bad and rounds > 0 and len(nodes):
         rounds -= 1
         stats["rounds"] += 1
-        # All RELAX_SWEEPS sweeps of a round: ending a round as soon as no corner is folded
-        # (tried: 1.6x faster at 1024^2) leaves worse cells and, on real pieces, folds
-        # (tests/test_real_files.py: fs_wahid_layout.svg piece 4 folded).
+        # A round runs all its sweeps: ending every round as soon as no corner is folded (tried:
+        # 1.6x faster at 1024^2) left worse cells and, on real pieces, folds (fs_wahid_layout.svg
+        # piece 4), before sets were given up and coarser grids smoothed. The first round of a set
+        # that may be given up (GIVE_UP_SWEEPS) looks after that many sweeps: more folds than it
+        # started with give the set up, none end the round there (the smoothing follows), and
+        # otherwise the round goes on as one.
         delta2 = EPS * (EPS - min(jmin, 0.0))
         before = bad
-        # the first round of a set that may be given up: a look after GIVE_UP_SWEEPS sweeps
         part = GIVE_UP_SWEEPS if give_up and sweeps > GIVE_UP_SWEEPS else sweeps
         give_up = False
         done, _ = _sweeps(Xs, nodes, delta2, part, 1e-3)
         stats["sweeps"] += int(done)
-        if part < sweeps and done == part:
-            jmin, bad = corner_min(Xs, True)
+        jmin, bad = corner_min(Xs, True)
+        if part < sweeps and done == part and bad:
             if bad > before:             # more folds than it started with: this set is given up
                 stats["given_up"] = stats.get("given_up", 0) + 1
                 return float(jmin), int(bad)
-            done, _ = _sweeps(Xs, nodes, delta2, sweeps - part, 1e-3)   # the round goes on as one
+            done, _ = _sweeps(Xs, nodes, delta2, sweeps - part, 1e-3)
             stats["sweeps"] += int(done)
-        jmin, bad = corner_min(Xs, True)
+            jmin, bad = corner_min(Xs, True)
         # strict (a coarser grid's start, or every node after one): counts that go up and down
         # without a new low ran all 60 rounds on a wild outline's grids; on one grid alone (below
         # COARSE_RELAX), counts that rise for rounds before they fall untangled the Roache annulus
