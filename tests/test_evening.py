@@ -204,6 +204,19 @@ def test_edge_lengths_kernel_is_numpys_norm_of_differences(rng):
         assert np.array_equal(_edge_lengths(X), ref)
 
 
+def test_edge_extremes_are_the_lengths_extremes_bit_for_bit(rng):
+    """The evening's spread after its sweeps comes from the smallest and largest squared edge
+    lengths (no array of lengths): their square roots are ``_edge_lengths``' minimum and maximum,
+    bit for bit, on fresh grids."""
+    from clothgrid.evening import _edge_extremes2, _edge_lengths
+
+    for shape in [(2, 2), (3, 7), (40, 25)]:
+        X = np.ascontiguousarray(rng.normal(size=shape + (2,)).cumsum(axis=0) * 10.0 ** rng.integers(-6, 6))
+        lengths = _edge_lengths(X)
+        lo, hi = _edge_extremes2(X)
+        assert math.sqrt(lo) == lengths.min() and math.sqrt(hi) == lengths.max()
+
+
 def test_sines_around_match_one_corner_at_a_time():
     """The evening's corner sines taken side by side in 16 lanes give _corner_sine's bits, and 2.0
     exactly where a corner does not count (outside the grid, a grid corner, opposite the node)."""

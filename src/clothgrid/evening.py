@@ -584,8 +584,8 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         info["seconds"] = time.perf_counter() - t0
         return R, info
     X *= scale
-    lengths = _edge_lengths(X)
-    after = float(lengths.max() / lengths.min())
+    shortest2, longest2 = _edge_extremes2(X)
+    after = math.sqrt(longest2) / math.sqrt(shortest2)     # the lengths' max / min: sqrt is monotone
     info["seconds"] = time.perf_counter() - t0
     if not after <= info["spread_before"] * (1.0 + SPREAD_ROUNDING):
         # The sweeps lower an energy of every outlying edge, not the spread itself: on about 1 in
@@ -614,3 +614,23 @@ def _edge_lengths(X):
             d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
             out[base + i * (nv - 1) + j] = math.sqrt(d0 * d0 + d1 * d1)
     return out
+
+
+@njit(cache=True)
+def _edge_extremes2(X):
+    """The smallest and largest squared edge length of a ``(nu, nv, 2)`` grid (:func:`_edge_lengths`'
+    ``d0 * d0 + d1 * d1``, so their square roots are its lengths' minimum and maximum, bit for bit),
+    without the array of lengths."""
+    nu, nv = X.shape[0], X.shape[1]
+    lo, hi = np.inf, 0.0
+    for i in range(nu):
+        for j in range(nv):
+            if i + 1 < nu:
+                d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+                d2 = d0 * d0 + d1 * d1
+                lo, hi = min(lo, d2), max(hi, d2)
+            if j + 1 < nv:
+                d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+                d2 = d0 * d0 + d1 * d1
+                lo, hi = min(lo, d2), max(hi, d2)
+    return lo, hi
