@@ -585,7 +585,9 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         return R, info
     X *= scale
     shortest2, longest2 = _edge_extremes2(X)
-    after = math.sqrt(longest2) / math.sqrt(shortest2)     # the lengths' max / min: sqrt is monotone
+    # the lengths' max / min (sqrt is monotone); a zero-length edge (no move makes one: its corners'
+    # sines are -1, below any floor) would be an infinite spread
+    after = math.sqrt(longest2) / math.sqrt(shortest2) if shortest2 > 0.0 else math.inf
     info["seconds"] = time.perf_counter() - t0
     if not after <= info["spread_before"] * (1.0 + SPREAD_ROUNDING):
         # The sweeps lower an energy of every outlying edge, not the spread itself: on about 1 in
