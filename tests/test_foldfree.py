@@ -17,6 +17,7 @@ from conftest import regions_with_corners, smooth_quad_sides
 
 REGIONS = regions_with_corners()
 TIE = Path(__file__).parent / "data" / "regions" / "roache-tie.json"
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "patterns"
 
 
 def _folded(points: np.ndarray, dim: int) -> int:
@@ -450,8 +451,7 @@ def test_after_a_coarser_grid_only_the_poor_cells_neighbourhoods_are_smoothed(mo
     assert total[default] < 0.5 * total[1.01], total
 
 
-@pytest.mark.skipif(not (Path(__file__).resolve().parents[2] / "shared" / "patterns").is_dir(),
-                    reason="../shared/patterns is not here")
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/patterns is not here")
 def test_an_active_set_whose_first_sweeps_add_folds_is_given_up(monkeypatch):
     """A real piece (fs_wahid_layout.svg, piece 4, at the default 10 mm edges) whose poor cells'
     margin gathers folds in its first ``GIVE_UP_SWEEPS`` sweeps (220 -> 286 folded corners) gives
@@ -462,7 +462,7 @@ def test_an_active_set_whose_first_sweeps_add_folds_is_given_up(monkeypatch):
     from clothgrid.pipeline import generate_piece
     from clothgrid.readers import read_pieces
 
-    src = Path(__file__).resolve().parents[2] / "shared" / "patterns" / "fs_wahid_layout.svg"
+    src = SHARED / "fs_wahid_layout.svg"
     piece = next(p for p in read_pieces(src) if p.name == "4")
     length = generate_piece(piece, edge_length="10mm", functional="length")
     given, info = ff.relax(length.points, dim=length.dim)
@@ -475,8 +475,7 @@ def test_an_active_set_whose_first_sweeps_add_folds_is_given_up(monkeypatch):
     assert _folded(given, length.dim) == 0
 
 
-@pytest.mark.skipif(not (Path(__file__).resolve().parents[2] / "shared" / "patterns").is_dir(),
-                    reason="../shared/patterns is not here")
+@pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/patterns is not here")
 def test_the_wide_active_set_is_not_given_up():
     """Only the narrow set is given up early: a GarmentCode front torso at 2 mm edges (628 folded
     cells in its length grid) gives its narrow set up and still untangles, where giving the wide
@@ -484,7 +483,7 @@ def test_the_wide_active_set_is_not_given_up():
     from clothgrid.pipeline import generate_piece
     from clothgrid.readers import read_pieces
 
-    src = Path(__file__).resolve().parents[2] / "shared" / "patterns" / "gcn_rand_L12WU7204Q_specification.json"
+    src = SHARED / "gcn_rand_L12WU7204Q_specification.json"
     piece = next(p for p in read_pieces(src) if p.name == "left_ftorso")
     grid = generate_piece(piece, edge_length="2mm")
     assert grid.info["folded_before"] > 0 and grid.info["folded"] == 0 == quality(grid).folded

@@ -434,6 +434,18 @@ def _interior_nodes(nu: int, nv: int) -> np.ndarray:
     return np.argwhere(np.ones((nu - 2, nv - 2), bool)).astype(np.int64) + 1
 
 
+def _has_coarser(nu: int, nv: int) -> bool:
+    """Whether every node of an ``nu x nv`` grid is untangled from the grid of every other line
+    first (:data:`COARSE_RELAX`, :func:`_relax_all`)."""
+    return min(nu, nv) >= COARSE_RELAX
+
+
+def _smooth(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], sweeps: int = RELAX_SWEEPS) -> None:
+    """Smoothing sweeps (``delta`` :data:`DELTA_SMOOTH`) over ``nodes``, counted in ``stats``."""
+    done, _ = _sweeps(Xs, nodes, DELTA_SMOOTH ** 2, sweeps, 1e-3)
+    stats["sweeps"] += int(done)
+
+
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
     """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells)."""
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
@@ -531,7 +543,8 @@ def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable
     from .foldfree_kernels import corner_min
 
     nu, nv = Xs.shape[:2]
-    if min(nu, nv) >= COARSE_RELAX:
+    coarser = _has_coarser(nu, nv)
+    if coarser:
         ic, jc = _every_other(nu), _every_other(nv)
         Xc = np.ascontiguousarray(Xs[np.ix_(ic, jc)])
         poor = _poor_cells(Xc, POOR_SINE)
@@ -540,8 +553,7 @@ def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable
             _relax_scaled(Xc, poor, stats, say, MARGIN, False, False, coarse=True)
         smoothed = corner_min(Xc, True)[1] == 0
         if smoothed:       # its low frequencies, at a quarter of the finer grid's cost (SMOOTH_MARGIN)
-            done, _ = _sweeps(Xc, _interior_nodes(len(ic), len(jc)), DELTA_SMOOTH ** 2, RELAX_SWEEPS, 1e-3)
-            stats["sweeps"] += int(done)
+            _smooth(Xc, _interior_nodes(len(ic), len(jc)), stats)
         stats["levels"] = stats.get("levels", 1) + 1
         kept = Xs[1:-1, 1:-1].copy()
         Xs[1:-1, 1:-1] = _prolong(Xc, ic, jc, Xs)[1:-1, 1:-1]
@@ -561,7 +573,7 @@ def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable
     nodes = _interior_nodes(nu, nv)
     # after a coarser grid's start that failed, the strict stall rule (a wild outline: its count
     # rose from the start and fell by a few corners a round, for all 2 * RELAX_ROUNDS rounds)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse or min(nu, nv) >= COARSE_RELAX)
+    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse or coarser)
     say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
     return bad, False
 
@@ -579,7 +591,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
     # the narrow set may be given up early where a coarser grid is to come (GIVE_UP_SWEEPS)
     jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS,
-                              give_up=not (whole or coarse) and min(nu, nv) >= COARSE_RELAX)
+                              give_up=not (whole or coarse) and _has_coarser(nu, nv))
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and retry:
         # Failed rounds can leave more folds than they found (the all-node untangling then took
@@ -596,8 +608,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
         if from_smoothed:        # the coarser grid's smoothing did the rest (SMOOTH_MARGIN)
             smooth = _active_nodes(_poor_cells(Xs, SMOOTH_SINE), SMOOTH_MARGIN)
     if bad == 0 and len(smooth):
-        done, _ = _sweeps(Xs, smooth, DELTA_SMOOTH ** 2, 8 if quick else RELAX_SWEEPS, 1e-3)
-        stats["sweeps"] += int(done)
+        _smooth(Xs, smooth, stats, 8 if quick else RELAX_SWEEPS)
     return nodes
 
 
