@@ -213,7 +213,14 @@ def test_auto_uses_multigrid_on_large_grids(rng, monkeypatch):
 def test_memory_estimate_covers_multigrid():
     from clothgrid.memory import estimate_bytes
 
-    assert estimate_bytes("fdm", 4096, 4096) > estimate_bytes("multigrid", 4096, 4096) > estimate_bytes("jacobi", 4096, 4096)
+    n = 4096 * 4096
+    sep = estimate_bytes("multigrid", 4096, 4096, separable=True)
+    assert estimate_bytes("fdm", 4096, 4096) > sep > (24 + 8 * 3) * n     # at least the grid and its planes
+    # per-edge weights: their arrays, the stencils, and conjugate gradients' three float64 vectors
+    # of every coordinate (where V-cycles are slow) come on top
+    for coords in (2, 3):
+        assert (estimate_bytes("multigrid", 4096, 4096, coords=coords)
+                - estimate_bytes("multigrid", 4096, 4096, coords=coords, separable=True)) >= (16 + 24 * coords) * n
 
 
 def test_small_pages_holds_numpy_huge_pages_off_and_restores(monkeypatch):

@@ -153,7 +153,7 @@ def test_the_grids_kept_for_writing_count_in_the_later_pieces_memory(tmp_path, m
                    '<rect id="a" x="0" y="0" width="100" height="100"/>'
                    '<rect id="b" x="150" y="0" width="100" height="100"/></svg>')
     nodes = 1001 * 1001
-    need = memory.estimate_bytes("multigrid", 1001, 1001)
+    need = memory.estimate_bytes("multigrid", 1001, 1001, coords=2, separable=True)   # as the pieces ask
     # room for one grid and its solve, not for a second beside the first one's kept result
     monkeypatch.setattr(memory, "available_bytes", lambda: int((need + 0.5 * memory.KEPT_BYTES_PER_NODE * nodes) / 0.9))
     jobs = read_jobs(svg, [tmp_path / "{piece}.npz"], options=GridOptions(edge_length="0.1mm", solver="multigrid"))

@@ -16,7 +16,8 @@ solver:
   parity planes (8 a coordinate) throughout; the float32 coarse levels (8 a coordinate) and the
   line solves' scratch live in the grid's memory while its contents are dead (:class:`Arena`),
   only what does not fit there comes on top. Weights without a separable form add their arrays
-  (16 bytes a node), the stencils (56) and the barrier solve's one-coordinate operations (24).
+  (16 bytes a node), the stencils (56), the barrier solve's one-coordinate operations (24) and
+  conjugate gradients' three vectors (24 a coordinate).
 
 The estimate printed before a solve is the larger of the solve's peak (``outputs=False``: what
 :func:`clothgrid.generate` holds) and the outputs' (the grid, uv and quads of an output file,
@@ -147,7 +148,11 @@ def multigrid_bytes(nu: int, nv: int, coords: int = 3, separable: bool = False) 
     # weights without a separable form: their arrays (16), the stencils, and the barrier solve's own
     # operations (one coordinate: start grid, right-hand side, parity planes and coarse levels in fresh
     # memory, 24 more at its peak: measured 0.571 GB above the start at 2048^2 against 0.470 without it)
-    extra = 0 if separable else 40 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
+    # and conjugate gradients' three level-0 vectors where V-cycles are slow (float64, every
+    # coordinate: solvers.multigrid.ConjugateGradients; the barrier solve's three, one coordinate,
+    # are freed before)
+    extra = 0 if separable else (40 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
+                                 + 24 * coords * n)
     # the coarse levels and scratch live in the grid's memory (an Arena over it), what does not fit beside
     return grid + planes + max(0, held - grid) + extra
 

@@ -777,11 +777,105 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
     return xe, xo
 
 
+# Conjugate gradients' vector operations on level 0 (CpuMultigrid.vector and what follows it). A
+# vector is a pair of parity planes like the iterate's, its boundary ring zero; every sum is taken
+# row by row into a per-row array and added up in order, so the results do not depend on threads.
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _apply5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, sign, oute, outo):
+    """``out = sign (b - A x)`` on level 0's interior nodes (the ring of ``out`` is not written);
+    returns ``x . out`` per coordinate, over the interior nodes."""
+    k, nu = xe.shape[0], xe.shape[1]
+    part = np.zeros((nu, k))
+    for i in numba.prange(1, nu - 1):
+        for p in range(2):
+            m_lo, m_hi = _line_range(nv, p)
+            n = m_hi - m_lo
+            if n <= 0:
+                continue
+            ob = 0 if p == 1 else -1
+            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
+            Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
+            out = oute if p == 0 else outo
+            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+            elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
+            for c in range(k):
+                x, t, o = xown[c], xoth[c], out[c, i, a:z]
+                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
+                for q in range(n):
+                    o[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                            + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+                if has_b:
+                    bi = (be if p == 0 else bo)[c, i, a:z]
+                    for q in range(n):
+                        o[q] += bi[q]
+                s = 0.0
+                for q in range(n):
+                    o[q] *= sign
+                    s += x0[q] * o[q]
+                part[i, c] += s
+    res = np.zeros(k)
+    for i in range(nu):
+        for c in range(k):
+            res[c] += part[i, c]
+    return res
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _dot(ae, ao, be, bo):
+    """``a . b`` per coordinate of two level-0 vectors (parity planes)."""
+    k, nu = ae.shape[0], ae.shape[1]
+    part = np.zeros((nu, k))
+    for i in numba.prange(nu):
+        for c in range(k):
+            s = 0.0
+            for m in range(ae.shape[2]):
+                s += ae[c, i, m] * be[c, i, m]
+            for m in range(ao.shape[2]):
+                s += ao[c, i, m] * bo[c, i, m]
+            part[i, c] = s
+    res = np.zeros(k)
+    for i in range(nu):
+        for c in range(k):
+            res[c] += part[i, c]
+    return res
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _axpy(xe, xo, re, ro, pe, po, qe, qo, alpha):
+    """``x += alpha p``, ``r -= alpha q`` (``alpha`` per coordinate; ``p``, ``q`` zero on the ring, so
+    the boundary nodes of ``x`` keep their bits)."""
+    k, nu = xe.shape[0], xe.shape[1]
+    for i in numba.prange(nu):
+        for c in range(k):
+            a = alpha[c]
+            for m in range(xe.shape[2]):
+                xe[c, i, m] += a * pe[c, i, m]
+                re[c, i, m] -= a * qe[c, i, m]
+            for m in range(xo.shape[2]):
+                xo[c, i, m] += a * po[c, i, m]
+                ro[c, i, m] -= a * qo[c, i, m]
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _xpay(pe, po, ze, zo, beta):
+    """``p = z + beta p`` (``beta`` per coordinate)."""
+    k, nu = pe.shape[0], pe.shape[1]
+    for i in numba.prange(nu):
+        for c in range(k):
+            g = beta[c]
+            for m in range(pe.shape[2]):
+                pe[c, i, m] = ze[c, i, m] + g * pe[c, i, m]
+            for m in range(po.shape[2]):
+                po[c, i, m] = zo[c, i, m] + g * po[c, i, m]
+
+
 _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, error_model="numpy"))
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
                          "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict5u_full",
                          "_restrict_rhs",
-                         "_prolong_full", "_merge_grid", "_band_steps5u")}
+                         "_prolong_full", "_merge_grid", "_band_steps5u", "_apply5", "_dot", "_axpy", "_xpay")}
 
 
 def _pick(name: str, nodes: int, finest: int):
@@ -877,6 +971,8 @@ class CpuMultigrid:
         self.sep = [False]
         #: per level, the row parity solved last if nothing it reads has changed since (see smooth)
         self._solved: list[int | None] = [None] * self.levels
+        #: the iterate, its right-hand side and has_b while conjugate gradients bind others (bind)
+        self._own: tuple | None = None
         dt = np.float32
         # The line solves' scratch (Thomas factors of one block of rows per thread), allocated
         # once: a fresh 1-2 MB array per block and sweep cost page faults, up to half a sweep's time.
@@ -1032,6 +1128,62 @@ class CpuMultigrid:
                                                      barriers.kv[1::2].copy(), barriers.cost,
                                                      float(barriers.zmax), float(barriers.reference) ** 2,
                                                      barriers.buckets)
+
+    # ---- conjugate gradients around the V-cycle (clothgrid.solvers.multigrid.ConjugateGradients)
+
+    def vector(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """A new level-0 vector for conjugate gradients: parity planes like the iterate's, zero (its
+        boundary ring stays zero); None for a 9-point level 0 (the heat solver's time steps)."""
+        if self.nine0:
+            return None
+        xe, xo = self._own[0] if self._own else self.x[0]
+        return np.zeros(xe.shape), np.zeros(xo.shape)
+
+    def _level0(self):
+        xe, xo = self._own[0] if self._own else self.x[0]
+        be, bo = self._own[1] if self._own else self.b[0]
+        has_b = self._own[2] if self._own else self._has_b
+        return xe, xo, be, bo, has_b
+
+    def residual(self, r: tuple[np.ndarray, np.ndarray]) -> None:
+        """``r = b - A x`` of the iterate on the interior nodes."""
+        xe, xo, be, bo, has_b = self._level0()
+        self._kernel("_apply5", 0)(xe, xo, be, bo, *self.st[0][:4], self.nv[0], has_b, 1.0, *r)
+
+    def apply(self, p: tuple[np.ndarray, np.ndarray], q: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """``q = A p`` (``p`` zero on the ring); returns ``p . q`` per coordinate."""
+        return self._kernel("_apply5", 0)(*p, *p, *self.st[0][:4], self.nv[0], False, -1.0, *q)   # no b read
+
+    def dot(self, a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """``a . b`` per coordinate."""
+        return self._kernel("_dot", 0)(*a, *b)
+
+    def axpy(self, r: tuple[np.ndarray, np.ndarray], p: tuple[np.ndarray, np.ndarray],
+             q: tuple[np.ndarray, np.ndarray], alpha: np.ndarray) -> None:
+        """``x += alpha p`` (the iterate), ``r -= alpha q``; ``alpha`` per coordinate."""
+        xe, xo = self._own[0] if self._own else self.x[0]
+        self._solved[0] = None
+        self._kernel("_axpy", 0)(xe, xo, *r, *p, *q, np.ascontiguousarray(alpha, dtype=np.float64))
+
+    def xpay(self, p: tuple[np.ndarray, np.ndarray], z: tuple[np.ndarray, np.ndarray], beta: np.ndarray) -> None:
+        """``p = z + beta p``; ``beta`` per coordinate."""
+        self._kernel("_xpay", 0)(*p, *z, np.ascontiguousarray(beta, dtype=np.float64))
+
+    def bind(self, r: tuple[np.ndarray, np.ndarray] | None, z: tuple[np.ndarray, np.ndarray] | None) -> None:
+        """Until ``bind(None, None)``, level 0's right-hand side is ``r`` and its iterate ``z``, set to
+        zero: a V-cycle then makes ``z = M r``. ``bind(None, None)`` brings back the iterate and its
+        right-hand side."""
+        if r is None:
+            if self._own:
+                self.x[0], self.b[0], self._has_b = self._own
+                self._own = None
+        else:
+            if not self._own:
+                self._own = (self.x[0], self.b[0], self._has_b)
+            z[0].fill(0.0)
+            z[1].fill(0.0)
+            self.x[0], self.b[0], self._has_b = z, r, True
+        self._solved[0] = None
 
     def _residual9(self) -> np.ndarray:
         """``b - A x`` of a 9-point level 0 as an ``(nu, nv, k)`` float64 array (zero on the boundary)."""

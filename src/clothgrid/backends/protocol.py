@@ -34,7 +34,7 @@ from ..weights import Weights
 if TYPE_CHECKING:   # annotations only: heat_multigrid loads Numba
     from ..heat_multigrid import HeatHierarchy
 
-__all__ = ["Backend", "MultigridOps", "JacobiSweeper", "HeatOps", "ProblemData", "members", "BACKEND_MEMBERS",
+__all__ = ["Backend", "MultigridOps", "NoVectors", "JacobiSweeper", "HeatOps", "ProblemData", "members", "BACKEND_MEMBERS",
            "MULTIGRID_OPERATIONS", "JACOBI_OPERATIONS", "HEAT_OPERATIONS"]
 
 
@@ -112,11 +112,75 @@ class MultigridOps(Protocol):
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides)."""
 
+    # Conjugate gradients around the V-cycle (clothgrid.solvers.multigrid.ConjugateGradients) use
+    # level-0 vectors of the backend's own (zero on the boundary ring, ``k`` coordinates); scalars
+    # are per coordinate, ``(k,)`` float64 arrays.
+
+    def vector(self) -> Any | None:
+        """A new level-0 vector, zero; None where the backend has none (then the solve takes
+        V-cycles only, and none of the operations below is called)."""
+
+    def residual(self, r: Any) -> None:
+        """``r = b - A x`` of level 0's iterate, on the interior nodes."""
+
+    def apply(self, p: Any, q: Any) -> np.ndarray:
+        """``q = A p`` on level 0; returns ``p . q`` per coordinate."""
+
+    def dot(self, a: Any, b: Any) -> np.ndarray:
+        """``a . b`` per coordinate."""
+
+    def axpy(self, r: Any, p: Any, q: Any, alpha: np.ndarray) -> None:
+        """``x += alpha p`` (level 0's iterate; its boundary nodes keep their bits), ``r -= alpha q``."""
+
+    def xpay(self, p: Any, z: Any, beta: np.ndarray) -> None:
+        """``p = z + beta p``."""
+
+    def bind(self, r: Any | None, z: Any | None) -> None:
+        """Make ``r`` level 0's right-hand side and ``z`` (set to zero) its iterate, so that a V-cycle
+        makes ``z = M r``; ``bind(None, None)`` brings back the iterate and right-hand side."""
+
     def synchronize(self) -> None:
         """Wait until the device has done the work issued so far (a no-op where nothing is queued)."""
 
     def extra(self) -> dict[str, Any]:
         """Keys the solve adds to its result's info (e.g. the gl backend's pass counts); ``{}`` if none."""
+
+
+class NoVectors:
+    """The conjugate-gradient operations of a :class:`MultigridOps` without level-0 vectors (the gl
+    and cuda backends' for now): :meth:`vector` is None, so the solve keeps V-cycles and calls none
+    of the others."""
+
+    def vector(self) -> None:
+        """None: no level-0 vectors on this backend."""
+        return None
+
+    def _missing(self) -> NotImplementedError:
+        return NotImplementedError(f"{type(self).__name__} has no level-0 vectors (vector() is None)")
+
+    def residual(self, r: Any) -> None:
+        """Not on this backend."""
+        raise self._missing()
+
+    def apply(self, p: Any, q: Any) -> np.ndarray:
+        """Not on this backend."""
+        raise self._missing()
+
+    def dot(self, a: Any, b: Any) -> np.ndarray:
+        """Not on this backend."""
+        raise self._missing()
+
+    def axpy(self, r: Any, p: Any, q: Any, alpha: np.ndarray) -> None:
+        """Not on this backend."""
+        raise self._missing()
+
+    def xpay(self, p: Any, z: Any, beta: np.ndarray) -> None:
+        """Not on this backend."""
+        raise self._missing()
+
+    def bind(self, r: Any | None, z: Any | None) -> None:
+        """Not on this backend."""
+        raise self._missing()
 
 
 @runtime_checkable

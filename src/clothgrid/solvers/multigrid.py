@@ -23,6 +23,15 @@ weights and 0.12-0.16 with the paper's, independent of the size
 counts work, not only ``2^k + 1``. Iteration stops on the guaranteed bound of
 :mod:`clothgrid.solvers.bounds` (``stop="error"``).
 
+Per-edge weights with jumps (four weights a node: a stiff patch in a soft
+piece) defeat linear interpolation: V-cycles slow to 0.5 a cycle at 10:1 and
+stall (0.87-0.94) at 100:1 and 10^4:1. Where a solve's V-cycles converge
+slower than :data:`KRYLOV_SWITCH` a cycle, it goes on with conjugate gradients
+preconditioned by one V-cycle from zero (:class:`ConjugateGradients`, on
+backends whose operations supply level-0 vectors), which reaches the bound in
+tens of iterations where V-cycles would take hundreds; the stopping rule and
+its bound are the same, on the true residual of the iterate.
+
 The hierarchy is plain NumPy data (:class:`~clothgrid.multigrid_levels.Level`,
 built once on the CPU by :func:`~clothgrid.multigrid_levels.build_hierarchy`);
 a backend turns it into a :class:`~clothgrid.backends.protocol.MultigridOps`
@@ -79,6 +88,111 @@ def vcycle(ops: MultigridOps, pre: int = 1, post: int = 1, top: int = 0) -> None
         ops.prolong(lvl)
         for _ in range(post):
             ops.smooth(lvl, reverse=True)
+
+
+#: A solve with per-edge weights whose last V-cycle lowered ``max|D^-1 r|`` by less than this
+#: factor (after two or more) goes on with :class:`ConjugateGradients`. The paper's weights times a
+#: smooth field converge by 0.05 a cycle and keep V-cycles; 8 x 8 blocks of 10:1 by 0.30 at the
+#: second cycle, slowing to 0.5 (19 cycles at 1024^2), 100:1 by 0.87.
+KRYLOV_SWITCH = 0.25
+
+#: Conjugate gradients start again from the true residual when the stopping figure has not fallen
+#: for this many iterations (rounding: the float32 coarse levels make the preconditioner only
+#: nearly symmetric).
+KRYLOV_RESTART = 4
+
+
+class ConjugateGradients:
+    """Conjugate gradients on level 0 of ``ops``, preconditioned by one V-cycle from zero.
+
+    Each coordinate is its own system with the same matrix, so the scalars are per coordinate
+    (arrays). The iterate is ``ops``' own: :meth:`step` updates it once (``x += alpha p``), after
+    which ``ops.max_step`` and ``ops.solution`` read it as after a V-cycle. Three level-0 vectors:
+    the residual ``r``, the direction ``p``, and ``w`` holding the preconditioned residual ``z``
+    and then ``q = A p``.
+
+    Parameters
+    ----------
+    ops : MultigridOps
+        Operations whose ``vector()`` is not None.
+    """
+
+    def __init__(self, ops: MultigridOps, r: object):
+        self.ops = ops
+        self.r, self.p, self.w = r, ops.vector(), ops.vector()
+        self.rz: np.ndarray | None = None
+        self.iterations = self.restarts = 0
+
+    @classmethod
+    def on(cls, ops: MultigridOps) -> "ConjugateGradients | None":
+        """Conjugate gradients on ``ops``, or None where its ``vector()`` is None (the backend has
+        no level-0 vectors: the solve keeps V-cycles)."""
+        r = ops.vector()
+        return None if r is None else cls(ops, r)
+
+    def _precondition(self) -> None:
+        self.ops.bind(self.r, self.w)
+        vcycle(self.ops)
+        self.ops.bind(None, None)
+
+    def restart(self) -> None:
+        """Start again from the iterate's true residual (the next :meth:`step`)."""
+        self.rz = None
+
+    def step(self) -> None:
+        """One iteration: the next direction (from the true residual after a restart), then
+        ``x += alpha p``."""
+        ops = self.ops
+        if self.rz is None:
+            ops.residual(self.r)
+            self._precondition()
+            self.rz = ops.dot(self.r, self.w)
+            ops.xpay(self.p, self.w, np.zeros_like(self.rz))         # p = z
+            self.restarts += self.iterations > 0
+        else:
+            self._precondition()
+            rz = ops.dot(self.r, self.w)
+            beta = np.divide(rz, self.rz, out=np.zeros_like(rz), where=self.rz > 0)
+            ops.xpay(self.p, self.w, beta)
+            self.rz = rz
+        pq = ops.apply(self.p, self.w)                                # w = q = A p
+        alpha = np.divide(self.rz, pq, out=np.zeros_like(pq), where=pq > 0)
+        ops.axpy(self.r, self.p, self.w, alpha)
+        self.iterations += 1
+
+
+def _iterate(ops: MultigridOps, measure: Callable[[], tuple[float, float]], limit: float, max_iter: int,
+             krylov: bool, steps: list[float], on_cycle: Callable[[float], None] | None = None
+             ) -> tuple[float, ConjugateGradients | None]:
+    """V-cycles (then, for ``krylov``, conjugate gradients once they are slow: :data:`KRYLOV_SWITCH`)
+    until the figure of ``measure()`` (``(step, figure)``, after each iteration) is at most ``limit``,
+    or ``max_iter`` iterations in all; appends each step to ``steps``. Returns the last figure and
+    the conjugate gradients that ran (None: V-cycles only). ``on_cycle(figure)`` after each
+    iteration that goes on."""
+    figure = math.inf
+    cg: ConjugateGradients | None = None
+    switched = not krylov
+    best, since = math.inf, 0
+    while len(steps) < max_iter:
+        if not switched and len(steps) >= 2 and steps[-1] > KRYLOV_SWITCH * steps[-2]:
+            switched = True
+            cg = ConjugateGradients.on(ops)
+        if cg is None:
+            vcycle(ops)
+        else:
+            cg.step()
+        step, figure = measure()
+        steps.append(step)
+        if figure <= limit:
+            break
+        if cg is not None:
+            best, since = (figure, 0) if figure < best else (best, since + 1)
+            if since >= KRYLOV_RESTART:
+                cg.restart()
+                best, since = figure, 0
+        if on_cycle is not None:
+            on_cycle(figure)
+    return figure, cg
 
 
 def fmg(ops: MultigridOps) -> None:
@@ -208,18 +322,17 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     t_cycles = time.perf_counter()
     if FULL_MULTIGRID_START:
         fmg(ops)
-    steps = []
-    figure = math.inf
+    steps: list[float] = []
     last_report = time.perf_counter()
-    while len(steps) < max_iter:
-        vcycle(ops)
-        step, figure = measure()
-        steps.append(step)
-        if figure <= limit:
-            break
+
+    def report(figure: float) -> None:
+        nonlocal last_report
         if progress and (now := time.perf_counter()) - last_report >= progress_seconds:
             progress(f"multigrid: {len(steps)} cycles, error bound {figure / problem.scale:.3g} (tol {tol:.3g})")
             last_report = now
+
+    # conjugate gradients where V-cycles are slow: per-edge weights (unit stencils converge by 0.05-0.16)
+    figure, cg = _iterate(ops, measure, limit, max_iter, not problem.weights.unit_stencil, steps, report)
     # max_step reads one float back from the device: the cycles have finished on it.
     cycles = time.perf_counter() - t_cycles
     t_download = time.perf_counter()
@@ -238,6 +351,8 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
              "download_seconds": time.perf_counter() - t_download,
              "convergence_factor": float(np.exp(np.mean(np.log(factors[-3:])))) if factors else None,
              "steps": [s / problem.scale for s in steps]}
+    if cg is not None:          # the iterations after the first V-cycles were conjugate gradients'
+        extra.update(cg_iterations=cg.iterations, cg_restarts=cg.restarts)
     extra.update(ops.extra())   # e.g. the gl backend's pass counts and timings ({} on the cpu)
     extra["bound_method"] = method      # "band barriers" or "max step" (max|D^-1 r| max z)
     estimate = figure if stop == "error" else (steps[-1] * zmax if steps else math.inf)
@@ -260,6 +375,8 @@ def _ring(r: np.ndarray, put: tuple | None = None) -> tuple | None:
 #: it took a V-cycle more after the full-multigrid start (delta 0.08 there on a smooth field at
 #: 1024^2: 17 ms of a 200 ms solve), and the looser ``max z`` did not change a solve's cycles.
 BARRIER_DELTA = 0.1
+#: Most iterations of the barrier solve (V-cycles, then conjugate gradients where they are slow).
+BARRIER_MAX_ITER = 200
 
 
 def _barrier_solver(problem: Problem, backend: Backend, levels: list[Level]) -> Callable[[np.ndarray], np.ndarray]:
@@ -278,11 +395,11 @@ def _barrier_solver(problem: Problem, backend: Backend, levels: list[Level]) -> 
         if FULL_MULTIGRID_START:
             fmg(ops)        # from zero, plain V-cycles took 4 to reach delta <= 0.01 at 1024^2; after it, 1-2
             delta = ops.max_step()   # relative to |D^-1 D 1| = 1
-        for _ in range(200):
-            if delta <= BARRIER_DELTA:
-                break
-            vcycle(ops)
-            delta = ops.max_step()
+        if not delta <= BARRIER_DELTA:
+            def measure() -> tuple[float, float]:
+                step = ops.max_step()
+                return step, step
+            delta, _ = _iterate(ops, measure, BARRIER_DELTA, BARRIER_MAX_ITER, True, [])
         if not delta < 1:
             raise InputError("multigrid could not bound the error for these weights: use solver 'direct'")
         return ops.solution()[1:-1, 1:-1, 0].ravel() / (1.0 - delta)

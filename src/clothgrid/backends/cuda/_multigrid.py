@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ...multigrid_levels import Level
+from ..protocol import NoVectors
 from . import _kernels as K
 from ._sim import array_module, kernel_array
 
@@ -72,7 +73,7 @@ def _coarse_stencil(level: Level, xp: Any, p: int) -> tuple:
     return tuple(xp.asarray(np.ascontiguousarray(a[:, p::2])) for a in (level.C, level.E, level.N, level.NE, level.NW))
 
 
-class CudaMultigrid:
+class CudaMultigrid(NoVectors):
     """Multigrid operations on a GPU (CuPy arrays), or on Numba's CUDA simulator (NumPy arrays).
 
     Parameters

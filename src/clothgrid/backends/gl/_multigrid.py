@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ...multigrid_levels import Level
+from ..protocol import NoVectors
 from ._device import Level0, device
 
 __all__ = ["GLMultigrid", "stencil_textures"]
@@ -123,7 +124,7 @@ class _Level:
         return {"t1": self.t1, "t2": self.t2, "t3": self.t3, "b": self.b}
 
 
-class GLMultigrid:
+class GLMultigrid(NoVectors):
     """:class:`~clothgrid.backends.protocol.MultigridOps` on the GL device.
 
     Parameters
