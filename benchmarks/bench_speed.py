@@ -196,10 +196,11 @@ def paper_jacobi_row(b, n: int, ref, row, direct: float | None) -> None:
         f"direct / this {direct / sec:.0f}x" if direct else "")
 
 
-def field_weights(n: int, kind: str):
+def field_weights(n: int, kind: str, contrast: float = 10.0):
     """Per-edge weights (the paper's "four weights a node"): the paper's times a smooth field, or
-    times 8 x 8 blocks alternating 10 and 1 (coefficient jumps, where semi-coarsening's linear
-    interpolation converges at about 0.5 a cycle instead of 0.05-0.15)."""
+    times 8 x 8 blocks alternating ``contrast`` and 1 (coefficient jumps, where semi-coarsening's
+    linear interpolation converges at about 0.5 a cycle at 10:1 instead of 0.05-0.15, and stalls at
+    100:1 and 10^4:1: the solve goes on with conjugate gradients)."""
     from clothgrid.weights import Weights
 
     pw = make_weights("paper", n, n)
@@ -208,7 +209,7 @@ def field_weights(n: int, kind: str):
     if kind == "smooth":
         f = np.exp(np.sin(6 * u) * np.cos(5 * v))
     else:
-        f = np.where((np.floor(8 * u) + np.floor(8 * v)) % 2 == 0, 10.0, 1.0)
+        f = np.where((np.floor(8 * u) + np.floor(8 * v)) % 2 == 0, contrast, 1.0)
     return Weights(pw.wu * 0.5 * (f[:-1] + f[1:]), pw.wv * 0.5 * (f[:, :-1] + f[:, 1:]))
 
 
@@ -261,14 +262,19 @@ def main() -> None:
             paper_jacobi_row(b, n, ref, row, direct)
         for weights, what in (("paper", "paper weights"), ("uniform", "uniform weights"),
                               (field_weights(n, "smooth"), "four weights a node: paper x a smooth field e^(sin 6u cos 5v)"),
-                              (field_weights(n, "blocks"), "four weights a node: paper x 8x8 blocks of 10:1")):
+                              (field_weights(n, "blocks"), "four weights a node: paper x 8x8 blocks of 10:1"),
+                              (field_weights(n, "blocks", 100.0), "four weights a node: paper x 8x8 blocks of 100:1"),
+                              (field_weights(n, "blocks", 1e4), "four weights a node: paper x 8x8 blocks of 10^4:1")):
             g, _ = best(lambda: clothgrid.generate(b, solver="multigrid", weights=weights), args.repeat)
             times = [clothgrid.generate(b, solver="multigrid", weights=weights).info["solve_seconds"]
                      for _ in range(args.repeat)]
             sec = min(times + [g.info["solve_seconds"]])
             ok = "" if g.info["error_estimate"] <= TOL else " NOT CONVERGED"
-            row(f"multigrid solve, {what} (bound {g.info['error_estimate']:.2g}{ok}, "
-                f"{g.info['iterations']} V-cycles)", sec, f"direct / this {direct / sec:.0f}x" if direct else "")
+            cg = g.info.get("cg_iterations")
+            how = f"{g.info['iterations']} V-cycles" if cg is None else \
+                f"{g.info['iterations'] - cg} V-cycles, {cg} conjugate-gradient iterations"
+            row(f"multigrid solve, {what} (bound {g.info['error_estimate']:.2g}{ok}, {how})", sec,
+                f"direct / this {direct / sec:.0f}x" if direct else "")
         if args.cpu_time:
             cpu_rows(b, n, args.repeat, args.sweeps, row)
         if args.only_solves:

@@ -182,6 +182,133 @@ def test_per_edge_weights_bound_is_guaranteed(rng):
     assert err <= g.info["error_estimate"] <= 1e-6
 
 
+def jump_weights(rng, nu, nv, contrast, cells=8):
+    """The paper's weights times random blocks of ``contrast`` and 1 (a stiff patchwork: coefficient
+    jumps, where the V-cycles' linear interpolation stalls)."""
+    wu, wv = paper_weights(nu, nv)
+    pick = rng.random((cells, cells)) < 0.5
+    f = np.where(pick[(np.arange(nu) * cells) // nu][:, (np.arange(nv) * cells) // nv], contrast, 1.0)
+    return wu * 0.5 * (f[:-1] + f[1:]), wv * 0.5 * (f[:, :-1] + f[:, 1:])
+
+
+@pytest.mark.parametrize("contrast", [100.0, 1e4])
+def test_conjugate_gradients_reach_the_bound_on_coefficient_jumps(rng, monkeypatch, contrast):
+    """Random 8 x 8 blocks of 100:1 and 10^4:1 at 97 x 81: V-cycles alone stall (104-118 cycles at
+    100:1; at 10^4:1 the barrier solve never bounds ``max z``); conjugate gradients around them
+    reach the bound in 18-43 iterations (seeds 0-2), the barrier solve's too, and the bound holds
+    against an exact solve of fresh boundaries and weights."""
+    import clothgrid.solvers.multigrid as mg
+
+    nu, nv = 97, 81
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    wu, wv = jump_weights(rng, nu, nv, contrast)
+    g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid", max_iter=60)
+    assert g.info["converged"] and g.info["cg_iterations"] > 0
+    err = max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size)
+    assert err <= g.info["error_estimate"] <= TOL
+    monkeypatch.setattr(mg, "KRYLOV_SWITCH", np.inf)          # V-cycles only
+    with pytest.raises(clothgrid.ClothgridError, match="did not reach|could not bound"):
+        clothgrid.generate(b, weights=(wu, wv), solver="multigrid", max_iter=60)
+
+
+def test_smooth_per_edge_weights_keep_v_cycles(rng):
+    """Per-edge weights whose V-cycles converge fast (a smooth field) never switch."""
+    nu, nv = 65, 57
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    wu, wv = paper_weights(nu, nv)
+    u = np.linspace(0.0, 1.0, nu)[:, None]
+    v = np.linspace(0.0, 1.0, nv)[None, :]
+    f = np.exp(np.sin(6 * u) * np.cos(5 * v))
+    wu, wv = wu * 0.5 * (f[:-1] + f[1:]), wv * 0.5 * (f[:, :-1] + f[:, 1:])
+    g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid")
+    assert g.info["converged"] and "cg_iterations" not in g.info
+    assert max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size) <= g.info["error_estimate"]
+
+
+@pytest.mark.parametrize("shape", [(9, 7), (40, 33)])
+@pytest.mark.parametrize("k", [1, 3])
+def test_vector_operations_match_numpy(rng, shape, k):
+    """The cpu backend's conjugate-gradient operations against NumPy on the same nodes: residual and
+    A p against the sparse matrix, the dot products, axpy (the boundary nodes keep their bits), xpay,
+    and bind (a V-cycle on the bound vectors is the preconditioner, the iterate untouched)."""
+    from clothgrid.backends._cpu_multigrid import _merge_grid, _split_grid
+    from clothgrid.solvers.multigrid import vcycle
+
+    nu, nv = shape
+    wu, wv = random_weights(rng, nu, nv, 1.0)
+    levels = build_hierarchy(Weights(wu, wv))
+    x0 = rng.normal(size=(nu, nv, k))
+    rhs = rng.normal(size=(nu - 2, nv - 2, k))
+    ops = get_backend("cpu").multigrid(levels, x0, rhs)
+    A = interior_matrix(wu, wv)
+    full = lambda v: (lambda out: (_merge_grid(*v, out), out)[1])(np.empty((nu, nv, k)))   # noqa: E731
+
+    def planes(a):
+        v = ops.vector()
+        _split_grid(a, *v)
+        return v
+
+    def interior(a):
+        z = np.zeros((nu, nv, k))
+        z[1:-1, 1:-1] = a
+        return z
+
+    # b - A x with the boundary's couplings: A over all nodes, applied to x0, minus its interior rows
+    xin = x0[1:-1, 1:-1].reshape(-1, k)
+    bnd = x0.copy()
+    bnd[1:-1, 1:-1] = 0.0
+    r = ops.vector()
+    ops.residual(r)
+    lift = -(interior_matrix_full(wu, wv) @ bnd.reshape(-1, k))[interior_index(nu, nv)]
+    want = rhs.reshape(-1, k) + lift - A @ xin
+    assert np.allclose(full(r)[1:-1, 1:-1].reshape(-1, k), want, rtol=1e-12, atol=1e-12)
+    assert not full(r)[[0, -1]].any() and not full(r)[:, [0, -1]].any()
+    pa, qa = interior(rng.normal(size=(nu - 2, nv - 2, k))), rng.normal(size=(nu, nv, k))
+    p, q = planes(pa), planes(np.zeros((nu, nv, k)))
+    pq = ops.apply(p, q)
+    aq = A @ pa[1:-1, 1:-1].reshape(-1, k)
+    assert np.allclose(full(q)[1:-1, 1:-1].reshape(-1, k), aq, rtol=1e-12, atol=1e-12)
+    assert np.allclose(pq, (pa[1:-1, 1:-1].reshape(-1, k) * aq).sum(0), rtol=1e-12)
+    assert np.allclose(ops.dot(p, planes(qa)), (pa * qa).sum((0, 1)), rtol=1e-12)
+    alpha, beta = rng.normal(size=k), rng.normal(size=k)
+    rv, before = full(r), ops.solution()
+    ops.axpy(r, p, q, alpha)
+    after = ops.solution()
+    assert np.array_equal(after[[0, -1]], before[[0, -1]]) and np.array_equal(after[:, [0, -1]], before[:, [0, -1]])
+    assert np.allclose(after, before + alpha * pa, rtol=1e-12, atol=1e-12)
+    assert np.allclose(full(r), rv - alpha * full(q), rtol=1e-12, atol=1e-12)
+    z = planes(interior(rng.normal(size=(nu - 2, nv - 2, k))))
+    zv, pv = full(z), full(p)
+    ops.xpay(p, z, beta)
+    assert np.allclose(full(p), zv + beta * pv, rtol=1e-12, atol=1e-12)
+    # bind: the V-cycle runs on (r, z) from zero; afterwards the iterate is as it was
+    ops.bind(r, z)
+    vcycle(ops)
+    ops.bind(None, None)
+    assert np.array_equal(ops.solution(), after)
+    zero_x = np.zeros((nu, nv, k))
+    pre = get_backend("cpu").multigrid(levels, zero_x, full(r)[1:-1, 1:-1])
+    vcycle(pre)
+    assert np.array_equal(full(z), pre.solution())
+
+
+def interior_matrix_full(wu, wv):
+    """The graph Laplacian of the edge weights over all nodes."""
+    nu, nv = wv.shape[0], wu.shape[1]
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    rows, cols, vals = [], [], []
+    for a, b_, w in ((idx[:-1], idx[1:], wu), (idx[:, :-1], idx[:, 1:], wv)):
+        a, b_, w = a.ravel(), b_.ravel(), w.ravel()
+        rows += [a, b_, a, b_]
+        cols += [a, b_, b_, a]
+        vals += [w, w, -w, -w]
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nu * nv,) * 2)
+
+
+def interior_index(nu, nv):
+    return np.arange(nu * nv).reshape(nu, nv)[1:-1, 1:-1].ravel()
+
+
 def test_paper_rule_is_available_and_looser(rng):
     nu, nv = 65, 65
     b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
