@@ -164,12 +164,13 @@ class ConjugateGradients:
 
 
 def _iterate(ops: MultigridOps, measure: Callable[[], tuple[float, float]], limit: float, max_iter: int,
-             krylov: bool, steps: list[float], on_cycle: Callable[[float], None] | None = None
+             krylov: bool, steps: list[float],
+             on_cycle: Callable[[float, ConjugateGradients | None], None] | None = None
              ) -> tuple[float, ConjugateGradients | None]:
     """V-cycles (then, for ``krylov``, conjugate gradients once they are slow: :data:`KRYLOV_SWITCH`)
     until the figure of ``measure()`` (``(step, figure)``, after each iteration) is at most ``limit``,
     or ``max_iter`` iterations in all; appends each step to ``steps``. Returns the last figure and
-    the conjugate gradients that ran (None: V-cycles only). ``on_cycle(figure)`` after each
+    the conjugate gradients that ran (None: V-cycles only). ``on_cycle(figure, cg)`` after each
     iteration that goes on."""
     figure = math.inf
     cg: ConjugateGradients | None = None
@@ -193,7 +194,7 @@ def _iterate(ops: MultigridOps, measure: Callable[[], tuple[float, float]], limi
                 cg.restart()
                 best, since = figure, 0
         if on_cycle is not None:
-            on_cycle(figure)
+            on_cycle(figure, cg)
     return figure, cg
 
 
@@ -327,10 +328,11 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     steps: list[float] = []
     last_report = time.perf_counter()
 
-    def report(figure: float) -> None:
+    def report(figure: float, cg: ConjugateGradients | None) -> None:
         nonlocal last_report
         if progress and (now := time.perf_counter()) - last_report >= progress_seconds:
-            progress(f"multigrid: {len(steps)} cycles, error bound {figure / problem.scale:.3g} (tol {tol:.3g})")
+            what = "cycles" if cg is None else f"iterations ({cg.iterations} conjugate gradients)"
+            progress(f"multigrid: {len(steps)} {what}, error bound {figure / problem.scale:.3g} (tol {tol:.3g})")
             last_report = now
 
     # conjugate gradients where V-cycles are slow: per-edge weights (unit stencils converge by 0.05-0.16)
