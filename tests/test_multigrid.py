@@ -193,10 +193,11 @@ def jump_weights(rng, nu, nv, contrast, cells=8):
 
 @pytest.mark.parametrize("contrast", [100.0, 1e4])
 def test_conjugate_gradients_reach_the_bound_on_coefficient_jumps(rng, monkeypatch, contrast):
-    """Random 8 x 8 blocks of 100:1 and 10^4:1 at 97 x 81: V-cycles alone stall (104-118 cycles at
-    100:1; at 10^4:1 the barrier solve never bounds ``max z``); conjugate gradients around them
-    reach the bound in 18-43 iterations (seeds 0-2), the barrier solve's too, and the bound holds
-    against an exact solve of fresh boundaries and weights."""
+    """Random 8 x 8 patchworks of 100:1 and 10^4:1 at 97 x 81 (20 layouts measured): V-cycles alone
+    stall, 66-135 cycles at 100:1 and 167 to over 300 at 10^4:1, where the barrier solve may never
+    bound ``max z``; conjugate gradients around them reach the bound in 12-25 and 15-45 iterations
+    (at least 4x and 11x fewer), the barrier solve's too, and the bound holds against an exact
+    solve of fresh boundaries and weights."""
     import clothgrid.solvers.multigrid as mg
 
     nu, nv = 97, 81
@@ -207,8 +208,12 @@ def test_conjugate_gradients_reach_the_bound_on_coefficient_jumps(rng, monkeypat
     err = max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size)
     assert err <= g.info["error_estimate"] <= TOL
     monkeypatch.setattr(mg, "KRYLOV_SWITCH", np.inf)          # V-cycles only
-    with pytest.raises(clothgrid.ClothgridError, match="did not reach|could not bound"):
-        clothgrid.generate(b, weights=(wu, wv), solver="multigrid", max_iter=60)
+    try:
+        cycles = clothgrid.generate(b, weights=(wu, wv), solver="multigrid", max_iter=300).info["iterations"]
+    except clothgrid.ClothgridError as exc:                   # did not reach the bound, or no max z
+        assert "did not reach" in str(exc) or "could not bound" in str(exc)
+    else:
+        assert cycles >= 3 * g.info["iterations"]
 
 
 def test_smooth_per_edge_weights_keep_v_cycles(rng):

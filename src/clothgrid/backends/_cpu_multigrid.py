@@ -558,6 +558,32 @@ def _prolong_full(xe, xo, xce, xco, nv):
                 xo[c, i, m] += 0.5 * (lo + hi)
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, out):
+    """``b - A x`` of coordinate ``c`` on line ``i``, rows of parity ``p`` (a per-edge level 0), into
+    ``out[:n]``; returns ``(m_lo, n)`` (rows ``j = 2 m + p``, ``m`` from ``m_lo``)."""
+    m_lo, m_hi = _line_range(nv, p)
+    n = m_hi - m_lo
+    if n <= 0:
+        return m_lo, 0
+    ob = 0 if p == 1 else -1
+    x, t = (xe[c], xo[c]) if p == 0 else (xo[c], xe[c])
+    Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
+    a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+    elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
+    xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
+    if has_b:
+        bi = (be if p == 0 else bo)[c, i, a:z]
+        for q in range(n):
+            out[q] = (bi[q] + elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                      + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+    else:
+        for q in range(n):
+            out[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
+                      + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
+    return m_lo, n
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     """``max |D^-1 (b - A x)|`` (Euclidean per node) on level 0."""
@@ -565,31 +591,20 @@ def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     rowmax = np.zeros(nu)
     for i in numba.prange(1, nu - 1):
         best = 0.0
+        r, s2 = np.empty(nv // 2 + 1), np.empty(nv // 2 + 1)
         for p in range(2):
-            m_lo, m_hi = _line_range(nv, p)
-            n = m_hi - m_lo
+            s2[:] = 0.0
+            m_lo, n = 0, 0
+            for c in range(k):
+                m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, r)
+                for q in range(n):
+                    s2[q] += r[q] * r[q]
             if n <= 0:
                 continue
             ob = 0 if p == 1 else -1
-            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
             Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
-            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
+            a, z, ta, tz = m_lo, m_lo + n, m_lo + ob, m_lo + n + ob
             elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
-            s2 = np.zeros(n)
-            for c in range(k):
-                x, t = xown[c], xoth[c]
-                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
-                if has_b:
-                    bi = (be if p == 0 else bo)[c, i, a:z]
-                    for q in range(n):
-                        r = (bi[q] + elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
-                             + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
-                        s2[q] += r * r
-                else:
-                    for q in range(n):
-                        r = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
-                             + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
-                        s2[q] += r * r
             for q in range(n):
                 d = elo[q] + ehi[q] + nlo[q] + nhi[q]
                 v = s2[q] / (d * d)
@@ -782,6 +797,16 @@ def _parity_planes(x: np.ndarray, dtype=np.float64):
 # row by row into a per-row array and added up in order, so the results do not depend on threads.
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _in_order(part):
+    """The column sums of the per-row partial sums ``part`` (``(nu, k)``), rows added in order."""
+    res = np.zeros(part.shape[1])
+    for i in range(part.shape[0]):
+        for c in range(part.shape[1]):
+            res[c] += part[i, c]
+    return res
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _apply5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, sign, oute, outo):
     """``out = sign (b - A x)`` on level 0's interior nodes (the ring of ``out`` is not written);
@@ -790,36 +815,17 @@ def _apply5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, sign, oute, outo):
     part = np.zeros((nu, k))
     for i in numba.prange(1, nu - 1):
         for p in range(2):
-            m_lo, m_hi = _line_range(nv, p)
-            n = m_hi - m_lo
-            if n <= 0:
-                continue
-            ob = 0 if p == 1 else -1
-            xown, xoth = (xe, xo) if p == 0 else (xo, xe)
-            Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
-            out = oute if p == 0 else outo
-            a, z, ta, tz = m_lo, m_hi, m_lo + ob, m_hi + ob
-            elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
+            xown, out = (xe, oute) if p == 0 else (xo, outo)
+            first, _ = _line_range(nv, p)
             for c in range(k):
-                x, t, o = xown[c], xoth[c], out[c, i, a:z]
-                xm, x0, xp, tlo, thi = x[i - 1, a:z], x[i, a:z], x[i + 1, a:z], t[i, ta:tz], t[i, ta + 1:tz + 1]
-                for q in range(n):
-                    o[q] = (elo[q] * (xm[q] - x0[q]) + ehi[q] * (xp[q] - x0[q])
-                            + nlo[q] * (tlo[q] - x0[q]) + nhi[q] * (thi[q] - x0[q]))
-                if has_b:
-                    bi = (be if p == 0 else bo)[c, i, a:z]
-                    for q in range(n):
-                        o[q] += bi[q]
+                m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, out[c, i, first:])
+                o, x0 = out[c, i, m_lo:m_lo + n], xown[c, i, m_lo:m_lo + n]
                 s = 0.0
                 for q in range(n):
                     o[q] *= sign
                     s += x0[q] * o[q]
                 part[i, c] += s
-    res = np.zeros(k)
-    for i in range(nu):
-        for c in range(k):
-            res[c] += part[i, c]
-    return res
+    return _in_order(part)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
@@ -835,11 +841,7 @@ def _dot(ae, ao, be, bo):
             for m in range(ao.shape[2]):
                 s += ao[c, i, m] * bo[c, i, m]
             part[i, c] = s
-    res = np.zeros(k)
-    for i in range(nu):
-        for c in range(k):
-            res[c] += part[i, c]
-    return res
+    return _in_order(part)
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
