@@ -220,6 +220,27 @@ print("ok")
     assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
 
 
+def test_reading_a_dxf_with_turn_points_imports_no_kd_tree():
+    """AAMA turn points snap to the outline without SciPy's spatial package (its import, with
+    scipy.sparse, cost the command about 0.13 s: patterns.piece.snap_to_outline)."""
+    dxf = Path(__file__).resolve().parents[2] / "shared" / "patterns" / "astm_GLX0924S16_NEW.DXF"
+    if not dxf.exists():
+        pytest.skip(f"{dxf} is not here (../shared/patterns)")
+    code = f"""
+import sys
+from clothgrid.readers import read_pieces
+pieces = read_pieces({str(dxf)!r})
+assert sum(1 for p in pieces if p.turn_points is not None and len(p.turn_points)) > 0
+assert "scipy.spatial" not in sys.modules
+print("ok")
+"""
+    src = str(Path(clothgrid.__file__).resolve().parent.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         stdin=subprocess.DEVNULL, timeout=600)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
+
+
 def test_svgpathtools_without_quad_reads_the_same_pieces(tmp_path):
     """lean_imports.svgpathtools_without_quad: in a fresh interpreter svgpathtools imports without
     scipy.integrate (and says so), scipy.integrate imports as usual afterwards, and an SVG pattern

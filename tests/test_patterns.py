@@ -829,3 +829,29 @@ def test_arc_sampler_is_resample_polyline_and_spaces_by_arc_length(rng, dim):
         ArcSampler(np.zeros((3, dim)))
     with pytest.raises(BoundaryError, match="at least 2 points"):
         ArcSampler(np.zeros((1, 3)))
+
+
+def test_snap_to_outline_matches_a_kd_tree(rng):
+    """Turn points snap to the nearest outline point within the tolerance by a grid of cells: the
+    same answers as SciPy's k-d tree on fresh outlines (offset and scaled), with points on, near,
+    just beyond and far from the outline; non-finite points never snap."""
+    from scipy.spatial import cKDTree
+
+    from clothgrid.patterns.piece import snap_to_outline
+
+    for _ in range(60):
+        n, m = int(rng.integers(1, 2000)), int(rng.integers(1, 40))
+        scale = 10 ** rng.uniform(-2, 4)
+        t = np.sort(rng.uniform(0, 2 * np.pi, n))
+        outline = rng.uniform(-1e5, 1e5, 2) + scale * np.c_[np.cos(t), np.sin(t) * rng.uniform(0.2, 1)]
+        tol = 1e-6 * 2 * scale
+        spread = rng.choice([0.0, 0.3, 0.7, 2.0, 100.0], (m, 1))
+        points = outline[rng.integers(0, n, m)] + rng.normal(size=(m, 2)) * tol * spread
+        points[rng.random(m) < 0.1] = np.nan
+        finite = np.isfinite(points).all(axis=1)
+        dist, near = np.full(m, np.inf), np.full(m, -1)
+        dist[finite], near[finite] = cKDTree(outline).query(points[finite])
+        nearest, ok = snap_to_outline(outline, points, tol)
+        assert np.array_equal(ok, dist <= tol)
+        assert np.array_equal(nearest[ok], near[ok]) and (nearest[~ok] == -1).all()
+
