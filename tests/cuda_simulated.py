@@ -116,6 +116,9 @@ def test_each_operation_matches_cpu(rng, shape, kind, k, block, with_rhs):
         assert_same_state(cpu, gpu, f"{op}({lvl})")
     assert gpu.max_step() == pytest.approx(cpu.max_step(), rel=1e-12)
     assert np.abs(gpu.solution() - cpu.solution()).max() <= 1e-12 * np.abs(x0).max()
+    # the barrier's max z: the interior's largest value of the first coordinate, from the planes
+    assert cpu.solution_max() == cpu.solution()[1:-1, 1:-1, 0].max()
+    assert gpu.solution_max() == gpu.solution()[1:-1, 1:-1, 0].max()
 
 
 def test_solution_into_a_strided_view_in_chunks(rng, monkeypatch):

@@ -1209,6 +1209,16 @@ class CpuMultigrid:
         self.solution_into(out)
         return out
 
+    def solution_max(self) -> float:
+        """The largest interior value of level 0's iterate, first coordinate, from its parity planes
+        (no merged copy: 13 ms of fresh pages at 1024^2 on this VM)."""
+        xe, xo = self.x[0]
+        nu, nv = self._shape[:2]
+        if nu < 3 or nv < 3:
+            return -np.inf
+        parts = [(xe if p == 0 else xo)[0, 1:-1, slice(*_line_range(nv, p))] for p in (0, 1)]
+        return float(max(a.max() for a in parts if a.size))
+
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into ``out`` (``(nu, nv, k)``, any strides).
 

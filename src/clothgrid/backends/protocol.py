@@ -112,6 +112,11 @@ class MultigridOps(Protocol):
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides)."""
 
+    def solution_max(self) -> float:
+        """The largest value of level 0's iterate over the interior nodes, first coordinate (the
+        barrier solve's ``max z``), without a host copy of the grid where the backend can; it ends
+        the solve where :meth:`solution` does."""
+
     # Conjugate gradients around the V-cycle (clothgrid.solvers.multigrid.ConjugateGradients) use
     # level-0 vectors of the backend's own (zero on the boundary ring, ``k`` coordinates); scalars
     # are per coordinate, ``(k,)`` float64 arrays.

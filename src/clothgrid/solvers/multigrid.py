@@ -302,8 +302,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     ops = backend.multigrid(levels, x0, spare=spare)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
     setup = time.perf_counter() - t0
-    zmax = barrier_max(problem, solve=None if problem.weights.unit_stencil else
-                       _barrier_solver(problem, backend, levels))
+    zmax = barrier_max(problem) if problem.weights.unit_stencil else _barrier_max(problem, backend, levels)
     # The band barriers' bound (solvers.bounds) where the weights and the backend allow it
     bands = (BandBarriers.for_grid(nu, nv, tol * problem.scale / zmax)
              if stop == "error" and problem.weights.unit_stencil else None)
@@ -383,29 +382,28 @@ BARRIER_DELTA = 0.1
 BARRIER_MAX_ITER = 200
 
 
-def _barrier_solver(problem: Problem, backend: Backend, levels: list[Level]) -> Callable[[np.ndarray], np.ndarray]:
-    """``solve(rhs)`` for :func:`barrier_max` by multigrid, with a rigorous correction.
+def _barrier_max(problem: Problem, backend: Backend, levels: list[Level]) -> float:
+    """An upper bound of ``max z`` (:func:`~clothgrid.solvers.bounds.barrier_max`) by multigrid, with
+    a rigorous correction.
 
     ``max z`` only needs an upper bound: for an approximation ``y`` of
     ``z = A^-1 D 1`` with ``delta = max |D^-1 (D 1 - A y)| < 1``, ``z <= y + delta z``
-    node by node, so ``max z <= max y / (1 - delta)``. Cycles run until
-    ``delta <= BARRIER_DELTA``; the returned vector is scaled by ``1 / (1 - delta)``.
+    node by node, so ``max z <= max y / (1 - delta)``. Iterations (V-cycles, then conjugate
+    gradients where they are slow) run until ``delta <= BARRIER_DELTA``.
     """
     nu, nv = problem.shape
-
-    def solve(rhs: np.ndarray) -> np.ndarray:
-        ops = backend.multigrid(levels, np.zeros((nu, nv, 1)), rhs=rhs.reshape(nu - 2, nv - 2, 1))
-        delta = math.inf
-        if FULL_MULTIGRID_START:
-            fmg(ops)        # from zero, plain V-cycles took 4 to reach delta <= 0.01 at 1024^2; after it, 1-2
-            delta = ops.max_step()   # relative to |D^-1 D 1| = 1
-        if not delta <= BARRIER_DELTA:
-            def measure() -> tuple[float, float]:
-                step = ops.max_step()
-                return step, step
-            delta, _ = _iterate(ops, measure, BARRIER_DELTA, BARRIER_MAX_ITER, True, [])
-        if not delta < 1:
-            raise InputError("multigrid could not bound the error for these weights: use solver 'direct'")
-        return ops.solution()[1:-1, 1:-1, 0].ravel() / (1.0 - delta)
-
-    return solve
+    rhs = problem.diagonal().reshape(nu - 2, nv - 2, 1)
+    ops = backend.multigrid(levels, np.zeros((nu, nv, 1)), rhs=rhs)
+    delta = math.inf
+    if FULL_MULTIGRID_START:
+        fmg(ops)        # from zero, plain V-cycles took 4 to reach delta <= 0.01 at 1024^2; after it, 1-2
+        delta = ops.max_step()   # relative to |D^-1 D 1| = 1
+    if not delta <= BARRIER_DELTA:
+        def measure() -> tuple[float, float]:
+            step = ops.max_step()
+            return step, step
+        delta, _ = _iterate(ops, measure, BARRIER_DELTA, BARRIER_MAX_ITER, True, [])
+    if not delta < 1:
+        raise InputError("multigrid could not bound the error for these weights: use solver 'direct'")
+    # max(y) / (1 - delta): the same bits as max(y / (1 - delta)), division being monotone
+    return ops.solution_max() / (1.0 - delta)

@@ -258,6 +258,17 @@ class CudaMultigrid(NoVectors):
         self.solution_into(out)
         return out
 
+    def solution_max(self) -> float:
+        """The largest interior value of level 0's iterate, first coordinate: a reduction over its
+        parity planes on the device (no grid crosses the bus)."""
+        xe, xo = self.x[0]
+        nu, nv = self._shape[:2]
+        if nu < 3 or nv < 3:
+            return -math.inf
+        even = xe[0, 1:-1, 1:(nv - 2) // 2 + 1]        # rows j = 2m, 1 <= j <= nv - 2
+        odd = xo[0, 1:-1, 0:(nv - 3) // 2 + 1]         # rows j = 2m + 1
+        return float(max(float(a.max()) for a in (even, odd) if a.size))
+
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides).
 

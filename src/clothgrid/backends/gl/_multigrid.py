@@ -257,6 +257,10 @@ class GLMultigrid(NoVectors):
         self.dev.release_thread()
         return x
 
+    def solution_max(self) -> float:
+        """The largest interior value of :meth:`solution`'s first coordinate (ends the solve likewise)."""
+        return float(self.solution()[1:-1, 1:-1, 0].max())
+
     def solution_into(self, out: np.ndarray) -> None:
         """:meth:`solution` written into the host array ``out`` (``(nu, nv, k)``, any strides); ends the
         solve likewise. The texture read-back is a whole grid anyway: no saving over :meth:`solution`."""
