@@ -161,6 +161,10 @@ def test_max_iter_raises_with_grid_attached(rng):
     assert exc.value.grid is not None and exc.value.grid.info["iterations"] == 10
     g = clothgrid.generate(b, solver="jacobi", max_iter=10, allow_unconverged=True)
     assert not g.info["converged"] and g.info["error_estimate"] > TOL
+    assert "use solver 'auto'" in str(exc.value)
+    # past multigrid's iterations (what 'auto' picks on large grids) the hint is the exact solve
+    with pytest.raises(clothgrid.NotConvergedError, match="use solver 'direct'"):
+        clothgrid.generate(b, solver="multigrid", max_iter=1, tol=1e-12)
 
 
 # --- memory ---------------------------------------------------------------------------------------

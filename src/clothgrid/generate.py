@@ -202,8 +202,10 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     _check_finite(res.points, f"solver '{name}'")
     if not res.converged:
         rule = "last step < tol (the paper's rule)" if stop == "paper" and name == "jacobi" else f"error <= {tol:.3g}"
+        # 'auto' picks multigrid on large grids: past its iterations the exact solve is the way out
+        other = "'direct' (exact; slower and larger on big grids)" if name == "multigrid" else "'auto'"
         msg = (f"solver '{name}' did not reach {rule} in {res.iterations} iterations: error bound "
-               f"{res.error_estimate:.3g} of the piece's size; raise max_iter or use solver 'auto'")
+               f"{res.error_estimate:.3g} of the piece's size; raise max_iter or use solver {other}")
         if name in ("direct", "fdm"):
             msg = (f"solver '{name}' solves exactly up to rounding, but its error bound "
                    f"{res.error_estimate:.3g} of the piece's size is above tol {tol:.3g}: the "
