@@ -282,3 +282,17 @@ def test_another_thread_can_use_the_device_after_a_solve(rng):
     t.join()
     assert "error" not in out, out.get("error")
     assert np.array_equal(out["grid"].points, first.points)
+
+
+def test_stalled_jumps_point_to_the_cpu_backend(rng):
+    """The gl backend keeps V-cycles (no level-0 vectors for conjugate gradients): where they stall
+    on jumps of per-edge weights the error names the cpu backend, which goes on with them."""
+    from test_multigrid import jump_weights
+
+    nu, nv = 49, 41
+    b = quad(rng, nu, nv)
+    wu, wv = jump_weights(rng, nu, nv, 100.0)
+    with pytest.raises(clothgrid.NotConvergedError, match="backend 'cpu'"):
+        clothgrid.generate(b, weights=(wu, wv), solver="multigrid", backend="gl", max_iter=2)
+    g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid", backend="cpu")
+    assert g.info["converged"]
