@@ -186,3 +186,73 @@ def test_simulator_is_a_device_but_never_auto(rng):
         cuda.multigrid(build_hierarchy(make_weights("paper", 9, 7)), np.zeros((9, 7, 4)))
     with pytest.raises(clothgrid.SizeError, match="device memory on backend 'cuda'"):
         clothgrid.generate(quad(rng, 9, 9, 2), (200_000, 200_000), backend="cuda", solver="fdm")
+
+
+# --- conjugate gradients around the V-cycle ----------------------------------------------------------------
+
+@pytest.mark.parametrize("shape, kind, k, with_rhs", [((9, 7), "random", 2, False), ((12, 11), "random", 1, True),
+                                                      ((11, 9), "paper", 3, False)])
+def test_vector_operations_match_cpu(rng, shape, kind, k, with_rhs):
+    """Each conjugate-gradient operation against the CPU's from the same state: the residual and
+    ``A p`` (the same arithmetic order: float64 bits within 1e-12), the dot products, axpy, xpay, and
+    a V-cycle on bound vectors (the preconditioner) with the iterate brought back untouched."""
+    nu, nv = shape
+    levels = build_hierarchy(make_weights(random_weights(rng, nu, nv) if kind == "random" else kind, nu, nv))
+    x0 = rng.standard_normal((nu, nv, k))
+    rhs = rng.standard_normal((nu - 2, nv - 2, k)) if with_rhs else None
+    cpu = _cpu_multigrid.CpuMultigrid(levels, x0, rhs)
+    gpu = _multigrid.CudaMultigrid(levels, x0, rhs)
+    (rc, pc, qc), (rg, pg, qg) = [[ops.vector() for _ in range(3)] for ops in (cpu, gpu)]
+
+    def put(vc, vg):
+        """The same random vector, ring zero, into both."""
+        full = np.zeros((nu, nv, k))
+        full[1:-1, 1:-1] = rng.standard_normal((nu - 2, nv - 2, k))
+        _cpu_multigrid._split_grid(full, *vc)
+        for a, b in zip(vc, vg):
+            b.copy_to_device(a)
+
+    def same(vc, vg, what):
+        for a, b in zip(vc, vg):
+            b = read(b)
+            assert np.abs(a - b).max() <= 1e-12 * max(np.abs(a).max(), 1e-300), what
+
+    cpu.residual(rc)
+    gpu.residual(rg)
+    same(rc, rg, "residual")
+    put(pc, pg)
+    assert gpu.apply(pg, qg) == pytest.approx(cpu.apply(pc, qc), rel=1e-12)
+    same(qc, qg, "A p")
+    assert gpu.dot(rg, pg) == pytest.approx(cpu.dot(rc, pc), rel=1e-12)
+    alpha, beta = rng.standard_normal(k), rng.standard_normal(k)
+    cpu.axpy(rc, pc, qc, alpha)
+    gpu.axpy(rg, pg, qg, alpha)
+    same(rc, rg, "axpy: r")
+    assert np.abs(gpu.solution() - cpu.solution()).max() <= 1e-12 * np.abs(x0).max()
+    cpu.xpay(pc, rc, beta)
+    gpu.xpay(pg, rg, beta)
+    same(pc, pg, "xpay")
+    before = gpu.solution()
+    for ops, r, z in ((cpu, rc, qc), (gpu, rg, qg)):
+        ops.bind(r, z)
+        vcycle(ops)
+        ops.bind(None, None)
+    assert np.array_equal(gpu.solution(), before)
+    zc, zg = qc, [read(a) for a in qg]
+    for a, b in zip(zc, zg):
+        assert np.abs(a - b).max() <= F32 * max(np.abs(a).max(), 1e-300), "the preconditioner"
+
+
+def test_jumps_solve_with_conjugate_gradients_on_the_device(rng):
+    """100:1 blocks: the device solve goes on with conjugate gradients as the CPU's does, and meets
+    the tolerance against the exact solution."""
+    nu, nv = 17, 13
+    b = quad(rng, nu, nv, 2)
+    wu, wv = paper_weights(nu, nv)
+    f = np.where((np.arange(nu)[:, None] // 4 + np.arange(nv)[None, :] // 4) % 2 == 0, 100.0, 1.0)
+    w = (wu * 0.5 * (f[:-1] + f[1:]), wv * 0.5 * (f[:, :-1] + f[:, 1:]))
+    g = clothgrid.generate(b, weights=w, solver="multigrid", backend="cuda")
+    c = clothgrid.generate(b, weights=w, solver="multigrid", backend="cpu")
+    assert g.info["converged"] and g.info.get("cg_iterations", 0) > 0
+    assert g.info.get("cg_iterations") == c.info.get("cg_iterations")
+    assert max_rel_error(g.points, exact_solution(boundary_grid(b), *w), b.size) <= TOL

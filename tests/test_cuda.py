@@ -86,6 +86,7 @@ def kernel_signatures():
         "prolong_full": [(a3(f8),) * 2 + (a3(f4),) * 2 + (i8,), (a3(f4),) * 4 + (i8,)],
         "max_step5": [(a3(f8),) * 4 + (a2(f8),) * 4 + (i8, i8, i8, b1, i8, a2(f8))],
         "split_grid": [(a3(f8),) * 3],
+        "residual5": [(a3(f8),) * 4 + (a2(f8),) * 4 + (i8, i8, i8, b1, f8) + (a3(f8),) * 2],
         "merge_grid": [(a3(f8),) * 3],
     }
 
@@ -120,7 +121,8 @@ def test_kernels_compile_for_a_gpu(monkeypatch):
 
 
 def test_device_memory_estimates():
-    assert cuda.device_bytes("multigrid", 100, 100) == (72 + 43 + 99) * 10_000 + (32 << 20)   # 3 coordinates, per-edge weights
+    # 3 coordinates, per-edge weights (conjugate gradients' vectors included)
+    assert cuda.device_bytes("multigrid", 100, 100) == (72 + 43 + 99 + 96) * 10_000 + (32 << 20)
     assert cuda.device_bytes("multigrid", 100, 100, coords=2, separable=True) == 91 * 10_000 + (32 << 20)
     assert cuda.device_bytes("fdm", 102, 52) == 8 * (100**2 + 50**2) + 192 * 102 * 52
     with pytest.raises(clothgrid.InputError, match="does not run on backend 'cuda'"):

@@ -204,8 +204,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         rule = "last step < tol (the paper's rule)" if stop == "paper" and name == "jacobi" else f"error <= {tol:.3g}"
         # 'auto' picks multigrid on large grids: past its iterations the exact solve is the way out
         other = "'direct' (exact; slower and larger on big grids)" if name == "multigrid" else "'auto'"
-        if name == "multigrid" and be.name != "cpu" and not w.unit_stencil:
-            # the device backends keep V-cycles, which stall on jumps of per-edge weights
+        if name == "multigrid" and be.name == "gl" and not w.unit_stencil:
+            # the gl backend keeps V-cycles (protocol.NoVectors), which stall on jumps of per-edge weights
             other += ", or backend 'cpu' (conjugate gradients where V-cycles stall)"
         msg = (f"solver '{name}' did not reach {rule} in {res.iterations} iterations: error bound "
                f"{res.error_estimate:.3g} of the piece's size; raise max_iter or use solver {other}")

@@ -153,8 +153,8 @@ class MultigridOps(Protocol):
 
 class NoVectors:
     """The conjugate-gradient operations of a :class:`MultigridOps` without level-0 vectors (the gl
-    and cuda backends' for now): :meth:`vector` is None, so the solve keeps V-cycles and calls none
-    of the others."""
+    backend's: its level 0 is float32 textures with a float64 fold): :meth:`vector` is None, so the
+    solve keeps V-cycles and calls none of the others."""
 
     def vector(self) -> None:
         """None: no level-0 vectors on this backend."""

@@ -98,8 +98,9 @@ def device_bytes(solver: str, nu: int, nv: int, coords: int = 3, separable: bool
     ones over level 1's (15); the float64 temporaries that form the coarse
     stencils (8); and 32 MiB whatever the size (the pool's rounding, the
     kernels' modules). Per-edge weights add level 0's edge weights split by parity
-    (16) and a second hierarchy for the barrier solve of the error bound, one
-    coordinate with a right-hand side (83). Measured on an H100 (NVML, the
+    (16), a second hierarchy for the barrier solve of the error bound, one
+    coordinate with a right-hand side (83), and conjugate gradients' three float64
+    vectors and one array temporary (``32 k``: where V-cycles stall on jumps). Measured on an H100 (NVML, the
     T-shirt front, two coordinates, paper weights): 84-86 bytes a node from
     1024^2 to 16384^2 against the 91 counted here. ``fdm``: the two eigenvector
     matrices, ``8 ((nu-2)^2 + (nv-2)^2)``, and per node the right-hand side, the
@@ -108,7 +109,7 @@ def device_bytes(solver: str, nu: int, nv: int, coords: int = 3, separable: bool
     """
     n = nu * nv
     if solver == "multigrid":
-        return (24 * coords + 20 + 15 + 8 + (0 if separable else 16 + 83)) * n + (32 << 20)
+        return (24 * coords + 20 + 15 + 8 + (0 if separable else 16 + 83 + 32 * coords)) * n + (32 << 20)
     if solver == "fdm":
         return 8 * ((nu - 2) ** 2 + (nv - 2) ** 2) + 192 * n
     raise InputError(f"solver {solver!r} does not run on backend 'cuda': use one of {', '.join(solvers)}")

@@ -388,6 +388,35 @@ def max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, ei, nm, nv, has_b, rows, out):
     out[ci, m] = best
 
 
+@cuda.jit(device=True)
+def _residual_at(x, t, b, E, No, Nt, i, m, ob, ei, nm, has_b, sign, out):
+    """``out[c, i, m] = sign (b - A x)`` at own-parity node ``(i, m)`` of level 0 (the CPU's order)."""
+    elo = E[(i - 1) * ei, m]
+    ehi = E[i * ei, m]
+    nlo = Nt[i, (m + ob) * nm]
+    nhi = No[i, m * nm]
+    for c in range(x.shape[0]):
+        x0 = x[c, i, m]
+        r = elo * (x[c, i - 1, m] - x0)
+        if has_b:
+            r = b[c, i, m] + r
+        r = r + ehi * (x[c, i + 1, m] - x0) + nlo * (t[c, i, m + ob] - x0) + nhi * (t[c, i, m + ob + 1] - x0)
+        out[c, i, m] = sign * r
+
+
+@cuda.jit(cache=True)
+def residual5(xe, xo, be, bo, Ee, Eo, Ne, No, ei, nm, nv, has_b, sign, oute, outo):
+    """``out = sign (b - A x)`` on level 0's interior nodes, both parities (the ring is not written):
+    conjugate gradients' residual (``sign`` 1) and ``A p`` (``sign`` -1, no ``b``)."""
+    m, i = cuda.grid(2)
+    if i < 1 or i >= xe.shape[1] - 1:
+        return
+    if m < xe.shape[2] and 1 <= 2 * m <= nv - 2:
+        _residual_at(xe, xo, be, Ee, Ne, No, i, m, -1, ei, nm, has_b, sign, oute)
+    if m < xo.shape[2] and 2 * m + 1 <= nv - 2:
+        _residual_at(xo, xe, bo, Eo, No, Ne, i, m, 0, ei, nm, has_b, sign, outo)
+
+
 @cuda.jit(cache=True)
 def split_grid(x, xe, xo):
     """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""

@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from ...multigrid_levels import Level
-from ..protocol import NoVectors
 from . import _kernels as K
 from ._sim import array_module, kernel_array
 
@@ -73,7 +72,7 @@ def _coarse_stencil(level: Level, xp: Any, p: int) -> tuple:
     return tuple(xp.asarray(np.ascontiguousarray(a[:, p::2])) for a in (level.C, level.E, level.N, level.NE, level.NW))
 
 
-class CudaMultigrid(NoVectors):
+class CudaMultigrid:
     """Multigrid operations on a GPU (CuPy arrays), or on Numba's CUDA simulator (NumPy arrays).
 
     Parameters
@@ -121,6 +120,8 @@ class CudaMultigrid(NoVectors):
         if self.levels > 1:
             self.scratch[np.float32] = self._scratch(nu, self.nv[1], np.float32)
         self.unused = {dt: self._zeros((1, 1), dt) for dt in self.scratch}
+        #: the iterate, its right-hand side and has_b while conjugate gradients bind others (bind)
+        self._own: tuple | None = None
         self._partial = self._xp.zeros((-(-(nu - 2) // MAX_STEP_ROWS), _planes(nv)[0]))
         self._partial_k = kernel_array(self._partial)
 
@@ -257,6 +258,73 @@ class CudaMultigrid(NoVectors):
         out = np.empty(self._shape)
         self.solution_into(out)
         return out
+
+    # --- conjugate gradients around the V-cycle (clothgrid.solvers.multigrid.ConjugateGradients) -------
+    # Vectors are parity-plane pairs of device arrays like the iterate's, ring zero; the residual and
+    # A p are a kernel (the CPU's arithmetic order), the rest array operations of CuPy (NumPy under
+    # the simulator) on views of the same memory.
+
+    def vector(self) -> tuple:
+        """A new level-0 vector, zero (parity planes of every coordinate)."""
+        nu, nv, k = self._shape
+        return tuple(self._zeros((k, nu, n)) for n in _planes(nv))
+
+    def _views(self, v: tuple) -> tuple:
+        return tuple(self._xp.asarray(a) for a in v)
+
+    def _residual_into(self, xe, xo, be, bo, has_b: bool, sign: float, out: tuple) -> None:
+        nu, nv, _ = self._shape
+        blocks, threads = launch(_planes(nv)[0], nu, NODE_THREADS)
+        K.residual5[blocks, threads, self.stream](xe, xo, be, bo, *self.st[0], self.ei, self.nm, nv, has_b,
+                                                  sign, *out)
+
+    def _scalars(self, a) -> Any:
+        """A per-coordinate host array as a ``(k, 1, 1)`` array of the device."""
+        return self._xp.asarray(np.asarray(a, dtype=np.float64)).reshape(-1, 1, 1)
+
+    def residual(self, r: tuple) -> None:
+        """``r = b - A x`` of the iterate on the interior nodes."""
+        (xe, xo), (be, bo) = self._own[:2] if self._own else (self.x[0], self.b[0])
+        self._residual_into(xe, xo, be, bo, self._own[2] if self._own else self._has_b, 1.0, r)
+
+    def apply(self, p: tuple, q: tuple) -> np.ndarray:
+        """``q = A p`` (``p`` zero on the ring); returns ``p . q`` per coordinate."""
+        self._residual_into(*p, *p, False, -1.0, q)        # no b read
+        return self.dot(p, q)
+
+    def dot(self, a: tuple, b: tuple) -> np.ndarray:
+        """``a . b`` per coordinate (one small array read back)."""
+        s = sum((u * w).sum(axis=(1, 2)) for u, w in zip(self._views(a), self._views(b)))
+        return np.asarray(s.get() if hasattr(s, "get") else s, dtype=np.float64)
+
+    def axpy(self, r: tuple, p: tuple, q: tuple, alpha: np.ndarray) -> None:
+        """``x += alpha p`` (the iterate; its ring keeps its bits, ``p`` being zero there), ``r -= alpha q``."""
+        a = self._scalars(alpha)
+        for x_, p_ in zip(self._views(self._own[0] if self._own else self.x[0]), self._views(p)):
+            x_ += a * p_
+        for r_, q_ in zip(self._views(r), self._views(q)):
+            r_ -= a * q_
+
+    def xpay(self, p: tuple, z: tuple, beta: np.ndarray) -> None:
+        """``p = z + beta p``."""
+        g = self._scalars(beta)
+        for p_, z_ in zip(self._views(p), self._views(z)):
+            p_ *= g
+            p_ += z_
+
+    def bind(self, r: tuple | None, z: tuple | None) -> None:
+        """Until ``bind(None, None)``, level 0's right-hand side is ``r`` and its iterate ``z``, set to
+        zero: a V-cycle then makes ``z = M r``. ``bind(None, None)`` brings back the iterate."""
+        if r is None:
+            if self._own:
+                self.x[0], self.b[0], self._has_b = self._own
+                self._own = None
+            return
+        if not self._own:
+            self._own = (self.x[0], self.b[0], self._has_b)
+        for z_ in self._views(z):
+            z_.fill(0.0)
+        self.x[0], self.b[0], self._has_b = z, r, True
 
     def solution_max(self) -> float:
         """The largest interior value of level 0's iterate, first coordinate: a reduction over its
