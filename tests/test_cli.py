@@ -190,6 +190,15 @@ def test_python_m_clothgrid(horn, tmp_path):
     assert "clothgrid: error:" in bad.stderr
 
 
+def assert_fresh_python_ok(code: str) -> None:
+    """Run ``code`` in a fresh interpreter with this clothgrid first on the path; it prints ``ok``."""
+    src = str(Path(clothgrid.__file__).resolve().parent.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         stdin=subprocess.DEVNULL, timeout=600)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
+
+
 def test_lean_imports_blas_in_a_fresh_interpreter():
     """preload_cython_blas: Numba's kernels and BLAS work without scipy.linalg's package until it is
     imported, and then the package is whole, with the very module as its attribute."""
@@ -213,11 +222,7 @@ assert scipy.linalg.__loader__.__class__.__name__ == "SourceFileLoader"
 assert np.allclose(scipy.linalg.solve(2 * np.eye(3), np.ones(3)), 0.5)
 print("ok")
 """
-    src = str(Path(clothgrid.__file__).resolve().parent.parent)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                         stdin=subprocess.DEVNULL, timeout=600)
-    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
+    assert_fresh_python_ok(code)
 
 
 def test_reading_a_dxf_with_turn_points_imports_no_kd_tree():
@@ -234,11 +239,7 @@ assert sum(1 for p in pieces if p.turn_points is not None and len(p.turn_points)
 assert "scipy.spatial" not in sys.modules
 print("ok")
 """
-    src = str(Path(clothgrid.__file__).resolve().parent.parent)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                         stdin=subprocess.DEVNULL, timeout=600)
-    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
+    assert_fresh_python_ok(code)
 
 
 def test_svgpathtools_without_quad_reads_the_same_pieces(tmp_path):

@@ -109,19 +109,23 @@ def _res5(x, t, b, E, No, Nt, c, i, m, ob, ei, nm, has_b):
 
 
 @cuda.jit(device=True)
+def _residual_c(x, t, b, elo, ehi, nlo, nhi, c, i, m, ob, has_b):
+    """Coordinate ``c`` of ``b - A x`` at own-parity node ``(i, m)`` of level 0, in the CPU's order
+    (``_residual_line5``): ``b``, then the couplings below and above along ``i``, then along ``j``."""
+    x0 = x[c, i, m]
+    r = elo * (x[c, i - 1, m] - x0)
+    if has_b:
+        r = b[c, i, m] + r
+    return r + ehi * (x[c, i + 1, m] - x0) + nlo * (t[c, i, m + ob] - x0) + nhi * (t[c, i, m + ob + 1] - x0)
+
+
+@cuda.jit(device=True)
 def _scaled_step2(x, t, b, E, No, Nt, i, m, ob, ei, nm, has_b):
     """``|D^-1 (b - A x)|^2`` at own-parity node ``(i, m)`` of level 0 (the CPU's ``_max_step5`` order)."""
-    elo = E[(i - 1) * ei, m]
-    ehi = E[i * ei, m]
-    nlo = Nt[i, (m + ob) * nm]
-    nhi = No[i, m * nm]
+    elo, ehi, nlo, nhi = E[(i - 1) * ei, m], E[i * ei, m], Nt[i, (m + ob) * nm], No[i, m * nm]
     s2 = 0.0
     for c in range(x.shape[0]):
-        x0 = x[c, i, m]
-        r = elo * (x[c, i - 1, m] - x0)
-        if has_b:
-            r = b[c, i, m] + r
-        r = r + ehi * (x[c, i + 1, m] - x0) + nlo * (t[c, i, m + ob] - x0) + nhi * (t[c, i, m + ob + 1] - x0)
+        r = _residual_c(x, t, b, elo, ehi, nlo, nhi, c, i, m, ob, has_b)
         s2 += r * r
     d = elo + ehi + nlo + nhi
     return s2 / (d * d)
@@ -391,17 +395,9 @@ def max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, ei, nm, nv, has_b, rows, out):
 @cuda.jit(device=True)
 def _residual_at(x, t, b, E, No, Nt, i, m, ob, ei, nm, has_b, sign, out):
     """``out[c, i, m] = sign (b - A x)`` at own-parity node ``(i, m)`` of level 0 (the CPU's order)."""
-    elo = E[(i - 1) * ei, m]
-    ehi = E[i * ei, m]
-    nlo = Nt[i, (m + ob) * nm]
-    nhi = No[i, m * nm]
+    elo, ehi, nlo, nhi = E[(i - 1) * ei, m], E[i * ei, m], Nt[i, (m + ob) * nm], No[i, m * nm]
     for c in range(x.shape[0]):
-        x0 = x[c, i, m]
-        r = elo * (x[c, i - 1, m] - x0)
-        if has_b:
-            r = b[c, i, m] + r
-        r = r + ehi * (x[c, i + 1, m] - x0) + nlo * (t[c, i, m + ob] - x0) + nhi * (t[c, i, m + ob + 1] - x0)
-        out[c, i, m] = sign * r
+        out[c, i, m] = sign * _residual_c(x, t, b, elo, ehi, nlo, nhi, c, i, m, ob, has_b)
 
 
 @cuda.jit(cache=True)
