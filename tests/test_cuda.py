@@ -272,6 +272,22 @@ def test_gpu_per_edge_weights(rng):
 
 
 @needs_gpu
+@pytest.mark.parametrize("contrast", [100.0, 1e4])
+def test_gpu_jumps_go_on_with_conjugate_gradients(rng, contrast):
+    """Blocks of 100:1 and 10^4:1 stall V-cycles: on the GPU the solve goes on with conjugate
+    gradients (CuPy operations, the residual kernel) and meets the tolerance of the exact solution."""
+    n = 129
+    b = quad(rng, n, n)
+    wu, wv = paper_weights(n, n)
+    f = np.where((np.arange(n)[:, None] * 8 // n + np.arange(n)[None, :] * 8 // n) % 2 == 0, contrast, 1.0)
+    w = (wu * 0.5 * (f[:-1] + f[1:]), wv * 0.5 * (f[:, :-1] + f[:, 1:]))
+    g = clothgrid.generate(b, backend="cuda", solver="multigrid", weights=w)
+    err = max_rel_error(g.points, exact_solution(boundary_grid(b), *w), b.size)
+    assert g.info["converged"] and g.info.get("cg_iterations", 0) > 0
+    assert err <= TOL and err <= g.info["error_estimate"] * (1 + 1e-9) + 1e-14
+
+
+@needs_gpu
 def test_gpu_fdm_matches_cpu(rng):
     b = quad(rng, 257, 200, dim=3)
     g = clothgrid.generate(b, backend="cuda", solver="fdm")
