@@ -1138,19 +1138,12 @@ class CpuMultigrid:
         boundary ring stays zero); None for a 9-point level 0 (the heat solver's time steps)."""
         if self.nine0:
             return None
-        xe, xo = self._own[0] if self._own else self.x[0]
+        xe, xo = self.x[0]
         return np.zeros(xe.shape), np.zeros(xo.shape)
-
-    def _level0(self):
-        xe, xo = self._own[0] if self._own else self.x[0]
-        be, bo = self._own[1] if self._own else self.b[0]
-        has_b = self._own[2] if self._own else self._has_b
-        return xe, xo, be, bo, has_b
 
     def residual(self, r: tuple[np.ndarray, np.ndarray]) -> None:
         """``r = b - A x`` of the iterate on the interior nodes."""
-        xe, xo, be, bo, has_b = self._level0()
-        self._kernel("_apply5", 0)(xe, xo, be, bo, *self.st[0][:4], self.nv[0], has_b, 1.0, *r)
+        self._kernel("_apply5", 0)(*self.x[0], *self.b[0], *self.st[0][:4], self.nv[0], self._has_b, 1.0, *r)
 
     def apply(self, p: tuple[np.ndarray, np.ndarray], q: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """``q = A p`` (``p`` zero on the ring); returns ``p . q`` per coordinate."""
@@ -1163,9 +1156,8 @@ class CpuMultigrid:
     def axpy(self, r: tuple[np.ndarray, np.ndarray], p: tuple[np.ndarray, np.ndarray],
              q: tuple[np.ndarray, np.ndarray], alpha: np.ndarray) -> None:
         """``x += alpha p`` (the iterate), ``r -= alpha q``; ``alpha`` per coordinate."""
-        xe, xo = self._own[0] if self._own else self.x[0]
         self._solved[0] = None
-        self._kernel("_axpy", 0)(xe, xo, *r, *p, *q, np.ascontiguousarray(alpha, dtype=np.float64))
+        self._kernel("_axpy", 0)(*self.x[0], *r, *p, *q, np.ascontiguousarray(alpha, dtype=np.float64))
 
     def xpay(self, p: tuple[np.ndarray, np.ndarray], z: tuple[np.ndarray, np.ndarray], beta: np.ndarray) -> None:
         """``p = z + beta p``; ``beta`` per coordinate."""

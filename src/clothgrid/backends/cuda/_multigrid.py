@@ -284,8 +284,7 @@ class CudaMultigrid:
 
     def residual(self, r: tuple) -> None:
         """``r = b - A x`` of the iterate on the interior nodes."""
-        (xe, xo), (be, bo) = self._own[:2] if self._own else (self.x[0], self.b[0])
-        self._residual_into(xe, xo, be, bo, self._own[2] if self._own else self._has_b, 1.0, r)
+        self._residual_into(*self.x[0], *self.b[0], self._has_b, 1.0, r)
 
     def apply(self, p: tuple, q: tuple) -> np.ndarray:
         """``q = A p`` (``p`` zero on the ring); returns ``p . q`` per coordinate."""
@@ -300,7 +299,7 @@ class CudaMultigrid:
     def axpy(self, r: tuple, p: tuple, q: tuple, alpha: np.ndarray) -> None:
         """``x += alpha p`` (the iterate; its ring keeps its bits, ``p`` being zero there), ``r -= alpha q``."""
         a = self._scalars(alpha)
-        for x_, p_ in zip(self._views(self._own[0] if self._own else self.x[0]), self._views(p)):
+        for x_, p_ in zip(self._views(self.x[0]), self._views(p)):
             x_ += a * p_
         for r_, q_ in zip(self._views(r), self._views(q)):
             r_ -= a * q_
@@ -333,9 +332,8 @@ class CudaMultigrid:
         nu, nv = self._shape[:2]
         if nu < 3 or nv < 3:
             return -math.inf
-        even = xe[0, 1:-1, 1:(nv - 2) // 2 + 1]        # rows j = 2m, 1 <= j <= nv - 2
-        odd = xo[0, 1:-1, 0:(nv - 3) // 2 + 1]         # rows j = 2m + 1
-        return float(max(float(a.max()) for a in (even, odd) if a.size))
+        parts = [(xe if p == 0 else xo)[0, 1:-1, slice(*line_range(nv, p))] for p in (0, 1)]
+        return float(max(float(a.max()) for a in parts if a.size))
 
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides).
