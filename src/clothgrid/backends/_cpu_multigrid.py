@@ -736,8 +736,124 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
                         out[base + kui] = v
                     if v > out[base + nb + kvq]:
                         out[base + nb + kvq] = v
-    res = np.zeros(off + (M + 1) * 2 * nb)
+    res = np.zeros(off + (M + 1) * 2 * nb + 2 * nb)     # the per-edge deficits: none for a unit stencil
     for t in range(tabs.shape[0]):
+        for m in range(tabs.shape[1]):
+            res[m] = max(res[m], tabs[t, m])
+    return res
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _profile(t, n, w):
+    """The band profile ``F`` of width ``w`` at line ``t`` of ``n`` (:func:`clothgrid.solvers.bounds.profile`)."""
+    u = min(t, n - 1 - t)
+    return u * (2.0 * w - u) if u < w else float(w) * w
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _lift(t, n, w, lo, hi):
+    """``A`` of the band profile of width ``w`` along a line, at line ``t`` (couplings ``lo`` to
+    ``t - 1`` and ``hi`` to ``t + 1``); over the node's diagonal it is the coverage."""
+    f = _profile(t, n, w)
+    return lo * (f - _profile(t - 1, n, w)) + hi * (f - _profile(t + 1, n, w))
+
+
+@numba.njit(inline="always", error_model="numpy")
+def _cheaper(a, b, num, den):
+    """``a / b < num / den`` for positive ``b`` and ``den``, without dividing."""
+    return a * den < num * b
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _band_steps5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, nthreads, ku, kve, kvo, su, sve, svo, widths, cost,
+                 zmax, ref2, nbuckets, deficits):
+    """:func:`clothgrid.solvers.bounds.band_steps`' table for a per-edge level 0 (the residual as in
+    :func:`_max_step5`): each node's coverages from its own four weights, charged only where
+    positive, and each barrier's largest negative coverage at the table's end. ``nthreads`` at least
+    Numba's thread count; ``su`` the slopes of the lines ``i`` (``BandBarriers.slopes``), ``sve``,
+    ``svo`` of the lines ``j`` of either parity; ``widths`` the bands' ``w`` (int64); the rest as
+    in :func:`_band_steps5u`.
+    The negative coverages depend on the weights alone: they are sought only where ``deficits``
+    (the table's last ``2 nb`` entries are zero otherwise)."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nb = cost.shape[0]
+    M = nbuckets
+    off = 2 + M + 1
+    end = off + (M + 1) * 2 * nb
+    tabs = np.zeros((nthreads, end + 2 * nb))
+    fref = np.empty(1)
+    fref[0] = ref2
+    eref = (fref.view(np.int64)[0] >> 52) & 0x7FF
+    for i in numba.prange(1, nu - 1):
+        out = tabs[numba.get_thread_id()]
+        fbits = np.empty(1)
+        ibits = fbits.view(np.int64)
+        r, s2 = np.empty(nv // 2 + 1), np.empty(nv // 2 + 1)
+        kui = ku[i]
+        sul, suh = su[0, i], su[1, i]
+        for p in range(2):
+            s2[:] = 0.0
+            m_lo, n = 0, 0
+            for c in range(k):
+                m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, r)
+                for q in range(n):
+                    s2[q] += r[q] * r[q]
+            if n <= 0:
+                continue
+            ob = 0 if p == 1 else -1
+            Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
+            kvp = kve if p == 0 else kvo
+            svp = sve if p == 0 else svo
+            for q in range(n):
+                m = m_lo + q
+                j = 2 * m + p
+                alo, ahi, blo, bhi = Eown[i - 1, m], Eown[i, m], Noth[i, m + ob], Nown[i, m]
+                inv = 1.0 / (alo + ahi + blo + bhi)
+                v = s2[q] * inv * inv
+                if v > out[0]:
+                    out[0] = v
+                kvq = kvp[m]
+                # the narrowest band holding line i (j) is the one charged
+                cu = (alo * sul + ahi * suh) * inv
+                cv = (blo * svp[0, m] + bhi * svp[1, m]) * inv
+                if deficits:     # every band holding the line: only there is a coverage below zero
+                    for kk in range(kui, nb):
+                        c = _lift(i, nu, widths[kk], alo, ahi) * inv
+                        if -c > out[end + kk]:
+                            out[end + kk] = -c
+                    for kk in range(kvq, nb):
+                        c = _lift(j, nv, widths[kk], blo, bhi) * inv
+                        if -c > out[end + nb + kk]:
+                            out[end + nb + kk] = -c
+                # the cheapest barrier covering the node positively (U, V, both, z; ties: the first)
+                choice = 3
+                num, den = zmax, 1.0
+                if cu > 0:
+                    choice, num, den = 0, cost[kui], cu
+                if cv > 0 and (choice == 3 or _cheaper(cost[kvq], cv, num, den)):
+                    choice, num, den = 1, cost[kvq], cv
+                if cu > 0 and cv > 0 and _cheaper(cost[kui] + cost[kvq], cu + cv, num, den):
+                    choice, num, den = 2, cost[kui] + cost[kvq], cu + cv
+                if choice != 3 and _cheaper(zmax, 1.0, num, den):
+                    choice = 3
+                cover = den
+                if choice == 3:
+                    if v > out[1]:
+                        out[1] = v
+                    continue
+                fbits[0] = v
+                h = eref - ((ibits[0] >> 52) & 0x7FF)
+                row = min(max(h, -1), M - 1) + 1
+                if v > out[2 + row]:
+                    out[2 + row] = v
+                base = off + row * 2 * nb
+                w2 = v / (cover * cover)
+                if choice != 1 and w2 > out[base + kui]:
+                    out[base + kui] = w2
+                if choice != 0 and w2 > out[base + nb + kvq]:
+                    out[base + nb + kvq] = w2
+    res = np.zeros(end + 2 * nb)
+    for t in range(nthreads):
         for m in range(res.shape[0]):
             res[m] = max(res[m], tabs[t, m])
     return res
@@ -877,7 +993,7 @@ _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, err
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
                          "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict5u_full",
                          "_restrict_rhs",
-                         "_prolong_full", "_merge_grid", "_band_steps5u", "_apply5", "_dot", "_axpy", "_xpay")}
+                         "_prolong_full", "_merge_grid", "_band_steps5u", "_band_steps5", "_apply5", "_dot", "_axpy", "_xpay")}
 
 
 def _pick(name: str, nodes: int, finest: int):
@@ -975,6 +1091,8 @@ class CpuMultigrid:
         self._solved: list[int | None] = [None] * self.levels
         #: the iterate, its right-hand side and has_b while conjugate gradients bind others (bind)
         self._own: tuple | None = None
+        #: (barriers, their negative coverages, the kernel's arrays) of a per-edge level 0 (band_steps)
+        self._bands: tuple | None = None
         dt = np.float32
         # The line solves' scratch (Thomas factors of one block of rows per thread), allocated
         # once: a fresh 1-2 MB array per block and sweep cost page faults, up to half a sweep's time.
@@ -1120,10 +1238,30 @@ class CpuMultigrid:
     def band_steps(self, barriers: Any) -> np.ndarray | None:
         """:func:`~clothgrid.solvers.bounds.band_steps` of level 0's iterate (its right-hand side
         included) for a :class:`~clothgrid.solvers.bounds.BandBarriers`, whose ``bound`` takes
-        it; None where level 0 is not a unit stencil."""
-        if self.unit0 is None:
+        it; None for a 9-point level 0 (the heat solver's time steps)."""
+        if self.nine0:
             return None
         (xe, xo), (be, bo) = self.x[0], self.b[0]
+        if self.unit0 is None:
+            Ee, Eo, Ne, No = self.st[0]
+            # the barriers' negative coverages (the weights' alone) once for these barriers
+            known = self._bands is not None and self._bands[0] is barriers
+            if not known:
+                sv = barriers.slopes(1)
+                self._bands = (barriers, None, (barriers.kv[0::2].copy(), barriers.kv[1::2].copy(), barriers.slopes(0),
+                                                np.ascontiguousarray(sv[:, 0::2]), np.ascontiguousarray(sv[:, 1::2]),
+                                                np.sqrt(barriers.cost).round().astype(np.int64)))
+            kve, kvo, su, sve, svo, widths = self._bands[2]
+            table = self._kernel("_band_steps5", 0)(
+                xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b, self._rows.shape[0], barriers.ku,
+                kve, kvo, su, sve, svo, widths, barriers.cost, float(barriers.zmax),
+                float(barriers.reference) ** 2, barriers.buckets, not known)
+            tail = slice(table.size - 2 * barriers.bands, table.size)
+            if known:
+                table[tail] = self._bands[1]
+            else:
+                self._bands = (barriers, table[tail].copy(), self._bands[2])
+            return table
         ee, eo, nn = self.unit0
         return self._kernel("_band_steps5u", 0)(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
                                                      self._rows, barriers.ku, barriers.kv[0::2].copy(),

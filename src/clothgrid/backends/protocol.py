@@ -101,7 +101,7 @@ class MultigridOps(Protocol):
 
     def band_steps(self, barriers: Any) -> np.ndarray | None:
         """:func:`~clothgrid.solvers.bounds.band_steps`' table of level 0's iterate for a
-        :class:`~clothgrid.solvers.bounds.BandBarriers` (unit-stencil weights), for the error
+        :class:`~clothgrid.solvers.bounds.BandBarriers` (unit-stencil or per-edge weights), for the error
         bound by band barriers; None where the backend does not compute it (the solve then
         uses :meth:`max_step` times ``max z``, looser by 5-1000x, and so more V-cycles).
         """

@@ -34,6 +34,16 @@ both of those at once (coverage 1, cost ``w_i^2 + w_j^2``); and
 ``z`` also takes every node below a threshold (free while ``alpha`` is above it),
 chosen over half-octave buckets of ``|s|`` collected in the same pass. The bound
 is never above ``max|s| max z``; ``docs/accuracy.md`` has its figures.
+
+**Per-edge weights** (four weights a node). The same ``U_w`` and ``V_w`` serve, with
+their coverage ``c = D^-1 A U_w`` taken node by node from the node's own four weights
+(``(a_lo (F(i) - F(i-1)) + a_hi (F(i) - F(i+1))) / D``; ``a / (a + b)`` when ``a_lo =
+a_hi``). Where the weights grow towards the interior faster than the profile flattens,
+a barrier's coverage is negative at some nodes; the table then also carries, for each
+barrier, the largest ``-c`` over the grid (``N_k``), and ``alpha`` grows by ``sum_k
+beta_k N_k + gamma_k N'_k``, which ``z`` (coverage 1 everywhere) makes up node by node.
+A node is charged only to barriers whose coverage there is positive. ``max z`` is then the
+barrier solve's upper bound (``zmax`` of :meth:`BandBarriers.for_grid`).
 """
 
 from __future__ import annotations
@@ -93,12 +103,12 @@ THRESHOLDS = 24
 
 @dataclass(frozen=True)
 class BandBarriers:
-    """The band barriers of an ``nu x nv`` grid with unit-stencil weights (module docstring).
+    """The band barriers of an ``nu x nv`` grid (module docstring).
 
     Attributes
     ----------
     zmax : float
-        ``max z`` of the whole-grid barrier.
+        ``max z`` of the whole-grid barrier (for per-edge weights an upper bound of it).
     cost : numpy.ndarray
         ``(K,)`` float64: ``w_k^2``, the largest value of band ``k``'s barriers
         ``U`` and ``V`` (widths ``w_k = 2, 4, 8, ...`` up to ``(min(nu, nv) - 1) / 2``).
@@ -119,7 +129,9 @@ class BandBarriers:
     reference: float
 
     @classmethod
-    def for_grid(cls, nu: int, nv: int, reference: float) -> "BandBarriers":
+    def for_grid(cls, nu: int, nv: int, reference: float, zmax: float | None = None) -> "BandBarriers":
+        """The barriers of an ``nu x nv`` grid; ``zmax`` an upper bound of ``max z`` for per-edge
+        weights (the unit stencils' analytic one by default)."""
         widths = []
         w = 2
         while w <= (min(nu, nv) - 1) // 2:
@@ -133,8 +145,11 @@ class BandBarriers:
 
         if not (reference > 0 and np.isfinite(reference)):
             raise ValueError(f"the reference level must be positive and finite, not {reference!r}")
-        return cls(_analytic_barrier_max(nu, nv), wk.astype(np.float64) ** 2, band(nu), band(nv),
-                   float(reference))
+        if zmax is None:
+            zmax = _analytic_barrier_max(nu, nv)
+        elif not (zmax > 0 and np.isfinite(zmax)):
+            raise ValueError(f"max z must be positive and finite, not {zmax!r}")
+        return cls(float(zmax), wk.astype(np.float64) ** 2, band(nu), band(nv), float(reference))
 
     @property
     def bands(self) -> int:
@@ -145,24 +160,43 @@ class BandBarriers:
         """:data:`THRESHOLDS`: half-octave buckets of ``|s|`` below :attr:`reference`."""
         return THRESHOLDS
 
+    def slopes(self, axis: int) -> np.ndarray:
+        """``(2, n)`` float64: for each line ``t`` along ``axis`` (0: ``i``, 1: ``j``), the profile
+        of the narrowest band holding it less its neighbours', ``F(t) - F(t - 1)`` and ``F(t) -
+        F(t + 1)`` (zero for lines in no band and the boundary's): a coverage is then ``(a_lo
+        slope[0] + a_hi slope[1]) / D``."""
+        lines = self.ku if axis == 0 else self.kv
+        n = len(lines)
+        out = np.zeros((2, n))
+        t = np.arange(1, n - 1)
+        for k, w in enumerate(np.sqrt(self.cost).round().astype(int)):
+            f = profile(n, int(w))
+            on = t[lines[1:-1] == k]
+            out[0, on], out[1, on] = f[on] - f[on - 1], f[on] - f[on + 1]
+        return out
+
     @property
     def table_size(self) -> int:
         """Length of :func:`band_steps`' answer."""
-        return 2 + (THRESHOLDS + 1) * (2 * self.bands + 1)
+        return 2 + (THRESHOLDS + 1) * (2 * self.bands + 1) + 2 * self.bands
 
     def coefficients(self, table: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """``(alpha, beta, gamma)`` of the least bound from :func:`band_steps`' table: over the
+        """``(alpha, beta, gamma)`` of the least bound from :func:`band_steps`' table (``alpha``
+        including ``sum beta_k N_k + gamma_k N'_k``, the barriers' negative coverages): over the
         thresholds ``reference * 2^(-m/2)`` (``z`` takes every node below it) and none, and the
         plain ``(max|s|, 0, 0)``. ``W = alpha z + sum_k beta_k U_k + gamma_k V_k`` is then a
         supersolution."""
         K, M = self.bands, THRESHOLDS
         smax2, base2 = float(table[0]), float(table[1])
         sa = table[2:2 + M + 1]                             # bucket h + 1: max s^2 of the nodes a band could take
-        sb = table[2 + M + 1:].reshape(M + 1, 2 * K)        # ... their s^2 / coverage^2 in U_k (k < K), V_k
+        end = 2 + (M + 1) * (2 * K + 1)
+        sb = table[2 + M + 1:end].reshape(M + 1, 2 * K)     # ... their s^2 / coverage^2 in U_k (k < K), V_k
+        deficit = table[end:end + 2 * K]                    # the largest -coverage of U_k, V_k (per-edge weights)
         # z takes the buckets from row r on (r = 0 .. M + 1; M + 1: none of them), the bands the rows before
         alpha2 = np.maximum(base2, np.maximum.accumulate(np.append(sa, 0.0)[::-1])[::-1])
         beta2 = np.vstack([np.zeros((1, 2 * K)), np.maximum.accumulate(sb, axis=0)])
         alpha, beta = np.sqrt(alpha2), np.sqrt(beta2)
+        alpha = alpha + beta @ deficit                      # z makes up the barriers' negative coverage
         totals = alpha * self.zmax + beta @ np.concatenate([self.cost, self.cost])
         r = int(np.argmin(totals))
         if not totals[r] < np.sqrt(smax2) * self.zmax:
@@ -190,10 +224,13 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
     bucket ``h`` of ``s`` below the reference (the binary exponent of ``reference^2`` less that
     of ``s^2``, held to ``-1 .. THRESHOLDS - 1``, stored at ``h + 1``), the largest ``s^2`` of
     the other nodes, and for each barrier ``U_0 .. U_{K-1}, V_0 .. V_{K-1}`` the largest
-    ``s^2 / coverage^2`` of the nodes of that bucket charged to it. A node is charged to the
-    cheapest of the options in the module docstring (costs compared cross-multiplied by
-    ``a b``, as the kernels do). (Which bucket a node falls in only steers the choice of
-    threshold: the coefficients are exact maxima of the nodes charged to them.)
+    ``s^2 / coverage^2`` of the nodes of that bucket charged to it; last, for per-edge weights,
+    each barrier's largest negative coverage ``N_k`` (``U_0 .. V_{K-1}``, not squared; zero
+    for unit stencils). A node is charged to the
+    cheapest of the options in the module docstring (costs compared cross-multiplied, as the
+    kernels do). (Which bucket a node falls in only steers the choice of
+    threshold: the coefficients are exact maxima of the nodes charged to them.) Any weights:
+    the unit stencils' coverages are ``a / (a + b)``, per-edge weights' their own.
     """
     from ..backends.cpu import interior_diagonal, residual
 
@@ -202,7 +239,10 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
     out = np.zeros(barriers.table_size)
     if points.shape[0] < 3 or points.shape[1] < 3:
         return out
-    s2 = np.sum(residual(points, wu, wv) ** 2, axis=-1) / interior_diagonal(wu, wv) ** 2
+    r2 = np.sum(residual(points, wu, wv) ** 2, axis=-1)
+    if not weights.unit_stencil:
+        return _band_steps_per_edge(r2, wu, wv, barriers, out)
+    s2 = r2 / interior_diagonal(wu, wv) ** 2
     a, b = wu[1:, 1:-1], wv[1:-1, 1:]                         # the couplings along i and along j
     ku, kv = np.broadcast_arrays(barriers.ku[1:-1, None], barriers.kv[None, 1:-1])
     cost = np.append(barriers.cost, np.inf)
@@ -224,5 +264,72 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
         pick = choice == option
         value = s2 * np.broadcast_to(scale, s2.shape) ** 2
         np.maximum.at(sb, (row[pick], slot[pick]), value[pick])
-    out[2 + M + 1:] = sb.ravel()
+    out[2 + M + 1:2 + (M + 1) * (2 * K + 1)] = sb.ravel()
+    return out
+
+
+def profile(n: int, w: int) -> np.ndarray:
+    """The band profile ``F`` of width ``w`` over ``0 .. n-1`` (module docstring), float64."""
+    t = np.arange(n)
+    u = np.minimum(t, n - 1 - t).astype(np.float64)
+    return np.where(u < w, u * (2.0 * w - u), float(w) * w)
+
+
+def coverages(wu: np.ndarray, wv: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """``D^-1 A U_w`` and ``D^-1 A V_w`` over the interior nodes, ``(nu-2, nv-2)`` each, computed as
+    the kernels do: ``(a_lo (F(i) - F(i-1)) + a_hi (F(i) - F(i+1))) (1 / D)``."""
+    from ..weights import interior_diagonal
+
+    nu, nv = wu.shape[0] + 1, wu.shape[1]
+    inv = 1.0 / interior_diagonal(wu, wv)
+    fu, fv = profile(nu, w), profile(nv, w)
+    cu = (wu[:-1, 1:-1] * (fu[1:-1] - fu[:-2])[:, None] + wu[1:, 1:-1] * (fu[1:-1] - fu[2:])[:, None]) * inv
+    cv = (wv[1:-1, :-1] * (fv[1:-1] - fv[:-2])[None, :] + wv[1:-1, 1:] * (fv[1:-1] - fv[2:])[None, :]) * inv
+    return cu, cv
+
+
+def _band_steps_per_edge(r2: np.ndarray, wu: np.ndarray, wv: np.ndarray, barriers: BandBarriers,
+                         out: np.ndarray) -> np.ndarray:
+    """:func:`band_steps` for per-edge weights (``r2`` the squared residual's norm per node): each
+    node's coverages from its own weights, a node charged only to barriers covering it
+    positively, and each barrier's largest negative coverage (``N_k``) at the table's end. Costs
+    are compared cross-multiplied, in the kernel's order (U, V, both, z; ties: the first)."""
+    from ..weights import interior_diagonal
+
+    K, M = barriers.bands, THRESHOLDS
+    inv = 1.0 / interior_diagonal(wu, wv)
+    s2 = r2 * inv * inv
+    widths = np.sqrt(barriers.cost).round().astype(int)
+    ku, kv = np.broadcast_arrays(barriers.ku[1:-1, None], barriers.kv[None, 1:-1])
+    cu, cv = np.zeros(s2.shape), np.zeros(s2.shape)
+    end = 2 + (M + 1) * (2 * K + 1)
+    for k, w in enumerate(widths):
+        a, b = coverages(wu, wv, int(w))
+        cu[ku == k], cv[kv == k] = a[ku == k], b[kv == k]
+        out[end + k] = max(0.0, float(-a.min()))
+        out[end + K + k] = max(0.0, float(-b.min()))
+    cost = np.append(barriers.cost, np.inf)
+    wcu, wcv = cost[ku], cost[kv]
+    zmax = barriers.zmax
+    with np.errstate(invalid="ignore"):
+        valid_u, valid_v = cu > 0, cv > 0
+        choice = np.where(valid_u, 0, 3)
+        num, den = np.where(valid_u, wcu, zmax), np.where(valid_u, cu, 1.0)
+        take = valid_v & ((choice == 3) | (wcv * den < num * cv))
+        choice, num, den = np.where(take, 1, choice), np.where(take, wcv, num), np.where(take, cv, den)
+        take = valid_u & valid_v & ((wcu + wcv) * den < num * (cu + cv))
+        choice, num, den = np.where(take, 2, choice), np.where(take, wcu + wcv, num), np.where(take, cu + cv, den)
+        choice = np.where((choice != 3) & (zmax * den < num * 1.0), 3, choice)
+    h = _exponent(np.float64(barriers.reference) ** 2) - _exponent(s2)
+    row = np.clip(h, -1, M - 1) + 1
+    out[0] = s2.max()
+    z_only = choice == 3
+    out[1] = s2[z_only].max() if z_only.any() else 0.0
+    np.maximum.at(out[2:2 + M + 1], row[~z_only], s2[~z_only])
+    sb = np.zeros((M + 1, 2 * K))
+    w2 = s2 / (den * den)
+    for option, slot in ((0, ku), (1, K + kv), (2, ku), (2, K + kv)):
+        pick = choice == option
+        np.maximum.at(sb, (row[pick], slot[pick]), w2[pick])
+    out[2 + M + 1:end] = sb.ravel()
     return out
