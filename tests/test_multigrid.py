@@ -6,6 +6,8 @@ Accuracy against the independent sparse reference is in test_solvers.py
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -193,17 +195,17 @@ def jump_weights(rng, nu, nv, contrast, cells=8):
 
 @pytest.mark.parametrize("contrast", [100.0, 1e4])
 def test_conjugate_gradients_reach_the_bound_on_coefficient_jumps(rng, monkeypatch, contrast):
-    """Random 8 x 8 patchworks of 100:1 and 10^4:1 at 97 x 81 (20 layouts measured): V-cycles alone
-    stall, 66-135 cycles at 100:1 and 167 to over 300 at 10^4:1, where the barrier solve may never
-    bound ``max z``; conjugate gradients around them reach the bound in 12-25 and 15-45 iterations
-    (at least 4x and 11x fewer), the barrier solve's too, and the bound holds against an exact
-    solve of fresh boundaries and weights."""
+    """Random 8 x 8 patchworks of 100:1 and 10^4:1 at 97 x 81: V-cycles alone are slow or stall
+    (80 layouts measured: 22-149 cycles at 100:1, 35 to over 300 at 10^4:1, where the barrier solve
+    may never bound ``max z``); conjugate gradients around them reach the bound in 9-25 and 11-61
+    iterations (2.4-17x fewer at 100:1, median 5.6x; 3.2x to over 27x at 10^4:1), the barrier
+    solve's too, and the bound holds against an exact solve of fresh boundaries and weights."""
     import clothgrid.solvers.multigrid as mg
 
     nu, nv = 97, 81
     b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
     wu, wv = jump_weights(rng, nu, nv, contrast)
-    g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid", max_iter=60)
+    g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid", max_iter=100)
     assert g.info["converged"] and g.info["cg_iterations"] > 0
     err = max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size)
     assert err <= g.info["error_estimate"] <= TOL
@@ -213,7 +215,7 @@ def test_conjugate_gradients_reach_the_bound_on_coefficient_jumps(rng, monkeypat
     except clothgrid.ClothgridError as exc:                   # did not reach the bound, or no max z
         assert "did not reach" in str(exc) or "could not bound" in str(exc)
     else:
-        assert cycles >= 3 * g.info["iterations"]
+        assert cycles >= 2 * g.info["iterations"]
 
 
 def test_random_jump_patchworks_meet_the_bound(rng):
@@ -906,14 +908,23 @@ def test_per_edge_band_bound_saves_a_cycle_on_a_real_piece(monkeypatch):
 
 
 def test_barrier_falls_back_to_an_exact_solve_on_small_grids(rng, monkeypatch):
-    """Where the barrier solve's iterations cannot bound max z, a small grid takes the exact barrier
-    (the solve goes on and its bound holds); a larger one stops with the error naming 'direct'."""
+    """Where the barrier solve's iterations cannot bound max z (made to stall here), a small grid
+    takes the exact barrier (the solve goes on and its bound holds against an exact solve); a
+    larger one stops with the error naming 'direct'."""
     import clothgrid.solvers.multigrid as mg
 
     nu, nv = 64, 21
     b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
-    wu, wv = jump_weights(rng, nu, nv, 1e5, 9)
-    monkeypatch.setattr(mg, "BARRIER_MAX_ITER", 1)
+    wu, wv = jump_weights(rng, nu, nv, 100.0, 8)
+    real = mg._iterate
+
+    def stalls(ops, measure, limit, *args, **kwargs):
+        if limit == mg.BARRIER_DELTA:      # the barrier solve's iterations: as if they stalled
+            return math.inf, None
+        return real(ops, measure, limit, *args, **kwargs)
+
+    monkeypatch.setattr(mg, "_iterate", stalls)
+    monkeypatch.setattr(mg, "BARRIER_DELTA", 1e-300)      # past the full-multigrid start
     g = clothgrid.generate(b, weights=(wu, wv), solver="multigrid")
     err = max_rel_error(g.points, exact_solution(boundary_grid(b), wu, wv), b.size)
     assert g.info["converged"] and err <= g.info["error_estimate"] <= TOL

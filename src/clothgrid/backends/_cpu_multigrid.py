@@ -584,21 +584,29 @@ def _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, out):
     return m_lo, n
 
 
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2):
+    """``|b - A x|^2`` (summed over the coordinates) of a per-edge level 0 on line ``i``, rows of parity
+    ``p``, into ``s2[:n]`` (``r`` scratch of the same length); returns ``(m_lo, n)``."""
+    s2[:] = 0.0
+    m_lo, n = 0, 0
+    for c in range(xe.shape[0]):
+        m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, r)
+        for q in range(n):
+            s2[q] += r[q] * r[q]
+    return m_lo, n
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     """``max |D^-1 (b - A x)|`` (Euclidean per node) on level 0."""
-    k, nu = xe.shape[0], xe.shape[1]
+    nu = xe.shape[1]
     rowmax = np.zeros(nu)
     for i in numba.prange(1, nu - 1):
         best = 0.0
         r, s2 = np.empty(nv // 2 + 1), np.empty(nv // 2 + 1)
         for p in range(2):
-            s2[:] = 0.0
-            m_lo, n = 0, 0
-            for c in range(k):
-                m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, r)
-                for q in range(n):
-                    s2[q] += r[q] * r[q]
+            m_lo, n = _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2)
             if n <= 0:
                 continue
             ob = 0 if p == 1 else -1
@@ -666,6 +674,27 @@ def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
     return np.sqrt(rowmax.max())
 
 
+@numba.njit(inline="always", error_model="numpy")
+def _charge(out, v, choice, w2, kui, kvq, eref, M, nb, fbits, ibits):
+    """A node's entry in a thread's band table (:func:`clothgrid.solvers.bounds.band_steps`): its
+    squared step ``v``, to ``z`` (``choice`` 3) or to its bucket, with ``w2`` (``v / coverage^2``)
+    charged to ``U`` of band ``kui`` (``choice`` 0 or 2) and ``V`` of band ``kvq`` (1 or 2)."""
+    if choice == 3:
+        if v > out[1]:
+            out[1] = v
+        return
+    fbits[0] = v
+    h = eref - ((ibits[0] >> 52) & 0x7FF)
+    row = min(max(h, -1), M - 1) + 1
+    if v > out[2 + row]:
+        out[2 + row] = v
+    base = 2 + M + 1 + row * 2 * nb
+    if choice != 1 and w2 > out[base + kui]:
+        out[base + kui] = w2
+    if choice != 0 and w2 > out[base + nb + kvq]:
+        out[base + nb + kvq] = w2
+
+
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cost, zmax, ref2, nbuckets):
     """:func:`clothgrid.solvers.bounds.band_steps`' table for a unit-stencil level 0 (the residual
@@ -697,8 +726,7 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
                     out[0] = v
                 kvq = kv[q]
                 if kui >= nb and kvq >= nb:     # in no band: z's
-                    if v > out[1]:
-                        out[1] = v
+                    _charge(out, v, 3, v, kui, kvq, eref, M, nb, fbits, ibits)
                     continue
                 # the cheapest barrier, costs cross-multiplied by a b (module bounds' options)
                 ea = e[q]
@@ -714,28 +742,9 @@ def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cos
                 if c < best:
                     choice, best = 2, c
                 if zmax * ea * ni < best:       # z is cheaper
-                    if v > out[1]:
-                        out[1] = v
-                    continue
-                fbits[0] = v
-                h = eref - ((ibits[0] >> 52) & 0x7FF)
-                row = min(max(h, -1), M - 1) + 1
-                if v > out[2 + row]:
-                    out[2 + row] = v
-                base = off + row * 2 * nb
-                if choice == 0:
-                    w2 = v * (den / ea) ** 2
-                    if w2 > out[base + kui]:
-                        out[base + kui] = w2
-                elif choice == 1:
-                    w2 = v * (den / ni) ** 2
-                    if w2 > out[base + nb + kvq]:
-                        out[base + nb + kvq] = w2
-                else:
-                    if v > out[base + kui]:
-                        out[base + kui] = v
-                    if v > out[base + nb + kvq]:
-                        out[base + nb + kvq] = v
+                    choice = 3
+                w2 = v * (den / ea) ** 2 if choice == 0 else (v * (den / ni) ** 2 if choice == 1 else v)
+                _charge(out, v, choice, w2, kui, kvq, eref, M, nb, fbits, ibits)
     res = np.zeros(off + (M + 1) * 2 * nb + 2 * nb)     # the per-edge deficits: none for a unit stencil
     for t in range(tabs.shape[0]):
         for m in range(tabs.shape[1]):
@@ -775,7 +784,7 @@ def _band_steps5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, nthreads, ku, kve, k
     in :func:`_band_steps5u`.
     The negative coverages depend on the weights alone: they are sought only where ``deficits``
     (the table's last ``2 nb`` entries are zero otherwise)."""
-    k, nu = xe.shape[0], xe.shape[1]
+    nu = xe.shape[1]
     nb = cost.shape[0]
     M = nbuckets
     off = 2 + M + 1
@@ -792,12 +801,7 @@ def _band_steps5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, nthreads, ku, kve, k
         kui = ku[i]
         sul, suh = su[0, i], su[1, i]
         for p in range(2):
-            s2[:] = 0.0
-            m_lo, n = 0, 0
-            for c in range(k):
-                m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, c, r)
-                for q in range(n):
-                    s2[q] += r[q] * r[q]
+            m_lo, n = _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2)
             if n <= 0:
                 continue
             ob = 0 if p == 1 else -1
@@ -836,22 +840,7 @@ def _band_steps5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, nthreads, ku, kve, k
                     choice, num, den = 2, cost[kui] + cost[kvq], cu + cv
                 if choice != 3 and _cheaper(zmax, 1.0, num, den):
                     choice = 3
-                cover = den
-                if choice == 3:
-                    if v > out[1]:
-                        out[1] = v
-                    continue
-                fbits[0] = v
-                h = eref - ((ibits[0] >> 52) & 0x7FF)
-                row = min(max(h, -1), M - 1) + 1
-                if v > out[2 + row]:
-                    out[2 + row] = v
-                base = off + row * 2 * nb
-                w2 = v / (cover * cover)
-                if choice != 1 and w2 > out[base + kui]:
-                    out[base + kui] = w2
-                if choice != 0 and w2 > out[base + nb + kvq]:
-                    out[base + nb + kvq] = w2
+                _charge(out, v, choice, v / (den * den), kui, kvq, eref, M, nb, fbits, ibits)
     res = np.zeros(end + 2 * nb)
     for t in range(nthreads):
         for m in range(res.shape[0]):

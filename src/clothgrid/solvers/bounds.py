@@ -253,6 +253,15 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
                         (cu + cv) * a * b,                   # both
                         np.full(s2.shape, barriers.zmax) * a * b])     # z
     choice = np.argmin(options, axis=0)                       # ties: the first
+    charged = np.where(choice == 0, s2 * (den / a) ** 2, np.where(choice == 1, s2 * (den / b) ** 2, s2))
+    return _table(out, s2, choice, charged, ku, kv, barriers)
+
+
+def _table(out: np.ndarray, s2: np.ndarray, choice: np.ndarray, charged: np.ndarray, ku: np.ndarray,
+           kv: np.ndarray, barriers: BandBarriers) -> np.ndarray:
+    """:func:`band_steps`' table into ``out`` from each node's ``s^2``, its choice (0: U, 1: V, 2:
+    both, 3: z) and the ``s^2 / coverage^2`` charged to its barriers."""
+    K, M = barriers.bands, THRESHOLDS
     h = _exponent(np.float64(barriers.reference) ** 2) - _exponent(s2)
     row = np.clip(h, -1, M - 1) + 1
     out[0] = s2.max()
@@ -260,10 +269,9 @@ def band_steps(points: np.ndarray, weights: Any, barriers: BandBarriers) -> np.n
     out[1] = s2[z_only].max() if z_only.any() else 0.0
     np.maximum.at(out[2:2 + M + 1], row[~z_only], s2[~z_only])
     sb = np.zeros((M + 1, 2 * K))
-    for option, slot, scale in ((0, ku, den / a), (1, K + kv, den / b), (2, ku, 1.0), (2, K + kv, 1.0)):
+    for option, slot in ((0, ku), (1, K + kv), (2, ku), (2, K + kv)):
         pick = choice == option
-        value = s2 * np.broadcast_to(scale, s2.shape) ** 2
-        np.maximum.at(sb, (row[pick], slot[pick]), value[pick])
+        np.maximum.at(sb, (row[pick], slot[pick]), charged[pick])
     out[2 + M + 1:2 + (M + 1) * (2 * K + 1)] = sb.ravel()
     return out
 
@@ -320,16 +328,4 @@ def _band_steps_per_edge(r2: np.ndarray, wu: np.ndarray, wv: np.ndarray, barrier
         take = valid_u & valid_v & ((wcu + wcv) * den < num * (cu + cv))
         choice, num, den = np.where(take, 2, choice), np.where(take, wcu + wcv, num), np.where(take, cu + cv, den)
         choice = np.where((choice != 3) & (zmax * den < num * 1.0), 3, choice)
-    h = _exponent(np.float64(barriers.reference) ** 2) - _exponent(s2)
-    row = np.clip(h, -1, M - 1) + 1
-    out[0] = s2.max()
-    z_only = choice == 3
-    out[1] = s2[z_only].max() if z_only.any() else 0.0
-    np.maximum.at(out[2:2 + M + 1], row[~z_only], s2[~z_only])
-    sb = np.zeros((M + 1, 2 * K))
-    w2 = s2 / (den * den)
-    for option, slot in ((0, ku), (1, K + kv), (2, ku), (2, K + kv)):
-        pick = choice == option
-        np.maximum.at(sb, (row[pick], slot[pick]), w2[pick])
-    out[2 + M + 1:end] = sb.ravel()
-    return out
+    return _table(out, s2, choice, s2 / (den * den), ku, kv, barriers)
