@@ -1080,7 +1080,7 @@ class CpuMultigrid:
         self._solved: list[int | None] = [None] * self.levels
         #: the iterate, its right-hand side and has_b while conjugate gradients bind others (bind)
         self._own: tuple | None = None
-        #: (barriers, their negative coverages, the kernel's arrays) of a per-edge level 0 (band_steps)
+        #: (barriers, the kernel's arrays, their negative coverages) of a per-edge level 0 (band_steps)
         self._bands: tuple | None = None
         dt = np.float32
         # The line solves' scratch (Thomas factors of one block of rows per thread), allocated
@@ -1233,23 +1233,21 @@ class CpuMultigrid:
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         if self.unit0 is None:
             Ee, Eo, Ne, No = self.st[0]
-            # the barriers' negative coverages (the weights' alone) once for these barriers
-            known = self._bands is not None and self._bands[0] is barriers
-            if not known:
+            if self._bands is None or self._bands[0] is not barriers:   # the kernel's arrays, once
                 sv = barriers.slopes(1)
-                self._bands = (barriers, None, (barriers.kv[0::2].copy(), barriers.kv[1::2].copy(), barriers.slopes(0),
-                                                np.ascontiguousarray(sv[:, 0::2]), np.ascontiguousarray(sv[:, 1::2]),
-                                                np.sqrt(barriers.cost).round().astype(np.int64)))
-            kve, kvo, su, sve, svo, widths = self._bands[2]
+                self._bands = (barriers, (barriers.kv[0::2].copy(), barriers.kv[1::2].copy(), barriers.slopes(0),
+                                          np.ascontiguousarray(sv[:, 0::2]), np.ascontiguousarray(sv[:, 1::2]),
+                                          barriers.widths), None)
+            _, (kve, kvo, su, sve, svo, widths), deficits = self._bands
+            # the barriers' negative coverages depend on the weights alone: sought on the first call
             table = self._kernel("_band_steps5", 0)(
                 xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b, self._rows.shape[0], barriers.ku,
                 kve, kvo, su, sve, svo, widths, barriers.cost, float(barriers.zmax),
-                float(barriers.reference) ** 2, barriers.buckets, not known)
-            tail = slice(table.size - 2 * barriers.bands, table.size)
-            if known:
-                table[tail] = self._bands[1]
+                float(barriers.reference) ** 2, barriers.buckets, deficits is None)
+            if deficits is None:
+                self._bands = self._bands[:2] + (table[barriers.deficits_at:].copy(),)
             else:
-                self._bands = (barriers, table[tail].copy(), self._bands[2])
+                table[barriers.deficits_at:] = deficits
             return table
         ee, eo, nn = self.unit0
         return self._kernel("_band_steps5u", 0)(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,

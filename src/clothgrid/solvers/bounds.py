@@ -156,6 +156,11 @@ class BandBarriers:
         return len(self.cost)
 
     @property
+    def widths(self) -> np.ndarray:
+        """``(K,)`` int64: the bands' widths ``w_k`` (``cost`` is their squares)."""
+        return np.sqrt(self.cost).round().astype(np.int64)
+
+    @property
     def buckets(self) -> int:
         """:data:`THRESHOLDS`: half-octave buckets of ``|s|`` below :attr:`reference`."""
         return THRESHOLDS
@@ -169,16 +174,22 @@ class BandBarriers:
         n = len(lines)
         out = np.zeros((2, n))
         t = np.arange(1, n - 1)
-        for k, w in enumerate(np.sqrt(self.cost).round().astype(int)):
+        for k, w in enumerate(self.widths):
             f = profile(n, int(w))
             on = t[lines[1:-1] == k]
             out[0, on], out[1, on] = f[on] - f[on - 1], f[on] - f[on + 1]
         return out
 
     @property
+    def deficits_at(self) -> int:
+        """Where :func:`band_steps`' table holds the barriers' negative coverages (``2 K`` values
+        to its end)."""
+        return 2 + (THRESHOLDS + 1) * (2 * self.bands + 1)
+
+    @property
     def table_size(self) -> int:
         """Length of :func:`band_steps`' answer."""
-        return 2 + (THRESHOLDS + 1) * (2 * self.bands + 1) + 2 * self.bands
+        return self.deficits_at + 2 * self.bands
 
     def coefficients(self, table: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         """``(alpha, beta, gamma)`` of the least bound from :func:`band_steps`' table (``alpha``
@@ -189,7 +200,7 @@ class BandBarriers:
         K, M = self.bands, THRESHOLDS
         smax2, base2 = float(table[0]), float(table[1])
         sa = table[2:2 + M + 1]                             # bucket h + 1: max s^2 of the nodes a band could take
-        end = 2 + (M + 1) * (2 * K + 1)
+        end = self.deficits_at
         sb = table[2 + M + 1:end].reshape(M + 1, 2 * K)     # ... their s^2 / coverage^2 in U_k (k < K), V_k
         deficit = table[end:end + 2 * K]                    # the largest -coverage of U_k, V_k (per-edge weights)
         # z takes the buckets from row r on (r = 0 .. M + 1; M + 1: none of them), the bands the rows before
@@ -272,7 +283,7 @@ def _table(out: np.ndarray, s2: np.ndarray, choice: np.ndarray, charged: np.ndar
     for option, slot in ((0, ku), (1, K + kv), (2, ku), (2, K + kv)):
         pick = choice == option
         np.maximum.at(sb, (row[pick], slot[pick]), charged[pick])
-    out[2 + M + 1:2 + (M + 1) * (2 * K + 1)] = sb.ravel()
+    out[2 + M + 1:barriers.deficits_at] = sb.ravel()
     return out
 
 
@@ -307,11 +318,10 @@ def _band_steps_per_edge(r2: np.ndarray, wu: np.ndarray, wv: np.ndarray, barrier
     K, M = barriers.bands, THRESHOLDS
     inv = 1.0 / interior_diagonal(wu, wv)
     s2 = r2 * inv * inv
-    widths = np.sqrt(barriers.cost).round().astype(int)
     ku, kv = np.broadcast_arrays(barriers.ku[1:-1, None], barriers.kv[None, 1:-1])
     cu, cv = np.zeros(s2.shape), np.zeros(s2.shape)
-    end = 2 + (M + 1) * (2 * K + 1)
-    for k, w in enumerate(widths):
+    end = barriers.deficits_at
+    for k, w in enumerate(barriers.widths):
         a, b = coverages(wu, wv, int(w))
         cu[ku == k], cv[kv == k] = a[ku == k], b[kv == k]
         out[end + k] = max(0.0, float(-a.min()))
