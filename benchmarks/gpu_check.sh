@@ -5,7 +5,7 @@
 #   bash benchmarks/gpu_check.sh            # OUT defaults to /tmp/clothgrid-gpu
 #   STEPS="tests bench" MAX=4096 METHODS="cpu multigrid;cuda multigrid;gl multigrid" bash benchmarks/gpu_check.sh
 #
-# STEPS picks the checks (default: tests heat ops bench); METHODS (';'-separated) and MAX the
+# STEPS picks the checks (default: tests weights heat ops bench); METHODS (';'-separated) and MAX the
 # solvers and the largest side of the bench step.
 #
 # On the project's device machines the Python packages the image lacks travel as wheels in .whl/
@@ -34,7 +34,7 @@ log=$OUT/log.txt
     git log -1 --format='commit %h %s' 2>/dev/null
 } >"$log" 2>&1
 
-STEPS=${STEPS:-tests heat ops bench}
+STEPS=${STEPS:-tests weights heat ops bench}
 METHODS=${METHODS:-cpu multigrid;cuda multigrid;gl jacobi (paper rule);gl jacobi (true rule);cpu direct}
 MAX=${MAX:-4096}
 IFS=';' read -r -a methods <<<"$METHODS"
@@ -49,11 +49,13 @@ step() {  # step SECONDS NAME COMMAND...: run COMMAND under a limit, its output 
 
 # 1. the GPU tests: cuda and gl multigrid, and heat on gl and cuda (never run on a GPU before)
 step 230 tests.txt python3 -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_gl.py tests/test_heat_backends.py
-# 2. heat: cpu (all host cores, one core), gl and cuda against FiPy's direct solve, in the same run
+# 2. every weight kind (paper, uniform, per-edge smooth and 10:1 to 10^4:1 jumps) on cuda and on the host's cpu
+step 150 weights.txt python3 benchmarks/gpu_weights.py --sizes ${WEIGHT_SIZES:-1024 2048} --repeat 2
+# 3. heat: cpu (all host cores, one core), gl and cuda against FiPy's direct solve, in the same run
 step 100 heat.txt python3 benchmarks/bench_heat.py 256 1024 --gl --cuda
-# 3. each cuda multigrid operation per level, and a V-cycle replayed from a CUDA graph
+# 4. each cuda multigrid operation per level, and a V-cycle replayed from a CUDA graph
 step 60 ops.txt python3 benchmarks/gpu_ops.py 4096
-# 4. what the loan of 2026-11-23 left unmeasured: the paper's gl Jacobi (its own rule, the true rule)
+# 5. what the loan of 2026-11-23 left unmeasured: the paper's gl Jacobi (its own rule, the true rule)
 #    and the CPU direct solve on the GPU host; cuda multigrid again as the same-run anchor
 step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max "$MAX" --ref-max 1024 --timeout 60 --out "$OUT/gpu" \
     --methods "${methods[@]}"

@@ -328,7 +328,7 @@ class CudaMultigrid:
     def solution_max(self) -> float:
         """The largest interior value of level 0's iterate, first coordinate: a reduction over its
         parity planes on the device (no grid crosses the bus)."""
-        xe, xo = self.x[0]
+        xe, xo = self._views(self.x[0])   # CuPy (or NumPy) views: a Numba device array has no max()
         nu, nv = self._shape[:2]
         if nu < 3 or nv < 3:
             return -math.inf

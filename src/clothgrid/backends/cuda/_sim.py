@@ -48,9 +48,41 @@ def kernel_array(a):
     would be copied in and out at every launch).
     """
     if active():
-        from numba.cuda.simulator.cudadrv.devicearray import FakeCUDAArray
-
-        return FakeCUDAArray(a)
+        return _device_like()(a)
     from numba import cuda  # GPU only
 
     return cuda.as_cuda_array(a)  # GPU only
+
+
+# What Numba's DeviceNDArray answers on a GPU (its methods and instance attributes): no NumPy or
+# CuPy methods such as max, sum or fill.
+_DEVICE_ARRAY = frozenset({
+    "T", "alloc_size", "as_cuda_arg", "bind", "copy_to_device", "copy_to_host", "device_ctypes_pointer",
+    "dtype", "flags", "get_ipc_handle", "getitem", "gpu_data", "is_c_contiguous", "is_f_contiguous",
+    "nbytes", "ndim", "ravel", "reshape", "setitem", "shape", "size", "split", "squeeze", "stream",
+    "strides", "transpose", "view"})
+_DEVICE_LIKE = None
+
+
+def _device_like():
+    """The simulator's device array, made as strict as a GPU's: Numba's ``FakeCUDAArray`` hands
+    every NumPy method through, so a ``kernel_array(a).max()`` passed under the simulator and
+    failed on an H200 (2026-11-26). Its attributes are limited to ``_DEVICE_ARRAY`` (and its
+    slices are the same kind)."""
+    global _DEVICE_LIKE
+    if _DEVICE_LIKE is None:
+        from numba.cuda.simulator.cudadrv.devicearray import FakeCUDAArray
+
+        class DeviceLikeArray(FakeCUDAArray):
+            def __getattr__(self, name):
+                if not name.startswith("__") and name not in _DEVICE_ARRAY:
+                    raise AttributeError(f"a device array has no attribute {name!r} (on a GPU it is "
+                                         "Numba's DeviceNDArray: take the array module's view first)")
+                return super().__getattr__(name)
+
+            def __getitem__(self, idx):
+                ret = super().__getitem__(idx)
+                return DeviceLikeArray(ret._ary, ret.stream) if isinstance(ret, FakeCUDAArray) else ret
+
+        _DEVICE_LIKE = DeviceLikeArray
+    return _DEVICE_LIKE
