@@ -408,6 +408,32 @@ def test_a_band_that_is_not_a_factor_above_1_is_an_input_error(kw):
         even_edges(generate(b, weights="paper").points, dim=2, **kw)
 
 
+def test_the_nodes_near_outlying_edges_are_the_ones_a_direct_loop_finds():
+    """_outside (edge flags and the dilation in parallel) against a loop over every edge: the
+    nodes within 3 lines of an edge whose length is outside the band, on fresh random grids."""
+    import clothgrid.evening as ev
+
+    rng = np.random.default_rng()
+    for _ in range(20):
+        nu, nv = (int(k) for k in rng.integers(3, 25, 2))
+        u, v = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
+        X = np.ascontiguousarray(np.stack([u, v], -1) + rng.normal(scale=rng.uniform(0.05, 0.4), size=(nu, nv, 2)))
+        band = float(rng.uniform(1.2, 2.5))
+        lo, hi = -math.log(band), math.log(band)
+        want = np.zeros((nu, nv), bool)
+        for i in range(nu):
+            for j in range(nv):
+                for a, b in ((i + 1, j), (i, j + 1)):
+                    if a == nu or b == nv:
+                        continue
+                    t = 0.5 * math.log(float(((X[i, j] - X[a, b]) ** 2).sum()))
+                    if t > hi or t < lo:      # an outlying edge: the nodes near either end
+                        for p, q in ((i, j), (a, b)):
+                            want[max(1, p - 3):min(nu - 1, p + 4), max(1, q - 3):min(nv - 1, q + 4)] = True
+        active, count = ev._outside(X, lo, hi, 3)
+        assert np.array_equal(active, want) and count == want.sum()
+
+
 @pytest.mark.parametrize("coloured", [False, True])
 def test_skipping_settled_nodes_leaves_the_same_grid(coloured):
     """A node whose step failed and whose 8 neighbours have not moved since is skipped: the sweeps

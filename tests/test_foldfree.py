@@ -353,6 +353,65 @@ def test_plane_coordinates_of_an_xy_piece_without_the_matrix_product(clockwise):
     assert np.array_equal(to_plane(R3, c3, b3), (R3 - c3) @ b3.T)
 
 
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_shift_and_scale_in_the_plane_pass_give_numpys_bits(clockwise):
+    """to_plane with a shift and scale (one kernel pass for an xy-piece) gives the bits of NumPy's
+    multiply, subtract and divide one after the other, and _with_interior's way back those of
+    multiply, add and the sign; the boundary nodes are kept as they were."""
+    from clothgrid.foldfree import _with_interior, plane_frame, to_plane
+
+    rng = np.random.default_rng()
+    nu, nv = int(rng.integers(3, 40)), int(rng.integers(3, 40))
+    R = np.zeros((nu, nv, 3))
+    R[..., :2] = rng.normal(scale=rng.uniform(0.01, 100), size=(nu, nv, 2)) + rng.normal(size=2) * 50
+    R[1, 1, 0] = -0.0
+    if clockwise:
+        R = R[::-1].copy()
+    centre, basis = plane_frame(R, 2)
+    shift, scale = rng.normal(size=2) * 3, float(rng.uniform(0.1, 10))
+    ref = (R - centre) @ basis.T
+    ref -= shift
+    ref /= scale
+    X = to_plane(R, centre, basis, shift, scale)
+    assert np.array_equal(X.view(np.uint64), ref.view(np.uint64))
+    Y = X + rng.normal(scale=0.01, size=X.shape)
+    back = Y.copy()
+    back *= scale
+    back += shift
+    want = R.copy()
+    want[1:-1, 1:-1] = centre + back[1:-1, 1:-1] @ basis
+    want[1:-1, 1:-1, 2] = 0.0
+    got = _with_interior(R, Y.copy(), centre, basis, 2, shift=shift, scale=scale)
+    assert np.array_equal(got[..., :2], want[..., :2]) and np.array_equal(got[..., 2], want[..., 2])
+    assert np.array_equal(got[0], R[0]) and np.array_equal(got[:, -1], R[:, -1])
+
+
+def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
+    """foldfree_kernels.dilate against a direct loop: the nodes within m lines of a corner of a
+    marked cell (the relax's active sets), and of a marked node (the edge evening's), the grid's
+    ring left out; fresh random masks and margins."""
+    from clothgrid.foldfree import _active_nodes
+    from clothgrid.foldfree_kernels import dilate
+
+    rng = np.random.default_rng()
+    for _ in range(60):
+        nu, nv = (int(k) for k in rng.integers(3, 30, 2))
+        m = int(rng.integers(0, 10))
+        cells = rng.random((nu - 1, nv - 1)) < rng.choice([0.0, 0.01, 0.05, 0.3])
+        want = np.zeros((nu, nv), bool)
+        for ci, cj in np.argwhere(cells):
+            want[max(1, ci - m):min(nu - 1, ci + m + 2), max(1, cj - m):min(nv - 1, cj + m + 2)] = True
+        got, count = dilate(cells, m + 1, m, nu, nv)
+        assert np.array_equal(got, want) and count == want.sum()
+        assert np.array_equal(_active_nodes(cells, m), np.argwhere(want))
+        nodes = rng.random((nu, nv)) < 0.05
+        want = np.zeros((nu, nv), bool)
+        for i, j in np.argwhere(nodes):
+            want[max(1, i - m):min(nu - 1, i + m + 1), max(1, j - m):min(nv - 1, j + m + 1)] = True
+        got, count = dilate(nodes, m, m, nu, nv)
+        assert np.array_equal(got, want) and count == want.sum()
+
+
 def test_over_relaxed_ordered_sweeps_untangle_with_fewer_sweeps(monkeypatch):
     """The ordered sweeps' over-relaxed Newton step (``OVERRELAX``) against the plain one on the
     Roache regions at 80 x 80 nodes, both weights: both untangle every region; the over-relaxed

@@ -106,38 +106,69 @@ def _axis_map(centre: np.ndarray, basis: np.ndarray) -> list[tuple[int, float]] 
     return axes
 
 
-def to_plane(R: np.ndarray, centre: np.ndarray, basis: np.ndarray) -> np.ndarray:
-    """``(R - centre) @ basis.T``: the ``(nu, nv, 2)`` planar coordinates of the grid ``R``.
+def to_plane(R: np.ndarray, centre: np.ndarray, basis: np.ndarray, shift: np.ndarray | None = None,
+             scale: float = 1.0) -> np.ndarray:
+    """``(R - centre) @ basis.T``: the ``(nu, nv, 2)`` planar coordinates of the grid ``R``; with
+    ``shift`` then ``(... - shift) / scale``.
 
     For a piece in the xy-plane the frame only swaps and negates axes, and the product's terms
     are one coordinate times +-1 plus products with zero: the same values (exact, signed zeros
     aside) come from the coordinates themselves, without the matrix product's temporaries (15 ms
-    a grid at 1024^2).
+    a grid at 1024^2), in one pass with the shift and scale
+    (:func:`~clothgrid.foldfree_kernels.axes_to_plane`, the same bits as NumPy's operations one
+    after the other).
     """
     axes = _axis_map(centre, basis)
     if axes is None:
-        return (R - centre) @ basis.T
+        X = (R - centre) @ basis.T
+        if shift is not None:
+            X -= shift
+            X /= scale
+        return X
     X = np.empty(R.shape[:-1] + (2,))
+    if R.ndim == 3 and R.dtype == np.float64:
+        from .foldfree_kernels import axes_to_plane
+
+        (k0, s0), (k1, s1) = axes
+        sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
+        axes_to_plane(R, k0, s0, k1, s1, *sh, float(scale), shift is not None, X)
+        return X
     for r, (k, sign) in enumerate(axes):
         np.multiply(R[..., k], sign, out=X[..., r])
+    if shift is not None:
+        X -= shift
+        X /= scale
     return X
 
 
 def _with_interior(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.ndarray, dim: int,
-                   *, copy: bool = True) -> np.ndarray:
-    """``R`` with its interior nodes set from the planar ``X`` (``(nu, nv, 2)`` in the frame ``centre, basis``);
-    written into ``R`` itself with ``copy=False``.
+                   *, copy: bool = True, shift: np.ndarray | None = None, scale: float = 1.0) -> np.ndarray:
+    """``R`` with its interior nodes set from the planar ``X`` (``(nu, nv, 2)`` in the frame ``centre, basis``;
+    with ``shift``, ``X * scale + shift`` is, and ``X`` itself may be overwritten); written into ``R``
+    itself with ``copy=False``.
 
     For a piece in the xy-plane (:func:`to_plane`) the interior's x and y are ``X``'s coordinates,
-    swapped and negated back (the same values, signed zeros aside, as ``centre + X @ basis``).
+    swapped and negated back (the same values, signed zeros aside, as ``centre + X @ basis``), in
+    one pass with the scale and shift where ``R`` is C-contiguous
+    (:func:`~clothgrid.foldfree_kernels.axes_from_plane`).
     """
     out = R.copy() if copy else R
     axes = _axis_map(centre, basis) if dim == 2 else None
-    if axes is None:
-        out[1:-1, 1:-1] = centre + X[1:-1, 1:-1] @ basis
+    if axes is not None and out.flags.c_contiguous and out.dtype == np.float64:
+        from .foldfree_kernels import axes_from_plane
+
+        (k0, s0), (k1, s1) = axes
+        sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
+        axes_from_plane(X, k0, s0, k1, s1, *sh, float(scale), shift is not None, out)
     else:
-        for r, (k, sign) in enumerate(axes):
-            np.multiply(X[1:-1, 1:-1, r], sign, out=out[1:-1, 1:-1, k])
+        if shift is not None:
+            X *= scale
+            X += shift
+        if axes is None:
+            out[1:-1, 1:-1] = centre + X[1:-1, 1:-1] @ basis
+        else:
+            for r, (k, sign) in enumerate(axes):
+                np.multiply(X[1:-1, 1:-1, r], sign, out=out[1:-1, 1:-1, k])
     if dim == 2:
         out[1:-1, 1:-1, 2] = 0.0
     return out
@@ -447,26 +478,11 @@ def _smooth(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], sweeps: in
 
 
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
-    """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells)."""
+    """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells), row by row."""
+    from .foldfree_kernels import dilate
+
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
-    near = np.zeros((nu, nv), dtype=bool)
-    ci, cj = np.nonzero(poor)
-    for di in (0, 1):
-        for dj in (0, 1):
-            near[ci + di, cj + dj] = True
-    if margin > 0:
-        # dilate by `margin` in the max norm (separable running max)
-        for axis in (0, 1):
-            grown = near.copy()
-            for s in range(1, margin + 1):
-                if axis == 0:
-                    grown[s:] |= near[:-s]
-                    grown[:-s] |= near[s:]
-                else:
-                    grown[:, s:] |= near[:, :-s]
-                    grown[:, :-s] |= near[:, s:]
-            near = grown
-    near[0, :] = near[-1, :] = near[:, 0] = near[:, -1] = False
+    near, _ = dilate(np.ascontiguousarray(poor), margin + 1, margin, nu, nv)
     return np.argwhere(near).astype(np.int64)
 
 
@@ -665,17 +681,14 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     say = progress or (lambda _msg: None)
     R = _grid_copy(points, "relax")
     centre, basis = plane_frame(R, dim)
-    X = to_plane(R, centre, basis)
-    nu, nv = X.shape[:2]
-    loop = boundary_loop(X)
+    nu, nv = R.shape[:2]
+    loop = to_plane(boundary_loop(R), centre, basis)    # X's boundary, before X is made
     area = signed_area(loop)
     if not area > 0:
         raise InputError("the piece's boundary encloses no area")
     scale = np.sqrt(area / ((nu - 1) * (nv - 1)))
     shift = loop.mean(axis=0)
-    Xs = np.ascontiguousarray(X)            # X's own memory (to_plane made it): no temporaries
-    Xs -= shift
-    Xs /= scale
+    Xs = np.ascontiguousarray(to_plane(R, centre, basis, shift, scale))    # shifted and scaled in one pass
     stats: dict[str, Any] = {"sweeps": 0, "rounds": 0, "moved": 0, "method": "relax"}
     poor = np.ones((nu - 1, nv - 1), bool) if whole else _poor_cells(Xs, poor_sine)
     if not poor.any():
@@ -685,8 +698,6 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     nodes = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
     jmin, bad = corner_min(Xs, True)
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
-    Xs *= scale
-    Xs += shift
-    out = _with_interior(R, Xs, centre, basis, dim, copy=False)   # R: this call's own copy
+    out = _with_interior(R, Xs, centre, basis, dim, copy=False, shift=shift, scale=scale)   # R: this call's own
     stats["seconds"] = time.perf_counter() - t0
     return out, stats

@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from .jit_variants import serial_twin
 
-__all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine"]
+__all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine", "axes_to_plane", "axes_from_plane", "dilate"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
 _DI = np.array([0, 1, 1, 0], dtype=np.int64)
@@ -413,3 +413,78 @@ def cell_min_sine(X: np.ndarray) -> np.ndarray:
     out = np.empty((X.shape[0] - 1, X.shape[1] - 1))
     (_cell_min_sine if out.size >= PARALLEL_CELLS else _cell_min_sine_serial)(X, out)
     return out
+
+
+
+@njit(cache=True, parallel=True)
+def axes_to_plane(R, k0, s0, k1, s1, shift0, shift1, scale, affine, X):
+    """``X[..., 0] = R[..., k0] * s0`` and ``X[..., 1] = R[..., k1] * s1``: a grid in the xy-plane
+    to planar coordinates whose frame only swaps and negates axes
+    (:func:`clothgrid.foldfree.to_plane`); with ``affine`` then shifted and scaled in the same pass,
+    ``(R[..., k0] * s0 - shift0) / scale``: the same IEEE operations, in the same order, as NumPy's
+    multiply, subtract and divide one after the other."""
+    for i in prange(R.shape[0]):
+        for j in range(R.shape[1]):
+            if affine:
+                X[i, j, 0] = (R[i, j, k0] * s0 - shift0) / scale
+                X[i, j, 1] = (R[i, j, k1] * s1 - shift1) / scale
+            else:
+                X[i, j, 0] = R[i, j, k0] * s0
+                X[i, j, 1] = R[i, j, k1] * s1
+
+
+@njit(cache=True, parallel=True)
+def axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
+    """The way back for the interior nodes: ``R[i, j, k0] = X[i, j, 0] * s0`` (and ``k1``), with
+    ``affine`` ``(X[i, j, 0] * scale + shift0) * s0``; the boundary nodes of ``R`` kept as they are."""
+    for i in prange(1, R.shape[0] - 1):
+        for j in range(1, R.shape[1] - 1):
+            if affine:
+                R[i, j, k0] = (X[i, j, 0] * scale + shift0) * s0
+                R[i, j, k1] = (X[i, j, 1] * scale + shift1) * s1
+            else:
+                R[i, j, k0] = X[i, j, 0] * s0
+                R[i, j, k1] = X[i, j, 1] * s1
+
+
+@njit(cache=True, parallel=True)
+def dilate(mask, before, after, nu, nv):
+    """The interior nodes of an ``(nu, nv)`` grid near a true entry of ``mask``, and their count.
+
+    Node ``(i, j)`` (``0 < i < nu - 1``, ``0 < j < nv - 1``) is marked where ``mask[ci, cj]`` is
+    true for some ``i - before <= ci <= i + after`` and ``j - before <= cj <= j + after``: for a
+    mask of nodes and ``before = after = m``, the nodes within ``m`` grid lines in the max norm;
+    for a mask of cells, ``before = m + 1`` and ``after = m``, the nodes within ``m`` lines of a
+    corner of a marked cell. Two passes of running counts (along the rows, then down the columns),
+    rows in parallel: the cost does not grow with ``m``.
+    """
+    mu, mv = mask.shape
+    # along the rows: hits[ci, j] = any(mask[ci, j - before : j + after + 1])
+    hits = np.zeros((mu, nv), np.bool_)
+    for ci in prange(mu):
+        run = np.zeros(mv + 1, np.int32)
+        for cj in range(mv):
+            run[cj + 1] = run[cj] + (1 if mask[ci, cj] else 0)
+        for j in range(nv):
+            hi = min(mv, j + after + 1)
+            lo = max(0, j - before)
+            hits[ci, j] = hi > lo and run[hi] > run[lo]
+    # down the columns: running counts of hits over the rows
+    down = np.zeros((mu + 1, nv), np.int32)
+    for ci in range(mu):
+        for j in range(nv):
+            down[ci + 1, j] = down[ci, j] + (1 if hits[ci, j] else 0)
+    out = np.zeros((nu, nv), np.bool_)
+    counts = np.zeros(nu, np.int64)
+    for i in prange(1, nu - 1):
+        hi = min(mu, i + after + 1)
+        lo = max(0, i - before)
+        if hi <= lo:
+            continue
+        c = 0
+        for j in range(1, nv - 1):
+            if down[hi, j] > down[lo, j]:
+                out[i, j] = True
+                c += 1
+        counts[i] = c
+    return out, counts.sum()
