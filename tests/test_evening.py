@@ -434,6 +434,36 @@ def test_the_nodes_near_outlying_edges_are_the_ones_a_direct_loop_finds():
         assert np.array_equal(active, want) and count == want.sum()
 
 
+def test_evening_sweeps_in_parts_give_the_ordered_sweeps_bits():
+    """_sweep_parts (whole components on the threads, each node numbered by its place in the list)
+    makes _sweep's steps and skips: over 12 sweeps the same grid bit for bit, the same largest
+    move and count each sweep, the same visit records."""
+    import clothgrid.evening as ev
+    from clothgrid.foldfree_kernels import node_components
+
+    P0 = _crowded(11)
+    X = np.ascontiguousarray(P0[..., :2])
+    X /= np.exp(np.log(ev._edge_lengths(X)).mean())
+    lo, hi = -math.log(ev.BAND), math.log(ev.BAND)
+    active, _ = ev._outside(X, lo, hi, 1)
+    nodes = np.argwhere(active).astype(np.int64)
+    label, count = node_components(nodes)
+    assert count >= 2
+    part = (label % 2)
+    order = np.argsort(part, kind="stable")
+    starts = np.searchsorted(part[order], np.arange(3)).astype(np.int64)
+    split = np.ascontiguousarray(nodes[order])
+    floor = math.sin(math.radians(FLOOR_DEG))
+    A, B = X.copy(), X.copy()
+    rec = [(np.full(X.shape[:2], -1, np.int64), np.full(len(nodes), -1, np.int64)) for _ in range(2)]
+    for s in range(12):
+        got_a = ev._sweep(A, lo, hi, floor, nodes, ev.OVERRELAX, s, *rec[0])
+        got_b = ev._sweep_parts(B, lo, hi, floor, split, order, starts, ev.OVERRELAX, s, *rec[1])
+        assert got_a == got_b
+    assert np.array_equal(A, B) and not np.array_equal(A, X)
+    assert np.array_equal(rec[0][0], rec[1][0]) and np.array_equal(rec[0][1], rec[1][1])
+
+
 @pytest.mark.parametrize("coloured", [False, True])
 def test_skipping_settled_nodes_leaves_the_same_grid(coloured):
     """A node whose step failed and whose 8 neighbours have not moved since is skipped: the sweeps

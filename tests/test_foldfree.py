@@ -248,6 +248,76 @@ def test_the_coloured_parallel_sweeps_match_the_ordered_ones(monkeypatch):
     assert 0 < np.count_nonzero(shifted) <= moved
 
 
+def _two_parts(nodes):
+    """Order and starts of ``nodes`` in two parts of whole components, alternating by size."""
+    from clothgrid.foldfree_kernels import node_components
+
+    label, count = node_components(nodes)
+    part = (np.argsort(np.argsort(-np.bincount(label, minlength=count), kind="stable")) % 2)[label]
+    order = np.argsort(part, kind="stable")
+    return order, np.searchsorted(part[order], np.arange(3)).astype(np.int64)
+
+
+def test_node_components_join_the_eight_neighbours():
+    """node_components against SciPy's labelling with the 3 x 3 structure, on fresh random node sets
+    (the same partition; labels numbered by first node)."""
+    from scipy import ndimage
+
+    from clothgrid.foldfree_kernels import node_components
+
+    rng = np.random.default_rng()
+    for _ in range(30):
+        nu, nv = (int(k) for k in rng.integers(3, 40, 2))
+        mask = rng.random((nu, nv)) < rng.uniform(0.05, 0.5)
+        nodes = np.argwhere(mask).astype(np.int64)
+        label, count = node_components(nodes)
+        ref, n_ref = ndimage.label(mask, structure=np.ones((3, 3)))
+        assert count == n_ref
+        ref_of = ref[nodes[:, 0], nodes[:, 1]]
+        if len(nodes):
+            assert label[0] == 0 and np.all(np.diff(np.maximum.accumulate(label)) <= 1)
+        for a in range(count):       # one to one
+            assert len(np.unique(ref_of[label == a])) == 1
+
+
+def test_relax_sweeps_in_parts_give_the_ordered_sweeps_bits():
+    """sweep_nodes_parts (whole components of the active set on the threads) leaves the grid, the
+    sweep count and the last move of sweep_nodes bit for bit, on a grid with several poor
+    regions; node_parts splits a large grid's set only, and keeps each part in list order."""
+    import numba
+
+    import clothgrid.foldfree as ff
+    from clothgrid.foldfree_kernels import PARALLEL_CELLS, sweep_nodes, sweep_nodes_parts
+
+    rng = np.random.default_rng()
+    nu, nv = 60, 70
+    u, v = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
+    X = np.stack([u, v], -1)
+    blocks = [(int(rng.integers(2, 20)), int(rng.integers(2, 60))) for _ in range(2)] + [(40, 10), (45, 50)]
+    mask = np.zeros((nu, nv), bool)
+    for i, j in blocks:
+        mask[i:i + 8, j:j + 8] = True
+        X[i + 2:i + 6, j + 2:j + 6] += rng.normal(scale=0.45, size=(4, 4, 2))    # folds
+    nodes = np.argwhere(mask).astype(np.int64)
+    order, starts = _two_parts(nodes)
+    assert starts[1] > 0 and starts[2] > starts[1]
+    A, B = X.copy(), X.copy()
+    got_a = sweep_nodes(A, nodes, ff.DELTA_SMOOTH ** 2, 40, 1e-3, ff.OVERRELAX)
+    got_b = sweep_nodes_parts(B, np.ascontiguousarray(nodes[order]), starts, ff.DELTA_SMOOTH ** 2, 40, 1e-3,
+                              ff.OVERRELAX)
+    assert got_a == got_b and np.array_equal(A, B) and not np.array_equal(A, X)
+    # node_parts: nothing for a small grid; on a large one whole components, in list order
+    assert ff.node_parts(nodes, nu * nv) is None
+    parts = ff.node_parts(nodes, PARALLEL_CELLS)
+    if numba.get_num_threads() >= 2:
+        order, starts = parts
+        assert sorted(order) == list(range(len(nodes)))
+        for p in range(len(starts) - 1):
+            assert np.all(np.diff(order[starts[p]:starts[p + 1]]) > 0)
+    else:
+        assert parts is None
+
+
 def test_corner_measures_of_large_grids_run_in_parallel_with_the_same_results(rng, monkeypatch):
     """corner_min and cell_min_sine take rows of cells in parallel from PARALLEL_CELLS cells on:
     on fresh grids with folded and degenerate cells both forms give the same numbers, bit for bit,

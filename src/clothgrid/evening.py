@@ -39,6 +39,8 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from .jit_variants import serial_twin
+
 __all__ = ["even_edges", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
 
 #: No corner angle is made smaller than this (degrees), unless it was already ...
@@ -330,6 +332,38 @@ def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
 
 
 @njit(cache=True, parallel=True)
+def _sweep_parts(X, lo, hi, floor, nodes, index, starts, omega, sweep, moved_at, failed_at):
+    """:func:`_sweep` with the nodes in parts (``nodes[starts[p]:starts[p + 1]]``, whole components
+    of :func:`clothgrid.foldfree.node_parts`; ``index``: each node's place in :func:`_sweep`'s list,
+    which numbers its visits and its ``failed_at``), the parts in parallel. No node of one part is a
+    neighbour of a node of another, so each step and skip is the one :func:`_sweep` makes: the same
+    grid, bit for bit, the same largest move and count."""
+    lo2, hi2 = _inside_band(lo, hi)
+    parts = starts.shape[0] - 1
+    bigs = np.zeros(parts)
+    counts = np.zeros(parts, np.int64)
+    K = nodes.shape[0]
+    for p in prange(parts):
+        before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
+        biggest, moved = 0.0, 0
+        for q in range(starts[p], starts[p + 1]):
+            i, j, k = nodes[q, 0], nodes[q, 1], index[q]
+            if _settled(i, j, moved_at, failed_at[k]):
+                continue
+            clock = sweep * K + k
+            d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
+            if d >= 0.0:
+                biggest = max(biggest, d)
+                moved += 1
+                moved_at[i, j] = clock
+                failed_at[k] = -1
+            else:
+                failed_at[k] = clock
+        bigs[p], counts[p] = biggest, moved
+    return bigs.max(), counts.sum()
+
+
+@njit(cache=True, parallel=True)
 def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at):
     """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
     (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet).
@@ -362,12 +396,13 @@ def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
 
 
 @njit(cache=True, parallel=True)
-def _outlying_edges(X, lo, hi):
-    """Per node, whether its u-edge to ``(i + 1, j)`` (bit 1) and its v-edge to ``(i, j + 1)``
-    (bit 2) are outside the band: rows in parallel, each edge looked at once."""
+def _outside_nodes(X, lo, hi):
+    """The nodes at an edge outside the band, rows in parallel: first, per node, whether its u-edge
+    to ``(i + 1, j)`` (bit 1) and its v-edge to ``(i, j + 1)`` (bit 2) are (each edge looked at
+    once), then whether one of those or the one from ``(i - 1, j)`` or ``(i, j - 1)`` is."""
     nu, nv = X.shape[0], X.shape[1]
     lo2, hi2 = _inside_band(lo, hi)
-    out = np.zeros((nu, nv), np.uint8)
+    edges = np.zeros((nu, nv), np.uint8)
     for i in prange(nu):
         for j in range(nv):
             flags = 0
@@ -379,16 +414,7 @@ def _outlying_edges(X, lo, hi):
                 dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
                 if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1] != 0.0:
                     flags |= 2
-            out[i, j] = flags
-    return out
-
-
-@njit(cache=True, parallel=True)
-def _outside_nodes(X, lo, hi):
-    """The nodes at an edge outside the band: its own u- or v-edge (:func:`_outlying_edges`), or the
-    one from ``(i - 1, j)`` or ``(i, j - 1)``; rows in parallel."""
-    nu, nv = X.shape[0], X.shape[1]
-    edges = _outlying_edges(X, lo, hi)
+            edges[i, j] = flags
     hot = np.zeros((nu, nv), np.bool_)
     for i in prange(nu):
         for j in range(nv):
@@ -397,12 +423,16 @@ def _outside_nodes(X, lo, hi):
     return hot
 
 
+_outside_nodes_serial = serial_twin(_outside_nodes)
+
+
 def _outside(X: np.ndarray, lo: float, hi: float, margin: int) -> tuple[np.ndarray, int]:
     """Interior nodes within ``margin`` grid lines of an edge outside the band; their count."""
-    from .foldfree_kernels import dilate
+    from .foldfree_kernels import PARALLEL_CELLS, dilate, plane_kernel
 
     nu, nv = X.shape[:2]
-    active, count = dilate(_outside_nodes(X, lo, hi), margin, margin, nu, nv)
+    hot = (_outside_nodes if nu * nv >= PARALLEL_CELLS else _outside_nodes_serial)(X, lo, hi)
+    active, count = plane_kernel(dilate, X)(hot, margin, margin, nu, nv)
     return active, int(count)
 
 
@@ -411,7 +441,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
     """One stage of :func:`even_edges`: sweeps over the ``count`` ``active`` nodes with the energy
     of ``band``, in order (over-relaxed) or, for :data:`~clothgrid.foldfree.PARALLEL_NODES` nodes
     or more, in colours, until a stop rule holds; ``{band, active, sweeps, moved}``."""
-    from .foldfree import PARALLEL_NODES
+    from .foldfree import PARALLEL_NODES, node_parts
 
     lo, hi = -math.log(band), math.log(band)
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
@@ -425,6 +455,13 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
         rest = energy - part
         sweep_once, omega = _sweep, OVERRELAX
         failed_at = np.full(len(active), -1, np.int64)
+        parts = node_parts(active, X.shape[0] * X.shape[1])
+        if parts is not None:      # separate components on the host's threads: the same grid
+            order, starts = parts
+            split = np.ascontiguousarray(active[order])
+
+            def sweep_once(X, lo, hi, floor, _active, omega, sweep, moved_at, failed_at):
+                return _sweep_parts(X, lo, hi, floor, split, order, starts, omega, sweep, moved_at, failed_at)
     else:
         sweep_once, omega = _sweep_coloured, 1.0
         failed_at = np.full(X.shape[:2], -1, np.int64)
@@ -551,6 +588,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     """
     from .errors import InputError
     from .foldfree import _grid_copy, _with_interior, plane_frame, to_plane
+    from .foldfree_kernels import PARALLEL_CELLS
 
     for name, value in (("band", band), ("wide_band", wide_band)):
         if value is None and name == "wide_band":
@@ -562,7 +600,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     R = _grid_copy(points, "even_edges", copy=copy)
     centre, basis = plane_frame(R, dim)
     X = np.ascontiguousarray(to_plane(R, centre, basis))
-    lengths = _edge_lengths(X)
+    lengths = (_edge_lengths if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _edge_lengths_serial)(X)
     shortest = float(lengths.min())
     spread = float(lengths.max()) / shortest if shortest > 0 else float("inf")
     info: dict[str, Any] = {"spread_before": spread, "spread_after": spread, "moved": 0, "sweeps": 0,
@@ -629,6 +667,9 @@ def _edge_lengths(X):
             d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
             out[base + i * (nv - 1) + j] = math.sqrt(d0 * d0 + d1 * d1)
     return out
+
+
+_edge_lengths_serial = serial_twin(_edge_lengths)
 
 
 @njit(cache=True)

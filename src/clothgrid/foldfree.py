@@ -127,11 +127,11 @@ def to_plane(R: np.ndarray, centre: np.ndarray, basis: np.ndarray, shift: np.nda
         return X
     X = np.empty(R.shape[:-1] + (2,))
     if R.ndim == 3 and R.dtype == np.float64:
-        from .foldfree_kernels import axes_to_plane
+        from .foldfree_kernels import axes_to_plane, plane_kernel
 
         (k0, s0), (k1, s1) = axes
         sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
-        axes_to_plane(R, k0, s0, k1, s1, *sh, float(scale), shift is not None, X)
+        plane_kernel(axes_to_plane, R)(R, k0, s0, k1, s1, *sh, float(scale), shift is not None, X)
         return X
     for r, (k, sign) in enumerate(axes):
         np.multiply(R[..., k], sign, out=X[..., r])
@@ -155,11 +155,11 @@ def _with_interior(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.n
     out = R.copy() if copy else R
     axes = _axis_map(centre, basis) if dim == 2 else None
     if axes is not None and out.flags.c_contiguous and out.dtype == np.float64:
-        from .foldfree_kernels import axes_from_plane
+        from .foldfree_kernels import axes_from_plane, plane_kernel
 
         (k0, s0), (k1, s1) = axes
         sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
-        axes_from_plane(X, k0, s0, k1, s1, *sh, float(scale), shift is not None, out)
+        plane_kernel(axes_from_plane, out)(X, k0, s0, k1, s1, *sh, float(scale), shift is not None, out)
     else:
         if shift is not None:
             X *= scale
@@ -442,11 +442,61 @@ RELAX_STALL = 6
 PARALLEL_NODES = 8192
 
 
+#: An ordered sweep is split between threads only where each thread gets at least this many
+#: nodes a sweep (about 15 us of work: waking the threads costs a few us a sweep), and only on a
+#: grid of :data:`~clothgrid.foldfree_kernels.PARALLEL_CELLS` nodes or more: after the fast
+#: diagonalisation solve of smaller grids (``fdm``), OpenBLAS's threads spin for a while on the
+#: two cores, and parallel sweeps then cost more than they save (the survey's pieces at 10 mm:
+#: 2.7 -> 2.9-4.1 s with parts of 1024 or 128 nodes; 2.47 s with OpenBLAS on one thread).
+PART_NODES = 128
+
+
+def node_parts(nodes: np.ndarray, grid_nodes: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The order and part boundaries in which an ordered sweep over ``nodes`` (of a grid of
+    ``grid_nodes``) runs on the host's threads, the same grid bit for bit; None where it gains
+    nothing (one thread, one component, parts under :data:`PART_NODES`, a small grid).
+
+    The set's components (nodes joined as 8 neighbours,
+    :func:`~clothgrid.foldfree_kernels.node_components`) are dealt to the threads, largest first,
+    each to the least loaded; ``order`` lists the nodes part by part, each part in the list's own
+    order (``np.argsort`` stable), and part ``p`` is ``order[starts[p]:starts[p + 1]]``.
+    """
+    import numba
+
+    from .foldfree_kernels import PARALLEL_CELLS, node_components
+
+    threads = numba.get_num_threads()
+    if threads < 2 or len(nodes) < 2 * PART_NODES or grid_nodes < PARALLEL_CELLS:
+        return None
+    label, count = node_components(nodes)
+    if count < 2:
+        return None
+    sizes = np.bincount(label, minlength=count)
+    loads = np.zeros(min(threads, count), np.int64)
+    part = np.empty(count, np.int64)
+    for c in np.argsort(-sizes, kind="stable"):
+        p = int(np.argmin(loads))
+        part[c] = p
+        loads[p] += sizes[c]
+    if (loads > 0).sum() < 2 or np.sort(loads)[-2] < PART_NODES:
+        return None
+    of_node = part[label]
+    order = np.argsort(of_node, kind="stable")
+    starts = np.searchsorted(of_node[order], np.arange(len(loads) + 1)).astype(np.int64)
+    return order, starts
+
+
 def _sweeps(Xs: np.ndarray, nodes: np.ndarray, delta2: float, sweeps: int, tol: float) -> tuple[int, float]:
-    """Node sweeps over ``nodes``: in order, or in four colours in parallel for a large set."""
-    from .foldfree_kernels import sweep_nodes, sweep_nodes_coloured
+    """Node sweeps over ``nodes``: in order (the set's separate components on the host's threads,
+    :func:`node_parts`), or in four colours in parallel for a large set."""
+    from .foldfree_kernels import sweep_nodes, sweep_nodes_coloured, sweep_nodes_parts
 
     if len(nodes) < PARALLEL_NODES:
+        parts = node_parts(nodes, Xs.shape[0] * Xs.shape[1])
+        if parts is not None:
+            order, starts = parts
+            return sweep_nodes_parts(Xs, np.ascontiguousarray(nodes[order]), starts, delta2, sweeps, tol,
+                                     OVERRELAX)
         return sweep_nodes(Xs, nodes, delta2, sweeps, tol, OVERRELAX)       # over-relaxed
     colour = 2 * (nodes[:, 0] & 1) + (nodes[:, 1] & 1)
     order = np.argsort(colour, kind="stable")
@@ -479,10 +529,10 @@ def _smooth(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], sweeps: in
 
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
     """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells), row by row."""
-    from .foldfree_kernels import dilate
+    from .foldfree_kernels import dilate, plane_kernel
 
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
-    near, _ = dilate(np.ascontiguousarray(poor), margin + 1, margin, nu, nv)
+    near, _ = plane_kernel(dilate, poor)(np.ascontiguousarray(poor), margin + 1, margin, nu, nv)
     return np.argwhere(near).astype(np.int64)
 
 

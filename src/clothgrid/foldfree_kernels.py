@@ -27,7 +27,8 @@ from numba import njit, prange
 
 from .jit_variants import serial_twin
 
-__all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine", "axes_to_plane", "axes_from_plane", "dilate"]
+__all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine", "axes_to_plane", "axes_from_plane", "dilate",
+           "node_components", "sweep_nodes_parts"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
 _DI = np.array([0, 1, 1, 0], dtype=np.int64)
@@ -447,6 +448,20 @@ def axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
                 R[i, j, k1] = X[i, j, 1] * s1
 
 
+_axes_to_plane_serial = serial_twin(axes_to_plane)
+_axes_from_plane_serial = serial_twin(axes_from_plane)
+
+
+def plane_kernel(kernel, R: np.ndarray):
+    """``kernel`` (:func:`axes_to_plane`, :func:`axes_from_plane` or :func:`dilate`) or its serial
+    twin, by the grid's size (:data:`PARALLEL_CELLS`: waking the threads costs more than a small
+    grid's whole pass)."""
+    if R.shape[0] * R.shape[1] >= PARALLEL_CELLS:
+        return kernel
+    return {axes_to_plane: _axes_to_plane_serial, axes_from_plane: _axes_from_plane_serial,
+            dilate: _dilate_serial}[kernel]
+
+
 @njit(cache=True, parallel=True)
 def dilate(mask, before, after, nu, nv):
     """The interior nodes of an ``(nu, nv)`` grid near a true entry of ``mask``, and their count.
@@ -488,3 +503,70 @@ def dilate(mask, before, after, nu, nv):
                 c += 1
         counts[i] = c
     return out, counts.sum()
+
+
+_dilate_serial = serial_twin(dilate)
+
+
+@njit(cache=True)
+def node_components(nodes):
+    """The components of a set of grid nodes (``(K, 2)``) joined as the 8 neighbours of a node:
+    each node's component label (from 0, in order of first node) and their count. Nodes of two
+    components are never neighbours, so a node-by-node sweep may visit them in any interleaving."""
+    K = nodes.shape[0]
+    label = np.full(K, -1, np.int64)
+    if K == 0:
+        return label, 0
+    i0, i1 = nodes[:, 0].min(), nodes[:, 0].max()
+    j0, j1 = nodes[:, 1].min(), nodes[:, 1].max()
+    index = np.full((i1 - i0 + 3, j1 - j0 + 3), -1, np.int64)     # a ring of -1 around the box
+    for q in range(K):
+        index[nodes[q, 0] - i0 + 1, nodes[q, 1] - j0 + 1] = q
+    stack = np.empty(K, np.int64)
+    count = 0
+    for q0 in range(K):
+        if label[q0] >= 0:
+            continue
+        label[q0] = count
+        stack[0] = q0
+        top = 1
+        while top:
+            top -= 1
+            q = stack[top]
+            a0, b0 = nodes[q, 0] - i0 + 1, nodes[q, 1] - j0 + 1
+            for a in range(a0 - 1, a0 + 2):
+                for b in range(b0 - 1, b0 + 2):
+                    r = index[a, b]
+                    if r >= 0 and label[r] < 0:
+                        label[r] = count
+                        stack[top] = r
+                        top += 1
+        count += 1
+    return label, count
+
+
+@njit(cache=True, parallel=True)
+def sweep_nodes_parts(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
+    """:func:`sweep_nodes` with ``nodes`` in parts (part ``p`` is ``nodes[starts[p]:starts[p + 1]]``,
+    whole components of :func:`node_components`, each in the order of :func:`sweep_nodes`' list),
+    the parts of a sweep in parallel: no node of one part is a neighbour of a node of another, so
+    every node's step reads what it read in order, and the grid is the same, bit for bit. The
+    sweeps stop together, on the largest move of all parts, as :func:`sweep_nodes` does."""
+    parts = starts.shape[0] - 1
+    scratch = new_scratch(parts)
+    bigs = np.zeros(parts)
+    done = 0
+    last = 0.0
+    for _ in range(sweeps):
+        done += 1
+        for p in prange(parts):
+            big = 0.0
+            for q in range(starts[p], starts[p + 1]):
+                mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, scratch[p], omega)
+                if mv > big:
+                    big = mv
+            bigs[p] = big
+        last = bigs.max()
+        if last < tol:
+            break
+    return done, last
