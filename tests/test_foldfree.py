@@ -283,21 +283,22 @@ def test_node_components_join_the_eight_neighbours():
 def test_relax_sweeps_in_parts_give_the_ordered_sweeps_bits():
     """sweep_nodes_parts (whole components of the active set on the threads) leaves the grid, the
     sweep count and the last move of sweep_nodes bit for bit, on a grid with several poor
-    regions; node_parts splits a large grid's set only, and keeps each part in list order."""
+    regions; node_parts deals whole components to the parts and keeps each in list order."""
     import numba
 
     import clothgrid.foldfree as ff
-    from clothgrid.foldfree_kernels import PARALLEL_CELLS, sweep_nodes, sweep_nodes_parts
+    from clothgrid.foldfree_kernels import node_components, sweep_nodes, sweep_nodes_parts
 
     rng = np.random.default_rng()
     nu, nv = 60, 70
     u, v = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
     X = np.stack([u, v], -1)
-    blocks = [(int(rng.integers(2, 20)), int(rng.integers(2, 60))) for _ in range(2)] + [(40, 10), (45, 50)]
+    # four 12 x 12 blocks, one in each quarter of the grid (apart: four components), folded inside
+    blocks = [(int(rng.integers(a, a + 14)), int(rng.integers(b, b + 19))) for a in (2, 32) for b in (2, 37)]
     mask = np.zeros((nu, nv), bool)
     for i, j in blocks:
-        mask[i:i + 8, j:j + 8] = True
-        X[i + 2:i + 6, j + 2:j + 6] += rng.normal(scale=0.45, size=(4, 4, 2))    # folds
+        mask[i:i + 12, j:j + 12] = True
+        X[i + 3:i + 9, j + 3:j + 9] += rng.normal(scale=0.45, size=(6, 6, 2))    # folds
     nodes = np.argwhere(mask).astype(np.int64)
     order, starts = _two_parts(nodes)
     assert starts[1] > 0 and starts[2] > starts[1]
@@ -306,14 +307,16 @@ def test_relax_sweeps_in_parts_give_the_ordered_sweeps_bits():
     got_b = sweep_nodes_parts(B, np.ascontiguousarray(nodes[order]), starts, ff.DELTA_SMOOTH ** 2, 40, 1e-3,
                               ff.OVERRELAX)
     assert got_a == got_b and np.array_equal(A, B) and not np.array_equal(A, X)
-    # node_parts: nothing for a small grid; on a large one whole components, in list order
-    assert ff.node_parts(nodes, nu * nv) is None
-    parts = ff.node_parts(nodes, PARALLEL_CELLS)
+    # node_parts: whole components, each part in list order
+    parts = ff.node_parts(nodes)
     if numba.get_num_threads() >= 2:
         order, starts = parts
         assert sorted(order) == list(range(len(nodes)))
+        label = node_components(nodes)[0]
         for p in range(len(starts) - 1):
             assert np.all(np.diff(order[starts[p]:starts[p + 1]]) > 0)
+            others = np.setdiff1d(np.arange(len(nodes)), order[starts[p]:starts[p + 1]])
+            assert not np.intersect1d(label[order[starts[p]:starts[p + 1]]], label[others]).size
     else:
         assert parts is None
 

@@ -241,3 +241,34 @@ def test_bad_nodes(rng, nodes):
     b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, 9, 9))
     with pytest.raises(clothgrid.InputError):
         clothgrid.generate(b, nodes)
+
+
+def test_generate_runs_blas_on_one_thread_and_gives_the_threads_back(monkeypatch):
+    """Inside generate (and the fdm solve of a grid up to 512^2) NumPy's BLAS runs on one thread;
+    an fdm solve over 512^2 takes the threads it found back for its products; after generate the
+    caller's setting is back (threadpoolctl's own figures)."""
+    threadpoolctl = pytest.importorskip("threadpoolctl", reason="threadpoolctl is a dependency")
+    import clothgrid.solvers.fdm as fdm_module
+    from clothgrid import blas_threads
+
+    def blas():
+        return {lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
+
+    before = blas()
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        monkeypatch.setattr(blas_threads, "_STATE", {})     # looked up afresh, under the caller's 2 threads
+        seen = []
+        real = fdm_module._solve_fdm
+
+        def spy(*a, **k):
+            seen.append(blas())
+            return real(*a, **k)
+
+        monkeypatch.setattr(fdm_module, "_solve_fdm", spy)
+        b = clothgrid.load_boundary(Path(clothgrid.__file__).parent / "data" / "tshirt_front.json")
+        clothgrid.generate(b, (65, 65), solver="fdm")
+        monkeypatch.setattr(fdm_module, "BLAS_ONE_THREAD_NODES", 64 * 64)
+        clothgrid.generate(b, (65, 65), solver="fdm")
+        assert seen == [{1}, {2}]
+        assert blas() == {2}
+    assert blas() == before

@@ -1024,12 +1024,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         the reader of the output closed the pipe. Unexpected exceptions propagate
         with their traceback.
     """
+    from .blas_threads import one_blas_thread
     from .lean_imports import preload_cython_blas, svgpathtools_without_quad
     from .pages import small_pages
 
     preload_cython_blas()       # Numba's BLAS check without all of scipy.linalg: 0.1 s
     svgpathtools_without_quad() # svgpathtools without scipy.integrate (clothgrid samples paths itself): 0.4 s
-    with _signals_as_interrupts(), _collector_paused(), small_pages():
+    # one BLAS thread for the whole command: OpenBLAS's threads spin after each change of their
+    # number, so a command that restored them between pieces would slow the next piece's kernels
+    with _signals_as_interrupts(), _collector_paused(), small_pages(), one_blas_thread():
         try:
             return _main(argv)
         except Interrupted as exc:          # a signal while parsing or reporting

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from .blas_threads import one_blas_thread
 from .jit_variants import serial_twin
 
 __all__ = ["even_edges", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
@@ -455,7 +456,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
         rest = energy - part
         sweep_once, omega = _sweep, OVERRELAX
         failed_at = np.full(len(active), -1, np.int64)
-        parts = node_parts(active, X.shape[0] * X.shape[1])
+        parts = node_parts(active)
         if parts is not None:      # separate components on the host's threads: the same grid
             order, starts = parts
             split = np.ascontiguousarray(active[order])
@@ -529,6 +530,7 @@ def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int
     return (b, active, int(count)) if count else None
 
 
+@one_blas_thread()     # Numba's threads do the work (clothgrid.blas_threads)
 def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG, band: float = BAND,
                spread_ok: float = SPREAD_OK, max_sweeps: int = MAX_SWEEPS, margin: int = 3,
                copy: bool = True, wide_band: float | None = WIDE_BAND) -> tuple[np.ndarray, dict[str, Any]]:

@@ -29,6 +29,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .blas_threads import one_blas_thread
 from .errors import InputError
 from .geometry import PLANAR_TOL, boundary_loop, plane_axes, signed_area, vector_area
 from .geometry import plane_frame as geometry_plane_frame
@@ -314,6 +315,7 @@ def _solve(X: np.ndarray, max_iter: int, smooth_iter: int, say: Callable[[str], 
     return energy.unpack(x) * scale + shift
 
 
+@one_blas_thread()     # Numba's threads do the work (clothgrid.blas_threads)
 def untangle(points: np.ndarray, *, dim: int = 3, max_iter: int = 400, smooth_iter: int | None = None,
              progress: Callable[[str], None] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Move the interior nodes of a planar grid to an unfolded, smooth position.
@@ -443,18 +445,17 @@ PARALLEL_NODES = 8192
 
 
 #: An ordered sweep is split between threads only where each thread gets at least this many
-#: nodes a sweep (about 15 us of work: waking the threads costs a few us a sweep), and only on a
-#: grid of :data:`~clothgrid.foldfree_kernels.PARALLEL_CELLS` nodes or more: after the fast
-#: diagonalisation solve of smaller grids (``fdm``), OpenBLAS's threads spin for a while on the
-#: two cores, and parallel sweeps then cost more than they save (the survey's pieces at 10 mm:
-#: 2.7 -> 2.9-4.1 s with parts of 1024 or 128 nodes; 2.47 s with OpenBLAS on one thread).
+#: nodes a sweep (about 15 us of work: waking the threads costs a few us a sweep). With
+#: OpenBLAS's threads spinning beside them (after a threaded solve, before
+#: :mod:`clothgrid.blas_threads`) the parts cost more than they saved: the survey's pieces at
+#: 10 mm took 2.7 -> 2.9-4.1 s; with BLAS on one thread, 2.56 -> 2.45 s.
 PART_NODES = 128
 
 
-def node_parts(nodes: np.ndarray, grid_nodes: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """The order and part boundaries in which an ordered sweep over ``nodes`` (of a grid of
-    ``grid_nodes``) runs on the host's threads, the same grid bit for bit; None where it gains
-    nothing (one thread, one component, parts under :data:`PART_NODES`, a small grid).
+def node_parts(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The order and part boundaries in which an ordered sweep over ``nodes`` runs on the host's
+    threads, the same grid bit for bit; None where it gains nothing (one thread, one component,
+    or parts under :data:`PART_NODES`).
 
     The set's components (nodes joined as 8 neighbours,
     :func:`~clothgrid.foldfree_kernels.node_components`) are dealt to the threads, largest first,
@@ -463,10 +464,10 @@ def node_parts(nodes: np.ndarray, grid_nodes: int) -> tuple[np.ndarray, np.ndarr
     """
     import numba
 
-    from .foldfree_kernels import PARALLEL_CELLS, node_components
+    from .foldfree_kernels import node_components
 
     threads = numba.get_num_threads()
-    if threads < 2 or len(nodes) < 2 * PART_NODES or grid_nodes < PARALLEL_CELLS:
+    if threads < 2 or len(nodes) < 2 * PART_NODES:
         return None
     label, count = node_components(nodes)
     if count < 2:
@@ -492,7 +493,7 @@ def _sweeps(Xs: np.ndarray, nodes: np.ndarray, delta2: float, sweeps: int, tol: 
     from .foldfree_kernels import sweep_nodes, sweep_nodes_coloured, sweep_nodes_parts
 
     if len(nodes) < PARALLEL_NODES:
-        parts = node_parts(nodes, Xs.shape[0] * Xs.shape[1])
+        parts = node_parts(nodes)
         if parts is not None:
             order, starts = parts
             return sweep_nodes_parts(Xs, np.ascontiguousarray(nodes[order]), starts, delta2, sweeps, tol,
@@ -678,6 +679,7 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     return nodes
 
 
+@one_blas_thread()     # Numba's threads do the work (clothgrid.blas_threads)
 def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
           whole: bool = False, quick: bool = False, progress: Callable[[str], None] | None = None
           ) -> tuple[np.ndarray, dict[str, Any]]:

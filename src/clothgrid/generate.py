@@ -15,6 +15,7 @@ from .limits import MAX_NODES_PER_SIDE
 from .grid import Grid
 from .initial import INITS, boundary_grid, initial_grid
 from .memory import check_memory, estimate_bytes, format_bytes
+from .blas_threads import one_blas_thread
 from .pages import small_pages
 from .solvers import SOLVERS, Problem, choose_solver, solve
 from .weights import Weights, make_weights
@@ -67,6 +68,7 @@ def _check_options(init: str, solver: str, stop: str, tol: float, max_iter) -> N
 
 
 @small_pages()         # 4 KB pages: their first touch costs a fifth of huge pages' here (pages.small_pages)
+@one_blas_thread()     # Numba's threads are the parallel layer: OpenBLAS's spinning ones only slow them
 def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
              weights: str | tuple[np.ndarray, np.ndarray] | Weights = "paper", k: float = 1.0,
              solver: str = "auto", backend: str = "auto", tol: float = 2.0**-12, stop: str = "error",

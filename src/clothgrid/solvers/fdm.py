@@ -12,16 +12,25 @@ exact up to rounding: two tridiagonal eigenproblems and four dense products.
 
 from __future__ import annotations
 
+import contextlib
 from typing import Callable
 
 import numpy as np
 
 from ..backends.protocol import Backend
+from ..blas_threads import host_threads
 from ..errors import InputError
 from .bounds import barrier_max, error_bound
 from .problem import Problem, SolveResult
 
 __all__ = ["solve_fdm", "generalized_eig"]
+
+#: Up to this many nodes a solve on the host keeps :func:`~clothgrid.generate`'s one BLAS thread
+#: (:mod:`clothgrid.blas_threads`): two threads gained nothing there (74 ms at 512^2 on two
+#: cores) and, spinning after the solve, slowed the Numba kernels after it; above it the solve
+#: takes the host's BLAS threads back (:func:`~clothgrid.blas_threads.host_threads`: 427 -> 327 ms
+#: at 1024^2).
+BLAS_ONE_THREAD_NODES = 512 * 512
 
 
 def generalized_eig(c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -97,9 +106,16 @@ def solve_fdm(problem: Problem, *, backend: Backend, tol: float = 2.0**-12, max_
     the bound are the backend's own.
     """
     nu, nv = problem.shape
+    xp = backend.array_module()
+    with (host_threads() if xp is np and nu * nv > BLAS_ONE_THREAD_NODES else contextlib.nullcontext()):
+        return _solve_fdm(problem, backend, xp, tol, max_refine, progress)
+
+
+def _solve_fdm(problem: Problem, backend: Backend, xp, tol: float, max_refine: int,
+               progress: Callable[[str], None] | None) -> SolveResult:
+    nu, nv = problem.shape
     if progress:
         progress(f"fdm: eigenproblems of size {nu - 2} and {nv - 2}")
-    xp = backend.array_module()
     fdm = FDM(problem.weights, nu, nv, xp)
     coords = problem.active_coords
     wu, wv = xp.asarray(problem.weights.wu), xp.asarray(problem.weights.wv)
