@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from . import writers
+from .blas_threads import one_blas_thread
 from .boundary import Boundary
 from .errors import InputError, NotConvergedError, PiecesError, SizeError
 from .generate import check_size, generate, parse_nodes
@@ -545,6 +546,7 @@ def _check_size(job: Job, kept: int = 0, what: str = "") -> int:
 # --------------------------------------------------------------------------- gridding and writing
 
 
+@one_blas_thread()     # the grid and its figures on Numba's threads, OpenBLAS's kept still (clothgrid.blas_threads)
 def run_job(job: Job, progress: Callable[[str], None] | None = None) -> Result:
     """Grid one job: :func:`clothgrid.generate` with the job's options, then its quality (once).
 
