@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -254,6 +255,7 @@ def test_generate_runs_blas_on_one_thread_and_gives_the_threads_back(monkeypatch
     def blas():
         return {lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
 
+    monkeypatch.delenv("CLOTHGRID_ONE_BLAS_THREAD", raising=False)     # as in a program, not the command
     before = blas()
     with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
         monkeypatch.setattr(blas_threads, "_STATE", {})     # looked up afresh, under the caller's 2 threads
@@ -272,3 +274,26 @@ def test_generate_runs_blas_on_one_thread_and_gives_the_threads_back(monkeypatch
         assert seen == [{1}, {2}]
         assert blas() == {2}
     assert blas() == before
+
+
+def test_a_command_line_run_starts_blas_on_one_thread(monkeypatch):
+    """_startup.one_blas_thread_from_the_start: before NumPy loads and with no thread variable set,
+    the BLAS libraries' variables are set to 1 (and blas_threads then asks no library); a variable
+    the user set, or NumPy already loaded, leaves the environment as it is."""
+    import sys
+
+    from clothgrid import _startup, blas_threads
+
+    for v in (*_startup.BLAS_THREAD_VARIABLES, "CLOTHGRID_ONE_BLAS_THREAD"):
+        monkeypatch.delenv(v, raising=False)
+    _startup.one_blas_thread_from_the_start()           # NumPy is loaded here: nothing
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
+    monkeypatch.delitem(sys.modules, "numpy")
+    monkeypatch.setenv("MKL_NUM_THREADS", "4")           # the user's: kept, nothing else set
+    _startup.one_blas_thread_from_the_start()
+    assert os.environ["MKL_NUM_THREADS"] == "4" and "OPENBLAS_NUM_THREADS" not in os.environ
+    monkeypatch.delenv("MKL_NUM_THREADS")
+    _startup.one_blas_thread_from_the_start()
+    assert all(os.environ[v] == "1" for v in _startup.BLAS_THREAD_VARIABLES)
+    monkeypatch.setattr(blas_threads, "_STATE", {})
+    assert blas_threads._controller() is None and "ctl" not in blas_threads._STATE

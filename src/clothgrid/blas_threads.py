@@ -15,12 +15,15 @@ on one thread (:func:`one_thread`, threadpoolctl), and gives the caller's
 settings back when it returns; the fdm solve of a grid over 512 x 512 nodes,
 whose products do gain from them (427 -> 327 ms at 1024^2), takes the
 threads back for its products (:func:`host_threads`). Like any threadpoolctl
-limit, it holds process-wide while it lasts.
+limit, it holds process-wide while it lasts. The command line instead starts
+its BLAS libraries on one thread (:func:`clothgrid._startup.one_blas_thread_from_the_start`,
+where the user set no thread variable) and asks them nothing.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 from typing import Any
 
@@ -32,6 +35,8 @@ _STATE: dict[str, Any] = {}
 def _controller() -> Any:
     """threadpoolctl's controller of the BLAS libraries loaded (looked up again once SciPy's
     linear algebra, which brings its own OpenBLAS, has been imported); None without threadpoolctl."""
+    if os.environ.get("CLOTHGRID_ONE_BLAS_THREAD") == "1":
+        return None     # a command-line run: its BLAS libraries started on one thread (clothgrid._startup)
     scipy_in = "scipy.linalg" in sys.modules
     if "ctl" not in _STATE or (scipy_in and not _STATE["scipy"]):
         try:
