@@ -303,6 +303,32 @@ def _settled(i, j, moved_at, failed_at):
     return True
 
 
+@njit(cache=True, inline="always")
+def _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, index, q0, q1, omega, sweep, moved_at, failed_at):
+    """The steps of ``nodes[q0:q1]`` in order (``index``: each node's place in the whole list,
+    which numbers its visits and its ``failed_at``; None: its own place); the largest move and the
+    nodes moved. A node that failed and whose neighbourhood has not moved since is skipped
+    (:func:`_settled`)."""
+    before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
+    K = nodes.shape[0]
+    biggest, moved = 0.0, 0
+    for q in range(q0, q1):
+        i, j = nodes[q, 0], nodes[q, 1]
+        k = q if index is None else index[q]
+        if _settled(i, j, moved_at, failed_at[k]):
+            continue
+        clock = sweep * K + k
+        d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
+        if d >= 0.0:
+            biggest = max(biggest, d)
+            moved += 1
+            moved_at[i, j] = clock
+            failed_at[k] = -1
+        else:
+            failed_at[k] = clock
+    return biggest, moved
+
+
 @njit(cache=True)
 def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
     """One Gauss-Seidel sweep over ``nodes`` (``(K, 2)``, row by row: the active nodes in the order
@@ -313,23 +339,8 @@ def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
     node, of its last failed step since: a node that failed and whose neighbourhood has not moved
     since is skipped (:func:`_settled`; the same grid, a quarter of the survey's visits fewer)."""
     lo2, hi2 = _inside_band(lo, hi)
-    biggest, moved = 0.0, 0
-    before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
-    K = nodes.shape[0]
-    for q in range(K):
-        i, j = nodes[q, 0], nodes[q, 1]
-        if _settled(i, j, moved_at, failed_at[q]):
-            continue
-        clock = sweep * K + q
-        d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
-        if d >= 0.0:
-            biggest = max(biggest, d)
-            moved += 1
-            moved_at[i, j] = clock
-            failed_at[q] = -1
-        else:
-            failed_at[q] = clock
-    return biggest, moved
+    return _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, None, 0, nodes.shape[0], omega, sweep, moved_at,
+                       failed_at)
 
 
 @njit(cache=True, parallel=True)
@@ -343,24 +354,9 @@ def _sweep_parts(X, lo, hi, floor, nodes, index, starts, omega, sweep, moved_at,
     parts = starts.shape[0] - 1
     bigs = np.zeros(parts)
     counts = np.zeros(parts, np.int64)
-    K = nodes.shape[0]
     for p in prange(parts):
-        before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
-        biggest, moved = 0.0, 0
-        for q in range(starts[p], starts[p + 1]):
-            i, j, k = nodes[q, 0], nodes[q, 1], index[q]
-            if _settled(i, j, moved_at, failed_at[k]):
-                continue
-            clock = sweep * K + k
-            d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
-            if d >= 0.0:
-                biggest = max(biggest, d)
-                moved += 1
-                moved_at[i, j] = clock
-                failed_at[k] = -1
-            else:
-                failed_at[k] = clock
-        bigs[p], counts[p] = biggest, moved
+        bigs[p], counts[p] = _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, index, starts[p], starts[p + 1],
+                                         omega, sweep, moved_at, failed_at)
     return bigs.max(), counts.sum()
 
 
