@@ -285,7 +285,8 @@ def test_a_command_line_run_starts_blas_on_one_thread(monkeypatch):
     from clothgrid import _startup, blas_threads
 
     for v in (*_startup.BLAS_THREAD_VARIABLES, "CLOTHGRID_ONE_BLAS_THREAD"):
-        monkeypatch.delenv(v, raising=False)
+        monkeypatch.setenv(v, "")       # recorded as it was, so that what the function sets is undone
+        monkeypatch.delenv(v)
     _startup.one_blas_thread_from_the_start()           # NumPy is loaded here: nothing
     assert "OPENBLAS_NUM_THREADS" not in os.environ
     monkeypatch.delitem(sys.modules, "numpy")
@@ -297,3 +298,40 @@ def test_a_command_line_run_starts_blas_on_one_thread(monkeypatch):
     assert all(os.environ[v] == "1" for v in _startup.BLAS_THREAD_VARIABLES)
     monkeypatch.setattr(blas_threads, "_STATE", {})
     assert blas_threads._controller() is None and "ctl" not in blas_threads._STATE
+
+
+def test_blas_blocks_of_two_threads_count_together(monkeypatch):
+    """one_blas_thread entered by two Python threads, left in the other order: the BLAS libraries
+    stay on one thread until the last block leaves, then have the caller's setting back (the
+    first block's limit is the only one set; the count is shared)."""
+    import threading
+
+    threadpoolctl = pytest.importorskip("threadpoolctl", reason="threadpoolctl is a dependency")
+    from clothgrid import blas_threads
+
+    monkeypatch.delenv("CLOTHGRID_ONE_BLAS_THREAD", raising=False)
+    monkeypatch.setattr(blas_threads, "_STATE", {})
+
+    def blas():
+        return {lib["num_threads"] for lib in threadpoolctl.threadpool_info() if lib["user_api"] == "blas"}
+
+    before = blas()
+    entered, leave_a, left_a, seen = threading.Event(), threading.Event(), threading.Event(), []
+
+    def a():
+        with blas_threads.one_blas_thread():
+            entered.set()
+            leave_a.wait(10)
+        left_a.set()
+
+    t = threading.Thread(target=a)
+    t.start()
+    assert entered.wait(10)
+    with blas_threads.one_blas_thread():
+        seen.append((blas(), blas_threads._STATE["depth"]))
+        leave_a.set()
+        assert left_a.wait(10)
+        seen.append((blas(), blas_threads._STATE["depth"]))     # a has left; this block holds the limit
+    t.join(10)
+    seen.append((blas(), blas_threads._STATE["depth"]))
+    assert seen == [({1}, 2), ({1}, 1), (before, 0)] and "limiter" not in blas_threads._STATE

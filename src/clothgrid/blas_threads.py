@@ -25,11 +25,13 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 from typing import Any
 
 __all__ = ["one_thread", "host_threads", "one_blas_thread"]
 
 _STATE: dict[str, Any] = {}
+_LOCK = threading.Lock()
 
 
 def _controller() -> Any:
@@ -70,18 +72,23 @@ def host_threads() -> contextlib.AbstractContextManager:
 @contextlib.contextmanager
 def one_blas_thread():
     """:func:`one_thread` as a block or a decorator (``@one_blas_thread()``), as
-    :func:`clothgrid.generate`, the fold-free functions and the command line use it; inside
-    another such block it does nothing (no library is asked twice: about 50 us a call saved)."""
-    if _STATE.get("depth", 0):
-        _STATE["depth"] += 1
-        try:
-            yield
-        finally:
+    :func:`clothgrid.generate`, the fold-free functions and the command line use it.
+
+    The blocks of all threads count together: the first to enter limits the libraries, the last to
+    leave gives the caller's setting back (Python threads running ``generate`` side by side, as a
+    threaded Dask worker does, do not undo each other's limit), and a block inside another asks no
+    library (about 50 us a call saved)."""
+    with _LOCK:
+        depth = _STATE.get("depth", 0)
+        if depth == 0:
+            limiter = one_thread()
+            limiter.__enter__()
+            _STATE["limiter"] = limiter
+        _STATE["depth"] = depth + 1
+    try:
+        yield
+    finally:
+        with _LOCK:
             _STATE["depth"] -= 1
-        return
-    with one_thread():
-        _STATE["depth"] = 1
-        try:
-            yield
-        finally:
-            _STATE["depth"] = 0
+            if _STATE["depth"] == 0:
+                _STATE.pop("limiter").__exit__(None, None, None)
