@@ -464,7 +464,7 @@ def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
     marked cell (the relax's active sets), and of a marked node (the edge evening's), the grid's
     ring left out; fresh random masks and margins."""
     from clothgrid.foldfree import _active_nodes
-    from clothgrid.foldfree_kernels import dilate
+    from clothgrid.foldfree_kernels import _dilate, dilate
 
     rng = np.random.default_rng()
     for _ in range(60):
@@ -475,6 +475,8 @@ def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
         for ci, cj in np.argwhere(cells):
             want[max(1, ci - m):min(nu - 1, ci + m + 2), max(1, cj - m):min(nv - 1, cj + m + 2)] = True
         got, count = dilate(cells, m + 1, m, nu, nv)
+        assert np.array_equal(got, want) and count == want.sum()
+        got, count = _dilate(cells, m + 1, m, nu, nv)        # the parallel kernel a large grid takes
         assert np.array_equal(got, want) and count == want.sum()
         assert np.array_equal(_active_nodes(cells, m), np.argwhere(want))
         nodes = rng.random((nu, nv)) < 0.05

@@ -425,12 +425,11 @@ _outside_nodes_serial = serial_twin(_outside_nodes)
 
 def _outside(X: np.ndarray, lo: float, hi: float, margin: int) -> tuple[np.ndarray, int]:
     """Interior nodes within ``margin`` grid lines of an edge outside the band; their count."""
-    from .foldfree_kernels import PARALLEL_CELLS, dilate, plane_kernel
+    from .foldfree_kernels import PARALLEL_CELLS, dilate
 
     nu, nv = X.shape[:2]
     hot = (_outside_nodes if nu * nv >= PARALLEL_CELLS else _outside_nodes_serial)(X, lo, hi)
-    active, count = plane_kernel(dilate, X)(hot, margin, margin, nu, nv)
-    return active, int(count)
+    return dilate(hot, margin, margin, nu, nv)
 
 
 def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active: np.ndarray,

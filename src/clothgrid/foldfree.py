@@ -128,11 +128,9 @@ def to_plane(R: np.ndarray, centre: np.ndarray, basis: np.ndarray, shift: np.nda
         return X
     X = np.empty(R.shape[:-1] + (2,))
     if R.ndim == 3 and R.dtype == np.float64:
-        from .foldfree_kernels import axes_to_plane, plane_kernel
+        from .foldfree_kernels import axes_to_plane
 
-        (k0, s0), (k1, s1) = axes
-        sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
-        plane_kernel(axes_to_plane, R)(R, k0, s0, k1, s1, *sh, float(scale), shift is not None, X)
+        axes_to_plane(R, axes, shift, scale, X)
         return X
     for r, (k, sign) in enumerate(axes):
         np.multiply(R[..., k], sign, out=X[..., r])
@@ -156,11 +154,9 @@ def _with_interior(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.n
     out = R.copy() if copy else R
     axes = _axis_map(centre, basis) if dim == 2 else None
     if axes is not None and out.flags.c_contiguous and out.dtype == np.float64:
-        from .foldfree_kernels import axes_from_plane, plane_kernel
+        from .foldfree_kernels import axes_from_plane
 
-        (k0, s0), (k1, s1) = axes
-        sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
-        plane_kernel(axes_from_plane, out)(X, k0, s0, k1, s1, *sh, float(scale), shift is not None, out)
+        axes_from_plane(X, axes, shift, scale, out)
     else:
         if shift is not None:
             X *= scale
@@ -530,10 +526,10 @@ def _smooth(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], sweeps: in
 
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
     """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells), row by row."""
-    from .foldfree_kernels import dilate, plane_kernel
+    from .foldfree_kernels import dilate
 
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
-    near, _ = plane_kernel(dilate, poor)(np.ascontiguousarray(poor), margin + 1, margin, nu, nv)
+    near, _ = dilate(poor, margin + 1, margin, nu, nv)
     return np.argwhere(near).astype(np.int64)
 
 

@@ -27,8 +27,8 @@ from numba import njit, prange
 
 from .jit_variants import serial_twin
 
-__all__ = ["sweep_nodes", "sweep_nodes_coloured", "corner_min", "cell_min_sine", "axes_to_plane", "axes_from_plane", "dilate",
-           "node_components", "sweep_nodes_parts"]
+__all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min",
+           "cell_min_sine", "axes_to_plane", "axes_from_plane", "dilate"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
 _DI = np.array([0, 1, 1, 0], dtype=np.int64)
@@ -262,6 +262,17 @@ def _relax_node(X, i, j, delta2, w, omega):
     return 0.0
 
 
+@njit(cache=True, inline="always")
+def _relax_span(X, nodes, q0, q1, delta2, w, omega):
+    """Node steps of ``nodes[q0:q1]`` in order (:func:`_relax_node`); the largest move."""
+    big = 0.0
+    for q in range(q0, q1):
+        mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w, omega)
+        if mv > big:
+            big = mv
+    return big
+
+
 @njit(cache=True)
 def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0):
     """Gauss-Seidel sweeps of node-wise Newton steps over ``nodes`` ((K, 2) int64).
@@ -275,13 +286,8 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0):
     last = 0.0
     for _ in range(sweeps):
         done += 1
-        big = 0.0
-        for q in range(nodes.shape[0]):
-            mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w, omega)
-            if mv > big:
-                big = mv
-        last = big
-        if big < tol:
+        last = _relax_span(X, nodes, 0, nodes.shape[0], delta2, w, omega)
+        if last < tol:
             break
     return done, last
 
@@ -416,9 +422,8 @@ def cell_min_sine(X: np.ndarray) -> np.ndarray:
     return out
 
 
-
 @njit(cache=True, parallel=True)
-def axes_to_plane(R, k0, s0, k1, s1, shift0, shift1, scale, affine, X):
+def _axes_to_plane(R, k0, s0, k1, s1, shift0, shift1, scale, affine, X):
     """``X[..., 0] = R[..., k0] * s0`` and ``X[..., 1] = R[..., k1] * s1``: a grid in the xy-plane
     to planar coordinates whose frame only swaps and negates axes
     (:func:`clothgrid.foldfree.to_plane`); with ``affine`` then shifted and scaled in the same pass,
@@ -435,7 +440,7 @@ def axes_to_plane(R, k0, s0, k1, s1, shift0, shift1, scale, affine, X):
 
 
 @njit(cache=True, parallel=True)
-def axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
+def _axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
     """The way back for the interior nodes: ``R[i, j, k0] = X[i, j, 0] * s0`` (and ``k1``), with
     ``affine`` ``(X[i, j, 0] * scale + shift0) * s0``; the boundary nodes of ``R`` kept as they are."""
     for i in prange(1, R.shape[0] - 1):
@@ -448,22 +453,34 @@ def axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
                 R[i, j, k1] = X[i, j, 1] * s1
 
 
-_axes_to_plane_serial = serial_twin(axes_to_plane)
-_axes_from_plane_serial = serial_twin(axes_from_plane)
+_axes_to_plane_serial = serial_twin(_axes_to_plane)
+_axes_from_plane_serial = serial_twin(_axes_from_plane)
 
 
-def plane_kernel(kernel, R: np.ndarray):
-    """``kernel`` (:func:`axes_to_plane`, :func:`axes_from_plane` or :func:`dilate`) or its serial
-    twin, by the grid's size (:data:`PARALLEL_CELLS`: waking the threads costs more than a small
-    grid's whole pass)."""
-    if R.shape[0] * R.shape[1] >= PARALLEL_CELLS:
-        return kernel
-    return {axes_to_plane: _axes_to_plane_serial, axes_from_plane: _axes_from_plane_serial,
-            dilate: _dilate_serial}[kernel]
+def _axes_args(axes: list[tuple[int, float]], shift, scale: float) -> tuple:
+    """The plane kernels' arguments after the grid: each planar axis's coordinate and sign, the
+    shift and scale, and whether they apply."""
+    (k0, s0), (k1, s1) = axes
+    sh = (0.0, 0.0) if shift is None else (float(shift[0]), float(shift[1]))
+    return (k0, s0, k1, s1, *sh, float(scale), shift is not None)
+
+
+def axes_to_plane(R: np.ndarray, axes: list[tuple[int, float]], shift, scale: float, X: np.ndarray) -> None:
+    """:func:`_axes_to_plane` (``axes``: :func:`clothgrid.foldfree._axis_map`'s; ``shift`` None:
+    no shift or scale), rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
+    kernel = _axes_to_plane if R.shape[0] * R.shape[1] >= PARALLEL_CELLS else _axes_to_plane_serial
+    kernel(R, *_axes_args(axes, shift, scale), X)
+
+
+def axes_from_plane(X: np.ndarray, axes: list[tuple[int, float]], shift, scale: float, R: np.ndarray) -> None:
+    """:func:`_axes_from_plane` (arguments as :func:`axes_to_plane`'s), rows in parallel on a large
+    grid (:data:`PARALLEL_CELLS`)."""
+    kernel = _axes_from_plane if R.shape[0] * R.shape[1] >= PARALLEL_CELLS else _axes_from_plane_serial
+    kernel(X, *_axes_args(axes, shift, scale), R)
 
 
 @njit(cache=True, parallel=True)
-def dilate(mask, before, after, nu, nv):
+def _dilate(mask, before, after, nu, nv):
     """The interior nodes of an ``(nu, nv)`` grid near a true entry of ``mask``, and their count.
 
     Node ``(i, j)`` (``0 < i < nu - 1``, ``0 < j < nv - 1``) is marked where ``mask[ci, cj]`` is
@@ -505,7 +522,14 @@ def dilate(mask, before, after, nu, nv):
     return out, counts.sum()
 
 
-_dilate_serial = serial_twin(dilate)
+_dilate_serial = serial_twin(_dilate)
+
+
+def dilate(mask: np.ndarray, before: int, after: int, nu: int, nv: int) -> tuple[np.ndarray, int]:
+    """:func:`_dilate`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
+    kernel = _dilate if nu * nv >= PARALLEL_CELLS else _dilate_serial
+    out, count = kernel(np.ascontiguousarray(mask), before, after, nu, nv)
+    return out, int(count)
 
 
 @njit(cache=True)
@@ -560,12 +584,7 @@ def sweep_nodes_parts(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
     for _ in range(sweeps):
         done += 1
         for p in prange(parts):
-            big = 0.0
-            for q in range(starts[p], starts[p + 1]):
-                mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, scratch[p], omega)
-                if mv > big:
-                    big = mv
-            bigs[p] = big
+            bigs[p] = _relax_span(X, nodes, starts[p], starts[p + 1], delta2, scratch[p], omega)
         last = bigs.max()
         if last < tol:
             break
