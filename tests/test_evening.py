@@ -217,35 +217,75 @@ def test_edge_extremes_are_the_lengths_extremes_bit_for_bit(rng):
         assert math.sqrt(lo) == lengths.min() and math.sqrt(hi) == lengths.max()
 
 
-def test_sines_around_match_one_corner_at_a_time():
-    """The evening's corner sines taken side by side in 16 lanes give _corner_sine's bits, and 2.0
-    exactly where a corner does not count (outside the grid, a grid corner, opposite the node)."""
+def test_moving_sines_match_one_corner_at_a_time():
+    """The evening's corner sines of an interior node, taken side by side in 16 lanes, are exactly the
+    corners its move changes (those of its four cells that are its own or beside it: not the one
+    opposite, not outside the grid, not a grid corner), each with _corner_sine's bits, and a right
+    angle (1.0) in the four lanes left over."""
     from clothgrid import evening as E
 
     rng = np.random.default_rng()
-    w, out = np.empty(E.SINE_SCRATCH), np.empty(16)
+    w = np.empty(E.SINE_SCRATCH)
     for trial in range(200):
-        nu, nv = int(rng.integers(2, 6)), int(rng.integers(2, 6))
+        nu, nv = int(rng.integers(3, 7)), int(rng.integers(3, 7))
         X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
         X += rng.normal(scale=0.4, size=X.shape)
+        i, j = int(rng.integers(1, nu - 1)), int(rng.integers(1, nv - 1))
         if trial % 5 == 0:                       # a zero-length edge: sine -1
-            X[min(1, nu - 1), 0] = X[0, 0]
-        i, j = int(rng.integers(0, nu)), int(rng.integers(0, nv))
-        E._sines_around(X, i, j, out, w)
-        m = 0
+            X[i + 1, j] = X[i, j]
+        E._moving_sines(X, i, j, w, E._BEFORE)
+        out = w[E._BEFORE:E._BEFORE + E.LANES]
+        want = []
         for ci in (i - 1, i):
             for cj in (j - 1, j):
-                inside = 0 <= ci < nu - 1 and 0 <= cj < nv - 1
                 c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
                 for k in range(4):
                     q = c[k]
-                    grid_corner = q[0] in (0, nu - 1) and q[1] in (0, nv - 1)
-                    if not inside or grid_corner or (q[0] != i and q[1] != j):
-                        assert out[m] == 2.0
-                    else:
-                        want = E._corner_sine(X, np.array(c[(k + 3) % 4]), np.array(q), np.array(c[(k + 1) % 4]))
-                        assert out[m] == want, (trial, m, out[m], want)
-                    m += 1
+                    assert 0 <= ci < nu - 1 and 0 <= cj < nv - 1
+                    if q[0] in (0, nu - 1) and q[1] in (0, nv - 1):
+                        assert q[0] != i and q[1] != j       # never one the node moves
+                    if q[0] != i and q[1] != j:
+                        continue
+                    want.append(E._corner_sine(X, np.array(c[(k + 3) % 4]), np.array(q), np.array(c[(k + 1) % 4])))
+        assert len(want) == 12 == len(E.MOVING_CORNERS)
+        assert list(out[:12]) == want, (trial, out[:12], want)
+        assert (out[12:] == 1.0).all()
+
+
+def test_surely_above_is_never_wrong():
+    """The evening's test without square roots (a corner surely at the floor or above) passes no
+    corner whose sine, as _lane_sines takes it, is below the floor, on corners drawn right at the
+    floor (both sides of it, a few units in the last place away), tiny, huge and degenerate; and it
+    passes plainly wide angles."""
+    from clothgrid import evening as E
+
+    rng = np.random.default_rng()
+    w = np.empty(E.SINE_SCRATCH)
+    passed = 0
+    for trial in range(3000):
+        floor = math.sin(math.radians(rng.uniform(20.0, 45.0)))
+        floor2 = floor * floor * (1.0 + E._FLOOR_MARGIN)
+        near = rng.choice([0.0, 1e-15, 1e-12, 1e-10, 1e-9, 1e-8, 1e-3, 0.5]) * rng.choice([-1.0, 1.0])
+        t = math.asin(floor) * (1.0 + near) if trial % 4 else rng.uniform(-1.0, 3.0)
+        m = int(rng.integers(E.LANES))          # the corner drawn; a right angle in the other lanes
+        for k in range(E.LANES):
+            w[E._AX + k], w[E._AY + k], w[E._BX + k], w[E._BY + k] = 1.0, 0.0, 0.0, 1.0
+        scale = 10.0 ** rng.choice([0, -150, 150, -200]) if trial % 7 == 0 else 1.0
+        la, lb = 10.0 ** rng.uniform(-3, 3, size=2) * scale
+        phi = rng.uniform(0, 2 * math.pi)
+        w[E._AX + m], w[E._AY + m] = la * math.cos(phi), la * math.sin(phi)
+        w[E._BX + m], w[E._BY + m] = lb * math.cos(phi + t), lb * math.sin(phi + t)
+        if trial % 11 == 0:
+            w[E._AX + m] = w[E._AY + m] = 0.0    # a zero-length edge: sine -1
+        sure = E._surely_above(w, floor2)
+        E._lane_sines(w)
+        if sure:
+            passed += 1
+            assert (w[E._SINE:E._SINE + E.LANES] >= floor).all(), (trial, near, scale)
+    assert passed > 600
+    for m in range(E.LANES):                   # a right angle everywhere: surely above
+        w[E._AX + m], w[E._AY + m], w[E._BX + m], w[E._BY + m] = 2.0, 0.0, 0.0, 3.0
+    assert E._surely_above(w, 0.5)
 
 
 def test_edges_skipped_inside_the_band_add_nothing():

@@ -108,7 +108,12 @@ def _outlying(d2, lo, hi, lo2, hi2):
     ``lo2 < d2 < hi2``, :func:`_inside_band`). The derivative is nonzero exactly outside the band."""
     if lo2 < d2 < hi2:
         return 0.0, 0.0
-    t = 0.5 * math.log(d2)
+    return _term(0.5 * math.log(d2), lo, hi)
+
+
+@njit(cache=True, inline="always")
+def _term(t, lo, hi):
+    """:func:`_outlying`'s term and derivative from ``t = log(d2) / 2``."""
     if t > hi:
         return (t - hi) ** 2, 2.0 * (t - hi)
     if t < lo:
@@ -153,9 +158,12 @@ def _inside_band(lo, hi):
     return lo2, hi2
 
 
-@njit(cache=True)
-def _node_energy(X, i, j, lo, hi, lo2, hi2):
-    """The energy of the four edges at node (i, j) (:func:`_outlying`'s terms, in edge order)."""
+@njit(cache=True, inline="always")
+def _node_energy_below(X, i, j, lo, hi, lo2, hi2, e0):
+    """Whether the energy of the four edges at node (i, j) (:func:`_outlying`'s terms, in edge order;
+    is below ``e0``, its terms summed no further
+    than the sum reaching ``e0``: the terms are not negative, so a rounded sum never falls again,
+    and the edges left need no logarithm. The same answer, bit for bit."""
     e = 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
@@ -164,13 +172,15 @@ def _node_energy(X, i, j, lo, hi, lo2, hi2):
         f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
         if slope != 0.0:
             e += f
-    return e
+            if not e < e0:
+                return False
+    return e < e0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _node_gradient(X, i, j, lo, hi, lo2, hi2):
-    """The node's gradient, curvature and (:func:`_node_energy`'s, the same terms in the same order)
-    energy, from one logarithm an edge (none for an edge inside the band, :func:`_inside_band`)."""
+    """The node's gradient, curvature and energy (:func:`_node_energy_below`'s terms in the same
+    order), from one logarithm an edge (none for an edge inside the band, :func:`_inside_band`)."""
     gx, gy, curv, e = 0.0, 0.0, 0.0, 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
@@ -198,17 +208,48 @@ def _corner_sine(X, p, q, r):
     return (ax * by - ay * bx) / (na * nb)
 
 
-#: The sines' scratch (:func:`_sines_around`): rows of 16 lanes, one corner a lane (edges a, b,
-#: the sine). Sixteen lanes, the compile-time count LLVM's loop vectoriser takes: two 8-wide passes
-#: of square roots and divisions.
+#: A node step's scratch (:func:`_even_node`): rows of 16 lanes, one corner a lane (edges a, b, the
+#: sine; the sines after the step, before it, and the least each may be). Sixteen lanes, the
+#: compile-time count LLVM's loop vectoriser takes: two 8-wide passes of square roots and divisions.
+#: One array, not one a row: each array a step takes costs an atomic reference count up and down
+#: a visit (Numba's, where the inlined step's arguments are not pruned), and with five arrays that
+#: was a fifth of the sweeps' time.
 LANES = 16
-_AX, _AY, _BX, _BY, _SINE = (r * LANES for r in range(5))
-SINE_SCRATCH = 5 * LANES
+_AX, _AY, _BX, _BY, _SINE, _AFTER, _BEFORE, _NEED = (r * LANES for r in range(8))
+SINE_SCRATCH = 8 * LANES
 
 
-@njit(cache=True, error_model="numpy")
+def _moving_corner_table() -> tuple[tuple[int, int, int, int, int, int], ...]:
+    """The corners whose angle a move of an interior node changes, as rows ``(q, r, p)`` of offsets
+    ``(di, dj)`` from the node: the sine at q between q->r and q->p. Of each of the node's four
+    cells (``(i-1, j-1)``, ``(i-1, j)``, ``(i, j-1)``, ``(i, j)``), the corners counter-clockwise
+    that are the node's own or beside it; the corner opposite the node keeps its angle. An
+    interior node's cells are all inside the grid and none of these corners is a grid corner."""
+    rows = []
+    for ci in (-1, 0):
+        for cj in (-1, 0):
+            c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
+            for k in range(4):
+                q, r, p = c[k], c[(k + 1) % 4], c[(k + 3) % 4]
+                if q[0] == 0 or q[1] == 0:
+                    rows.append((*q, *r, *p))
+    return tuple(rows)
+
+
+#: :func:`_moving_corner_table`: 12 corners; the scratch's other 4 lanes hold a right angle.
+MOVING_CORNERS = _moving_corner_table()
+_MOVING = len(MOVING_CORNERS)
+#: :func:`_surely_above`'s relative margin on the squared floor: far above the rounding of the sine's
+#: square roots and division (a few 1e-16), so a corner it passes has a sine at or above the floor,
+#: bit for bit as :func:`_lane_sines` takes it.
+_FLOOR_MARGIN = 1e-9
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _lane_sines(w):
-    """Every lane's corner sine, :func:`_corner_sine`'s arithmetic (-1 for a zero-length edge)."""
+    """Every lane's corner sine, :func:`_corner_sine`'s arithmetic (-1 for a zero-length edge). A
+    zero-length edge's lane divides by zero: the functions it is inlined into take NumPy's error
+    model too (an inlined body takes its caller's)."""
     for m in range(LANES):
         ax, ay, bx, by = w[_AX + m], w[_AY + m], w[_BX + m], w[_BY + m]
         na = math.sqrt(ax * ax + ay * ay)
@@ -217,76 +258,107 @@ def _lane_sines(w):
         w[_SINE + m] = -1.0 if (na == 0.0 or nb == 0.0) else v
 
 
-@njit(cache=True)
-def _sines_around(X, i, j, out, w):
-    """The corner sines of the (up to) four cells around node (i, j) that move with it into ``out``
-    (16; 2.0 where there is no such corner, where it is a grid corner, whose angle is the
-    outline's, and at each cell's corner opposite the node, whose sine the node does not change).
+@njit(cache=True, inline="always")
+def _edge_lane(X, i, j, w, m, qi, qj, ri, rj, pi, pj):
+    """Lane ``m`` of ``w``: the edges q->r and q->p of the corner at q (offsets from node (i, j)),
+    :func:`_corner_sine`'s differences."""
+    qx, qy = X[i + qi, j + qj, 0], X[i + qi, j + qj, 1]
+    w[_AX + m] = X[i + ri, j + rj, 0] - qx
+    w[_AY + m] = X[i + ri, j + rj, 1] - qy
+    w[_BX + m] = X[i + pi, j + pj, 0] - qx
+    w[_BY + m] = X[i + pi, j + pj, 1] - qy
 
-    The counting corners' edges go into the lanes of ``w`` (``SINE_SCRATCH``; the others hold
-    zeros) and their sines are taken side by side (:func:`_lane_sines`, :func:`_corner_sine`'s
-    bits)."""
-    nu, nv = X.shape[0], X.shape[1]
-    m = 0
-    for ci in range(i - 1, i + 1):
-        for cj in range(j - 1, j + 1):
-            inside = not (ci < 0 or cj < 0 or ci >= nu - 1 or cj >= nv - 1)
-            c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
-            for k in range(4):
-                q, r, p = c[k], c[(k + 1) % 4], c[(k + 3) % 4]
-                if (not inside or ((q[0] == 0 or q[0] == nu - 1) and (q[1] == 0 or q[1] == nv - 1))
-                        or (q[0] != i and q[1] != j)):
-                    out[m] = 2.0                  # does not count (no sine is 2)
-                    w[_AX + m] = w[_AY + m] = w[_BX + m] = w[_BY + m] = 0.0
-                else:
-                    out[m] = 0.0
-                    w[_AX + m] = X[r[0], r[1], 0] - X[q[0], q[1], 0]
-                    w[_AY + m] = X[r[0], r[1], 1] - X[q[0], q[1], 1]
-                    w[_BX + m] = X[p[0], p[1], 0] - X[q[0], q[1], 0]
-                    w[_BY + m] = X[p[0], p[1], 1] - X[q[0], q[1], 1]
-                m += 1
+
+@njit(cache=True, inline="always")
+def _moving_edges(X, i, j, w):
+    """The edges a, b of the corners interior node (i, j) moves into the lanes of ``w``, in
+    :data:`MOVING_CORNERS`' order (written out, so the offsets are constants); a right angle in the
+    lanes left over. ``tests/test_evening.py`` checks the lanes against the table."""
+    _edge_lane(X, i, j, w, 0, 0, -1, 0, 0, -1, -1)
+    _edge_lane(X, i, j, w, 1, 0, 0, -1, 0, 0, -1)
+    _edge_lane(X, i, j, w, 2, -1, 0, -1, -1, 0, 0)
+    _edge_lane(X, i, j, w, 3, -1, 0, 0, 0, -1, 1)
+    _edge_lane(X, i, j, w, 4, 0, 0, 0, 1, -1, 0)
+    _edge_lane(X, i, j, w, 5, 0, 1, -1, 1, 0, 0)
+    _edge_lane(X, i, j, w, 6, 0, -1, 1, -1, 0, 0)
+    _edge_lane(X, i, j, w, 7, 1, 0, 0, 0, 1, -1)
+    _edge_lane(X, i, j, w, 8, 0, 0, 0, -1, 1, 0)
+    _edge_lane(X, i, j, w, 9, 0, 0, 1, 0, 0, 1)
+    _edge_lane(X, i, j, w, 10, 1, 0, 1, 1, 0, 0)
+    _edge_lane(X, i, j, w, 11, 0, 1, 0, 0, 1, 1)
+    for m in range(_MOVING, LANES):
+        w[_AX + m], w[_AY + m], w[_BX + m], w[_BY + m] = 1.0, 0.0, 0.0, 1.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _surely_above(w, floor2):
+    """Whether every lane's corner is surely at the floor or above, without a square root or a
+    division: its cross product positive and squared at least ``floor2`` (the floor's square, raised
+    by :data:`_FLOOR_MARGIN`) times its edges' squared lengths, that product a normal number. False
+    sends the node to the exact sines (:func:`_lane_sines`); True is never wrong."""
+    low = 0
+    for m in range(LANES):
+        ax, ay, bx, by = w[_AX + m], w[_AY + m], w[_BX + m], w[_BY + m]
+        c = ax * by - ay * bx
+        p = (ax * ax + ay * ay) * (bx * bx + by * by)
+        low += not (c > 0.0 and 1e-280 < p < 1e280 and c * c >= floor2 * p)
+    return low == 0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _moving_sines(X, i, j, w, row):
+    """The sines of the corners interior node (i, j) moves into ``w[row:row + LANES]`` (in
+    :data:`MOVING_CORNERS`' order; 1.0, a right angle, in the 4 lanes left over), side by side
+    (:func:`_lane_sines`: :func:`_corner_sine`'s bits)."""
+    _moving_edges(X, i, j, w)
     _lane_sines(w)
     for m in range(LANES):
-        if out[m] != 2.0:
-            out[m] = w[_SINE + m]
+        w[row + m] = w[_SINE + m]
 
 
-@njit(cache=True)
-def _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega):
-    """One line-searched gradient step of node (i, j) (the first ``omega`` times the inverse
+@njit(cache=True, inline="always")
+def _even_node(X, i, j, lo, hi, lo2, hi2, floor, floor2, w, omega):
+    """One line-searched gradient step of interior node (i, j) (the first ``omega`` times the inverse
     curvature, :data:`OVERRELAX`) that lowers its energy and keeps every corner of its cells at the
-    floor or no worse; the move, or -1.0 where it did not move."""
+    floor or no worse; the move, or -1.0 where it did not move. A step whose corners are all surely
+    above the floor (:func:`_surely_above`, ``floor2``) takes no sine."""
     gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi, lo2, hi2)
     g = math.sqrt(gx * gx + gy * gy)
-    if g < 1e-9:
-        return -1.0
-    x0, y0 = X[i, j, 0], X[i, j, 1]
-    have_before = False      # the sines before the move: needed only where a corner ends below the floor
-    step = min(omega / curv, 0.25 / g) if curv > 0 else 0.25 / g
-    for _ in range(8):
-        xt, yt = x0 - step * gx, y0 - step * gy
-        X[i, j, 0] = xt
-        X[i, j, 1] = yt
-        ok = _node_energy(X, i, j, lo, hi, lo2, hi2) < e0
-        if ok:
-            _sines_around(X, i, j, after, w)
-            for k in range(16):
-                if after[k] < floor:    # else it is at the floor or above: never below min(before, floor)
-                    if not have_before:
-                        X[i, j, 0], X[i, j, 1] = x0, y0
-                        _sines_around(X, i, j, before, w)
-                        for q in range(16):
-                            need[q] = min(before[q], floor)
-                        X[i, j, 0], X[i, j, 1] = xt, yt
-                        have_before = True
-                    if after[k] < need[k]:
-                        ok = False
-                        break
-        if ok:
-            return step * g
-        step *= 0.5
-    X[i, j, 0], X[i, j, 1] = x0, y0
-    return -1.0
+    d = -1.0
+    if not g < 1e-9:
+        x0, y0 = X[i, j, 0], X[i, j, 1]
+        have_before = False      # the sines before the move: needed only where a corner ends below the floor
+        step = min(omega / curv, 0.25 / g) if curv > 0 else 0.25 / g
+        for _ in range(8):
+            xt, yt = x0 - step * gx, y0 - step * gy
+            X[i, j, 0] = xt
+            X[i, j, 1] = yt
+            ok = _node_energy_below(X, i, j, lo, hi, lo2, hi2, e0)
+            if ok:
+                _moving_edges(X, i, j, w)
+                if not _surely_above(w, floor2):
+                    _lane_sines(w)
+                    for k in range(LANES):
+                        w[_AFTER + k] = w[_SINE + k]
+                    for k in range(LANES):
+                        if w[_AFTER + k] < floor:    # else at the floor or above: never below min(before, floor)
+                            if not have_before:
+                                X[i, j, 0], X[i, j, 1] = x0, y0
+                                _moving_sines(X, i, j, w, _BEFORE)
+                                for q in range(LANES):
+                                    w[_NEED + q] = min(w[_BEFORE + q], floor)
+                                X[i, j, 0], X[i, j, 1] = xt, yt
+                                have_before = True
+                            if w[_AFTER + k] < w[_NEED + k]:
+                                ok = False
+                                break
+            if ok:
+                d = step * g
+                break
+            step *= 0.5
+        if d < 0.0:
+            X[i, j, 0], X[i, j, 1] = x0, y0
+    return d
 
 
 @njit(cache=True, inline="always")
@@ -309,7 +381,8 @@ def _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, index, q0, q1, omega, sweep, 
     which numbers its visits and its ``failed_at``; None: its own place); the largest move and the
     nodes moved. A node that failed and whose neighbourhood has not moved since is skipped
     (:func:`_settled`)."""
-    before, after, need, w = np.empty(16), np.empty(16), np.empty(16), np.empty(SINE_SCRATCH)
+    w = np.empty(SINE_SCRATCH)
+    floor2 = floor * floor * (1.0 + _FLOOR_MARGIN)
     K = nodes.shape[0]
     biggest, moved = 0.0, 0
     for q in range(q0, q1):
@@ -318,7 +391,7 @@ def _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, index, q0, q1, omega, sweep, 
         if _settled(i, j, moved_at, failed_at[k]):
             continue
         clock = sweep * K + k
-        d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
+        d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, floor2, w, omega)
         if d >= 0.0:
             biggest = max(biggest, d)
             moved += 1
@@ -329,7 +402,7 @@ def _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, index, q0, q1, omega, sweep, 
     return biggest, moved
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
     """One Gauss-Seidel sweep over ``nodes`` (``(K, 2)``, row by row: the active nodes in the order
     a scan of the grid meets them, without the scan); the largest move, the nodes moved.
@@ -343,7 +416,7 @@ def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
                        failed_at)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _sweep_parts(X, lo, hi, floor, nodes, index, starts, omega, sweep, moved_at, failed_at):
     """:func:`_sweep` with the nodes in parts (``nodes[starts[p]:starts[p + 1]]``, whole components
     of :func:`clothgrid.foldfree.node_parts`; ``index``: each node's place in :func:`_sweep`'s list,
@@ -360,7 +433,7 @@ def _sweep_parts(X, lo, hi, floor, nodes, index, starts, omega, sweep, moved_at,
     return bigs.max(), counts.sum()
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at):
     """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
     (a node's step reads its 8 neighbours and writes itself: nodes of one colour do not meet).
@@ -369,6 +442,7 @@ def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
     lo2, hi2 = _inside_band(lo, hi)
     row_big = np.zeros(nu)
     row_moved = np.zeros(nu, np.int64)
+    floor2 = floor * floor * (1.0 + _FLOOR_MARGIN)
     for c in range(4):
         ci, cj = c // 2, c % 2
         rows = (nu - 2 - ci + 1) // 2
@@ -376,12 +450,11 @@ def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
         for r in prange(rows):
             i = 1 + ci + 2 * r
             # one block a row, 128 bytes unused at its end: blocks of two threads never share a cache line
-            block = np.empty(48 + SINE_SCRATCH + 16)
-            before, after, need, w = block[0:16], block[16:32], block[32:48], block[48:48 + SINE_SCRATCH]
+            w = np.empty(SINE_SCRATCH + 16)
             for j in range(1 + cj, nv - 1, 2):
                 if not active[i, j] or _settled(i, j, moved_at, failed_at[i, j]):
                     continue
-                d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, before, after, need, w, omega)
+                d = _even_node(X, i, j, lo, hi, lo2, hi2, floor, floor2, w, omega)
                 if d >= 0.0:
                     row_big[i] = max(row_big[i], d)
                     row_moved[i] += 1

@@ -26,7 +26,7 @@ def serial_twin(kernel, **options):
 
     ``options`` are the ``numba.njit`` options of the twin (``cache=True`` always).
     """
-    f = kernel.py_func
+    f = getattr(kernel, "py_func", kernel)       # NUMBA_DISABLE_JIT=1: the plain function
     g = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial", f.__defaults__, f.__closure__)
     g.__qualname__, g.__module__, g.__doc__ = f.__qualname__ + "_serial", f.__module__, f.__doc__
     return numba.njit(cache=True, **options)(g)
