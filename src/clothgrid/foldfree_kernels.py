@@ -109,7 +109,7 @@ def new_scratch(count):
     return w
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _triangles(w, d4, want):
     """Every lane's corner triangle (:func:`_tri`'s arithmetic, lane by lane): energy into ``_F``,
     ``D`` into ``_D`` and, if ``want``, gradient and Hessian terms (the moving node's role by lane:
@@ -145,7 +145,7 @@ def _triangles(w, d4, want):
             w[_HXY + K] = -cnj * (nx * jy + jx * ny) + cjj * jx * jy
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _node_energy(X, i, j, px, py, d4, want, w):
     """Energy of the 4 cells around node (i, j) with the node at (px, py); gradient, Hessian if want.
 
@@ -184,7 +184,7 @@ def _node_energy(X, i, j, px, py, d4, want, w):
     return _lane_sums(w, d4, want)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _moved_energy(w, px, py, d4):
     """:func:`_node_energy` (no derivatives) with the node moved to (px, py), its neighbours already
     in ``w`` from the last call: only the node's own lanes are rewritten."""
@@ -195,7 +195,7 @@ def _moved_energy(w, px, py, d4):
     return _lane_sums(w, d4, False)[0]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _lane_sums(w, d4, want):
     """The lanes' triangles (:func:`_triangles`) summed in :func:`_node_energy`'s order; inf if any
     of the twelve is inverted beyond the regularisation."""
@@ -217,7 +217,7 @@ def _lane_sums(w, d4, want):
     return E, gx, gy, hxx, hxy, hyy
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _relax_node(X, i, j, delta2, w, omega):
     """One Newton step (line-searched, the first try ``omega`` times the step, then halved) of node
     (i, j) on the energy of its four cells; its move. ``w``: the node energy's scratch (a row of
@@ -273,7 +273,7 @@ def _relax_span(X, nodes, q0, q1, delta2, w, omega):
     return big
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0):
     """Gauss-Seidel sweeps of node-wise Newton steps over ``nodes`` ((K, 2) int64).
 
@@ -292,7 +292,11 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0):
     return done, last
 
 
-@njit(cache=True, parallel=True)
+#: Blocks a colour of :func:`sweep_nodes_coloured` is dealt in, per thread.
+CHUNKS = 8
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
 def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
     """:func:`sweep_nodes` in four colours, the nodes of each colour in parallel.
 
@@ -303,12 +307,18 @@ def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
     done = 0
     last = 0.0
     moves = np.zeros(nodes.shape[0])
-    scratch = new_scratch(numba.config.NUMBA_NUM_THREADS)
+    # a colour in CHUNKS blocks, each with its own scratch row, taken once a block (a row taken a
+    # node costs Numba an atomic reference count up and down)
+    chunks = CHUNKS * numba.config.NUMBA_NUM_THREADS
+    scratch = new_scratch(chunks)
     for _ in range(sweeps):
         done += 1
         for c in range(4):
-            for q in prange(starts[c], starts[c + 1]):
-                moves[q] = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, scratch[numba.get_thread_id()], omega)
+            s, n = starts[c], starts[c + 1] - starts[c]
+            for b in prange(chunks):
+                w = scratch[b]
+                for q in range(s + n * b // chunks, s + n * (b + 1) // chunks):
+                    moves[q] = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w, omega)
         big = moves.max() if nodes.shape[0] else 0.0
         last = big
         if big < tol:
@@ -569,7 +579,7 @@ def node_components(nodes):
     return label, count
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def sweep_nodes_parts(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
     """:func:`sweep_nodes` with ``nodes`` in parts (part ``p`` is ``nodes[starts[p]:starts[p + 1]]``,
     whole components of :func:`node_components`, each in the order of :func:`sweep_nodes`' list),
