@@ -931,3 +931,24 @@ def test_barrier_falls_back_to_an_exact_solve_on_small_grids(rng, monkeypatch):
     monkeypatch.setattr(mg, "BARRIER_DIRECT_MAX_NODES", 100)
     with pytest.raises(clothgrid.InputError, match="direct"):
         clothgrid.generate(b, weights=(wu, wv), solver="multigrid")
+
+
+def test_the_package_runs_with_numba_jit_disabled():
+    """``NUMBA_DISABLE_JIT=1`` (Numba's debugging mode: every kernel runs as plain Python) imports
+    the package and grids a small piece with the fold-free step and the multigrid solver: a parallel
+    kernel's serial twin is then the plain function (it failed to import until 2026-11-26)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import clothgrid\n"
+            "from importlib.resources import files\n"
+            "b = clothgrid.load_boundary(files('clothgrid').joinpath('data', 'tshirt_front.json')).resampled(20, 18)\n"
+            "g = clothgrid.generate(b, functional='auto')\n"
+            "m = clothgrid.generate(b, solver='multigrid')\n"
+            "print(g.info['functional'], clothgrid.quality(g).folded, m.info['converged'])\n")
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    functional, folded, converged = out.stdout.split()
+    assert functional in ("length", "foldfree", "evened") and folded == "0" and converged == "True"
