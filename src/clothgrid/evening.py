@@ -160,10 +160,10 @@ def _inside_band(lo, hi):
 
 @njit(cache=True, inline="always")
 def _node_energy_below(X, i, j, lo, hi, lo2, hi2, e0):
-    """Whether the energy of the four edges at node (i, j) (:func:`_outlying`'s terms, in edge order;
-    is below ``e0``, its terms summed no further
-    than the sum reaching ``e0``: the terms are not negative, so a rounded sum never falls again,
-    and the edges left need no logarithm. The same answer, bit for bit."""
+    """Whether the energy of the four edges at node (i, j) (:func:`_outlying`'s terms, in edge order)
+    is below ``e0``, its terms summed no further than the sum reaching ``e0``: the terms are not
+    negative, so a rounded sum never falls again, and the edges left need no logarithm. The same
+    answer as summing them all, bit for bit."""
     e = 0.0
     for n in range(4):
         a = i + (1 if n == 0 else (-1 if n == 1 else 0))
