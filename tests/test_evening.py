@@ -539,3 +539,25 @@ def test_skipping_settled_nodes_leaves_the_same_grid(coloured):
         assert a == b
         assert np.array_equal(kept, fresh)
     assert count > 1000 and skipped > 100, (count, skipped)
+
+
+def test_a_zero_length_edge_next_to_a_step_divides_quietly():
+    """A node step whose corners include a zero-length edge (one the step does not move) takes the
+    exact sines, whose lane for it divides zero by zero: the sweep goes on (NumPy's error model, in
+    every kernel the sines are inlined into) and counts that corner as -1, no worse than before."""
+    import clothgrid.evening as ev
+
+    X = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0), indexing="ij"), -1)
+    X[3, 2] = X[3, 3]                   # the v-edge (3, 2)-(3, 3) has length zero
+    X[2, 2] = (1.6, 2.0)                # the node's edges: 0.6 and 1.7 long, outside the band
+    w = np.empty(ev.SINE_SCRATCH)
+    ev._moving_sines(X, 2, 2, w, ev._BEFORE)
+    assert -1.0 in w[ev._BEFORE:ev._BEFORE + ev.LANES]
+    lo, hi = -math.log(ev.BAND), math.log(ev.BAND)
+    nodes = np.array([[2, 2]], np.int64)
+    moved_at, failed_at = np.full((5, 5), -1, np.int64), np.full(1, -1, np.int64)
+    before = X.copy()
+    biggest, moved = ev._sweep(X, lo, hi, math.sin(math.radians(FLOOR_DEG)), nodes, ev.OVERRELAX, 0,
+                               moved_at, failed_at)
+    assert moved == 1 and biggest > 0 and np.isfinite(X).all()
+    assert np.array_equal(np.delete(X.reshape(25, 2), 12, 0), np.delete(before.reshape(25, 2), 12, 0))

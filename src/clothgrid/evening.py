@@ -211,9 +211,11 @@ def _corner_sine(X, p, q, r):
 #: A node step's scratch (:func:`_even_node`): rows of 16 lanes, one corner a lane (edges a, b, the
 #: sine; the sines after the step, before it, and the least each may be). Sixteen lanes, the
 #: compile-time count LLVM's loop vectoriser takes: two 8-wide passes of square roots and divisions.
-#: One array, not one a row: each array a step takes costs an atomic reference count up and down
-#: a visit (Numba's, where the inlined step's arguments are not pruned), and with five arrays that
-#: was a fifth of the sweeps' time.
+#: One array, not one a row: each array a step takes is counted up and down at every visit (Numba's
+#: atomic reference counts, which its pruning pass leaves in a step with a loop and several exits),
+#: and with five arrays and the helpers' own calls that was a fifth of the sweeps' time. The helpers
+#: are inlined into the step, the step is not inlined into the sweeps: that took another 5 % off the
+#: survey's evening but six times the sweeps' compile time (5 -> 38 s on a fresh cache).
 LANES = 16
 _AX, _AY, _BX, _BY, _SINE, _AFTER, _BEFORE, _NEED = (r * LANES for r in range(8))
 SINE_SCRATCH = 8 * LANES
@@ -316,7 +318,7 @@ def _moving_sines(X, i, j, w, row):
         w[row + m] = w[_SINE + m]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy")
 def _even_node(X, i, j, lo, hi, lo2, hi2, floor, floor2, w, omega):
     """One line-searched gradient step of interior node (i, j) (the first ``omega`` times the inverse
     curvature, :data:`OVERRELAX`) that lowers its energy and keeps every corner of its cells at the
