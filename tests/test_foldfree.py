@@ -645,3 +645,37 @@ def test_a_first_round_that_untangles_in_its_first_sweeps_ends_there(monkeypatch
     (sweeps, jac, angle), (sweeps_full, jac_full, angle_full) = got.values()
     assert sweeps < sweeps_full, got
     assert jac >= 0.99 * jac_full and angle >= 0.99 * angle_full, got
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, parallel):
+    """cells_below (most cells passed without a square root) marks exactly the cells whose
+    cell_min_sine is below the bound, the grid-corner cells taken as a sine of 1: on fresh grids
+    with folds and zero-length edges, and with the bound set to a cell's own smallest sine and the
+    floats either side of it, where only the exact sines can tell."""
+    import clothgrid.foldfree_kernels as fk
+
+    monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
+    rng = np.random.default_rng()
+    for trial in range(60):
+        nu, nv = (int(n) for n in rng.integers(2, 30, size=2))
+        X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
+        X = X * rng.uniform(1e-3, 1e3) + rng.normal(scale=rng.choice([0.05, 0.3, 0.7]), size=X.shape)
+        if trial % 4 == 0 and nu > 2:
+            X[1, min(1, nv - 1)] = X[1, 0]          # a zero-length edge
+        sines = fk.cell_min_sine(X)
+        sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
+        pick = sines[rng.integers(sines.shape[0]), rng.integers(sines.shape[1])]
+        for bound in (0.34, 0.57, -0.2, 1.5, pick, np.nextafter(pick, 2.0), np.nextafter(pick, -2.0)):
+            assert np.array_equal(fk.cells_below(X, bound), sines < bound), (trial, bound)
+    # a cell with one reflex corner, in each of its four places (the other three wide open): only
+    # that corner's cross product tells it from a good cell
+    for k in range(4):
+        X = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0), indexing="ij"), -1)
+        c = ((1, 1), (2, 1), (2, 2), (1, 2))
+        q, o = c[k], c[(k + 2) % 4]
+        X[q] = X[q] + 0.75 * (X[o] - X[q])
+        sines = fk.cell_min_sine(X)
+        assert sines[1, 1] < -0.3
+        for bound in (-0.3, 0.0, 0.34):
+            assert fk.cells_below(X, bound)[1, 1] and np.array_equal(fk.cells_below(X, bound), sines < bound)

@@ -534,11 +534,11 @@ def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
 
 
 def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:
-    from .foldfree_kernels import cell_min_sine
+    """Cells with a corner sine below ``poor_sine``, the grid-corner cells aside (a grid corner's
+    angle is the outline's): :func:`~clothgrid.foldfree_kernels.cells_below`."""
+    from .foldfree_kernels import cells_below
 
-    s = cell_min_sine(X)
-    s[0, 0] = s[-1, 0] = s[0, -1] = s[-1, -1] = 1.0     # a grid corner's angle is the outline's
-    return s < poor_sine
+    return cells_below(X, poor_sine)
 
 
 def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], rounds: int,

@@ -28,7 +28,7 @@ from numba import njit, prange
 from .jit_variants import serial_twin
 
 __all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min",
-           "cell_min_sine", "axes_to_plane", "axes_from_plane", "dilate"]
+           "cell_min_sine", "cells_below", "axes_to_plane", "axes_from_plane", "dilate"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
 _DI = np.array([0, 1, 1, 0], dtype=np.int64)
@@ -395,34 +395,40 @@ def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
     return (_corner_min if cells >= PARALLEL_CELLS else _corner_min_serial)(X, skip_grid_corners)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _cell_sine(X, i, j):
+    """Cell (i, j)'s smallest signed corner sine: its four edges (u-edges ``e_u(i, j) = X[i+1, j] -
+    X[i, j]``, v-edges ``e_v``) and their lengths once, the corners' edge vectors as those or their
+    negations (exactly :func:`_corner_vectors`' differences: ``x - y`` is ``-(y - x)`` in floating
+    point), so the same sines bit for bit as one corner at a time, with half the square roots; -1
+    for a corner with a zero-length edge."""
+    u0x, u0y = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+    u1x, u1y = X[i + 1, j + 1, 0] - X[i, j + 1, 0], X[i + 1, j + 1, 1] - X[i, j + 1, 1]
+    v0x, v0y = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+    v1x, v1y = X[i + 1, j + 1, 0] - X[i + 1, j, 0], X[i + 1, j + 1, 1] - X[i + 1, j, 1]
+    lu0, lu1 = np.sqrt(u0x * u0x + u0y * u0y), np.sqrt(u1x * u1x + u1y * u1y)
+    lv0, lv1 = np.sqrt(v0x * v0x + v0y * v0y), np.sqrt(v1x * v1x + v1y * v1y)
+    # corner k of the cell, edges (a, b): 0 (e_u0, e_v0), 1 (e_v1, -e_u0), 2 (-e_u1, -e_v1), 3 (-e_v0, e_u1)
+    s0 = (u0x * v0y - u0y * v0x) / (lu0 * lv0)
+    s1 = (v1x * (-u0y) - v1y * (-u0x)) / (lv1 * lu0)
+    s2 = ((-u1x) * (-v1y) - (-u1y) * (-v1x)) / (lu1 * lv1)
+    s3 = ((-v0x) * u1y - (-v0y) * u1x) / (lv0 * lu1)
+    best = np.inf
+    for v in (-1.0 if lu0 == 0.0 or lv0 == 0.0 else s0, -1.0 if lv1 == 0.0 or lu0 == 0.0 else s1,
+              -1.0 if lu1 == 0.0 or lv1 == 0.0 else s2, -1.0 if lv0 == 0.0 or lu1 == 0.0 else s3):
+        if v < best:
+            best = v
+    return best
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def _cell_min_sine(X, out):
-    """:func:`cell_min_sine`: each cell's four edges (u-edges ``e_u(i, j) = X[i+1, j] - X[i, j]``,
-    v-edges ``e_v``) and their lengths once, the corners' edge vectors as those or their negations
-    (exactly :func:`_corner_vectors`' differences: ``x - y`` is ``-(y - x)`` in floating point), so
-    the same sines bit for bit as one corner at a time, with half the square roots and no branch
-    on the corner in the inner loop."""
+    """:func:`cell_min_sine`: :func:`_cell_sine` of every cell, rows of cells in parallel."""
     nv = X.shape[1]
     for r in prange(X.shape[0] - 1):
         i = np.int64(r)
         for j in range(nv - 1):
-            u0x, u0y = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
-            u1x, u1y = X[i + 1, j + 1, 0] - X[i, j + 1, 0], X[i + 1, j + 1, 1] - X[i, j + 1, 1]
-            v0x, v0y = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
-            v1x, v1y = X[i + 1, j + 1, 0] - X[i + 1, j, 0], X[i + 1, j + 1, 1] - X[i + 1, j, 1]
-            lu0, lu1 = np.sqrt(u0x * u0x + u0y * u0y), np.sqrt(u1x * u1x + u1y * u1y)
-            lv0, lv1 = np.sqrt(v0x * v0x + v0y * v0y), np.sqrt(v1x * v1x + v1y * v1y)
-            # corner k of the cell, edges (a, b): 0 (e_u0, e_v0), 1 (e_v1, -e_u0), 2 (-e_u1, -e_v1), 3 (-e_v0, e_u1)
-            s0 = (u0x * v0y - u0y * v0x) / (lu0 * lv0)
-            s1 = (v1x * (-u0y) - v1y * (-u0x)) / (lv1 * lu0)
-            s2 = ((-u1x) * (-v1y) - (-u1y) * (-v1x)) / (lu1 * lv1)
-            s3 = ((-v0x) * u1y - (-v0y) * u1x) / (lv0 * lu1)
-            best = np.inf
-            for v in (-1.0 if lu0 == 0.0 or lv0 == 0.0 else s0, -1.0 if lv1 == 0.0 or lu0 == 0.0 else s1,
-                      -1.0 if lu1 == 0.0 or lv1 == 0.0 else s2, -1.0 if lv0 == 0.0 or lu1 == 0.0 else s3):
-                if v < best:
-                    best = v
-            out[i, j] = best
+            out[i, j] = _cell_sine(X, i, j)
 
 
 _cell_min_sine_serial = serial_twin(_cell_min_sine, error_model="numpy")
@@ -433,6 +439,53 @@ def cell_min_sine(X: np.ndarray) -> np.ndarray:
     rows of cells in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
     out = np.empty((X.shape[0] - 1, X.shape[1] - 1))
     (_cell_min_sine if out.size >= PARALLEL_CELLS else _cell_min_sine_serial)(X, out)
+    return out
+
+
+#: :func:`cells_below`'s relative margin on the squared sine: far above the rounding of the sines'
+#: square roots and divisions (a few 1e-16), so a cell it passes has every sine at the bound or above,
+#: bit for bit as :func:`_cell_sine` takes them.
+SINE_MARGIN = 1e-9
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _cells_below(X, sine, out):
+    """:func:`cells_below`: a cell whose four corners each have a positive cross product ``c`` with
+    ``c^2 >= sine^2 (1 + SINE_MARGIN) |a|^2 |b|^2`` (that product a normal number) is not below, with
+    no square root or division; any other cell takes :func:`_cell_sine`. The grid-corner cells are
+    compared as a sine of 1."""
+    nu, nv = X.shape[0], X.shape[1]
+    s2 = sine * sine * (1.0 + SINE_MARGIN)
+    for r in prange(nu - 1):
+        i = np.int64(r)
+        for j in range(nv - 1):
+            if (i == 0 or i == nu - 2) and (j == 0 or j == nv - 2):
+                out[i, j] = 1.0 < sine
+                continue
+            ux, uy = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+            tx, ty = X[i + 1, j + 1, 0] - X[i, j + 1, 0], X[i + 1, j + 1, 1] - X[i, j + 1, 1]
+            vx, vy = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+            wx, wy = X[i + 1, j + 1, 0] - X[i + 1, j, 0], X[i + 1, j + 1, 1] - X[i + 1, j, 1]
+            lu, lt, lv, lw = ux * ux + uy * uy, tx * tx + ty * ty, vx * vx + vy * vy, wx * wx + wy * wy
+            # the crosses of corners 0-3 (up to the sign conventions of _cell_sine, which only negate)
+            c0, c1 = ux * vy - uy * vx, ux * wy - uy * wx
+            c2, c3 = tx * wy - ty * wx, vy * tx - vx * ty
+            sure = True
+            for c, p in ((c0, lu * lv), (c1, lw * lu), (c2, lt * lw), (c3, lv * lt)):
+                if not (c > 0.0 and 1e-280 < p < 1e280 and c * c >= s2 * p):
+                    sure = False
+            out[i, j] = False if sure else _cell_sine(X, i, j) < sine
+
+
+_cells_below_serial = serial_twin(_cells_below, error_model="numpy")
+
+
+def cells_below(X: np.ndarray, sine: float) -> np.ndarray:
+    """``(nu-1, nv-1)`` bool: cells whose :func:`cell_min_sine` is below ``sine``, the four grid-corner
+    cells (whose angle is the outline's) taken as a right angle; the same cells as comparing
+    :func:`cell_min_sine`, without most of its square roots and divisions."""
+    out = np.empty((X.shape[0] - 1, X.shape[1] - 1), np.bool_)
+    (_cells_below if out.size >= PARALLEL_CELLS else _cells_below_serial)(X, float(sine), out)
     return out
 
 
