@@ -679,3 +679,29 @@ def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, par
         assert sines[1, 1] < -0.3
         for bound in (-0.3, 0.0, 0.34):
             assert fk.cells_below(X, bound)[1, 1] and np.array_equal(fk.cells_below(X, bound), sines < bound)
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel):
+    """smallest_cell_sine gives cell_min_sine(X).min() with the four grid-corner cells set to 1
+    (where there are more than four cells), bit for bit, without the array: on fresh grids with
+    folds and zero-length edges, on grids of one to four cells, and with a NaN node."""
+    import clothgrid.foldfree_kernels as fk
+
+    monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
+    rng = np.random.default_rng()
+    for trial in range(80):
+        nu, nv = (int(n) for n in rng.integers(2, 25, size=2)) if trial % 8 else (2, int(rng.integers(2, 4)))
+        X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
+        X += rng.normal(scale=rng.choice([0.05, 0.3, 0.7]), size=X.shape)
+        if trial % 5 == 0:
+            X[nu // 2, nv // 2] = X[nu // 2, nv // 2 - 1]      # a zero-length edge
+        sines = fk.cell_min_sine(X)
+        if sines.size > 4:
+            sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
+        assert fk.smallest_cell_sine(X) == float(sines.min()), trial
+    X = np.stack(np.meshgrid(np.arange(6.0), np.arange(7.0), indexing="ij"), -1)
+    X[3, 3] = np.nan
+    sines = fk.cell_min_sine(X)
+    sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
+    assert fk.smallest_cell_sine(X) == float(sines.min())

@@ -508,10 +508,12 @@ def _outside(X: np.ndarray, lo: float, hi: float, margin: int) -> tuple[np.ndarr
 
 
 def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active: np.ndarray,
-               count: int) -> dict[str, Any]:
+               count: int, moved_at: np.ndarray) -> dict[str, Any]:
     """One stage of :func:`even_edges`: sweeps over the ``count`` ``active`` nodes with the energy
     of ``band``, in order (over-relaxed) or, for :data:`~clothgrid.foldfree.PARALLEL_NODES` nodes
-    or more, in colours, until a stop rule holds; ``{band, active, sweeps, moved}``."""
+    or more, in colours, until a stop rule holds; ``{band, active, sweeps, moved}``. ``moved_at``:
+    the grid's shape, int64, the stage's record of each node's last move (filled here: one array
+    serves every stage)."""
     from .foldfree import PARALLEL_NODES, node_parts
 
     lo, hi = -math.log(band), math.log(band)
@@ -536,7 +538,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
     else:
         sweep_once, omega = _sweep_coloured, 1.0
         failed_at = np.full(X.shape[:2], -1, np.int64)
-    moved_at = np.full(X.shape[:2], -1, np.int64)
+    moved_at.fill(-1)
     check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
     for sweep in range(max_sweeps):
         biggest, moved = sweep_once(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
@@ -678,26 +680,24 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     info: dict[str, Any] = {"spread_before": spread, "spread_after": spread, "moved": 0, "sweeps": 0,
                             "active": 0, "stages": []}
     if shortest > 0 and spread > spread_ok:
-        from .foldfree_kernels import cell_min_sine
+        from .foldfree_kernels import smallest_cell_sine
 
-        scale = float(np.exp(np.log(lengths).mean()))
+        scale = float(np.exp(np.log(lengths, out=lengths).mean()))    # the lengths are not read again
         X /= scale
-        sines = cell_min_sine(X)
-        if sines.size > 4:
-            sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
-        smallest = math.degrees(math.asin(min(1.0, max(0.0, float(sines.min())))))
+        smallest = math.degrees(math.asin(min(1.0, max(0.0, smallest_cell_sine(X)))))
         info["floor_deg"] = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
         floor = math.sin(math.radians(info["floor_deg"]))
         wide = wide_band is not None and wide_band > band
         stages = []
+        moved_at = np.empty(X.shape[:2], np.int64)
         if wide:
             active, count = _outside(X, -math.log(wide_band), math.log(wide_band), margin)
             if count:
-                stages.append(_even_band(X, wide_band, floor, max_sweeps, active, int(count)))
+                stages.append(_even_band(X, wide_band, floor, max_sweeps, active, int(count), moved_at))
         wider = tuple(f for f in FINAL_BANDS if f > band and not (wide and f >= wide_band))
         last = _last_band(X, band, wider, margin, bool(stages))
         if last is not None:
-            stages.append(_even_band(X, last[0], floor, max_sweeps, last[1], last[2]))
+            stages.append(_even_band(X, last[0], floor, max_sweeps, last[1], last[2], moved_at))
         info["stages"] = stages
         for stage in stages:
             info["active"] = max(info["active"], stage["active"])

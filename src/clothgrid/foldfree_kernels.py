@@ -28,7 +28,7 @@ from numba import njit, prange
 from .jit_variants import serial_twin
 
 __all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min",
-           "cell_min_sine", "cells_below", "axes_to_plane", "axes_from_plane", "dilate"]
+           "cell_min_sine", "cells_below", "smallest_cell_sine", "axes_to_plane", "axes_from_plane", "dilate"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
 _DI = np.array([0, 1, 1, 0], dtype=np.int64)
@@ -440,6 +440,35 @@ def cell_min_sine(X: np.ndarray) -> np.ndarray:
     out = np.empty((X.shape[0] - 1, X.shape[1] - 1))
     (_cell_min_sine if out.size >= PARALLEL_CELLS else _cell_min_sine_serial)(X, out)
     return out
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _smallest_cell_sine(X):
+    nu, nv = X.shape[0], X.shape[1]
+    corners = (nu - 1) * (nv - 1) > 4
+    rows = np.full(nu - 1, np.inf)
+    for r in prange(nu - 1):
+        i = np.int64(r)
+        best = np.inf
+        for j in range(nv - 1):
+            v = 1.0 if corners and (i == 0 or i == nu - 2) and (j == 0 or j == nv - 2) else _cell_sine(X, i, j)
+            if v < best:                # (no cell's sine is NaN: _cell_sine skips NaN corners)
+                best = v
+        rows[i] = best
+    return rows.min()
+
+
+_smallest_cell_sine_serial = serial_twin(_smallest_cell_sine, error_model="numpy")
+
+
+def smallest_cell_sine(X: np.ndarray) -> float:
+    """The smallest of :func:`cell_min_sine` with the four grid-corner cells taken as a sine of 1
+    (where the grid has more than four cells; their angle is the outline's): the same value as
+    that array's ``min()``, without the array."""
+    cells = (X.shape[0] - 1) * (X.shape[1] - 1)
+    if cells <= 0:
+        raise ValueError("a grid of no cells has no smallest sine")
+    return float((_smallest_cell_sine if cells >= PARALLEL_CELLS else _smallest_cell_sine_serial)(X))
 
 
 #: :func:`cells_below`'s relative margin on the squared sine: far above the rounding of the sines'
