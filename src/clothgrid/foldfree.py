@@ -549,9 +549,10 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
     below the last round's (``strict``: below the fewest so far). ``give_up``: the rounds end after
     the first :data:`GIVE_UP_SWEEPS` sweeps where those left more folded corners than there were,
     or none."""
-    from .foldfree_kernels import corner_min
+    from .foldfree_kernels import CornerRows
 
-    jmin, bad = corner_min(Xs, True)
+    corners = CornerRows(Xs, True)     # only the sweeps below move Xs: their rows are measured again
+    jmin, bad = corners.figures()
     stalled, fewest = 0, bad
     while bad and rounds > 0 and len(nodes):
         rounds -= 1
@@ -568,14 +569,14 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
         give_up = False
         done, _ = _sweeps(Xs, nodes, delta2, part, 1e-3)
         stats["sweeps"] += int(done)
-        jmin, bad = corner_min(Xs, True)
+        jmin, bad = corners.moved(Xs, nodes)
         if part < sweeps and done == part and bad:
             if bad > before:             # more folds than it started with: this set is given up
                 stats["given_up"] = stats.get("given_up", 0) + 1
                 return float(jmin), int(bad)
             done, _ = _sweeps(Xs, nodes, delta2, sweeps - part, 1e-3)
             stats["sweeps"] += int(done)
-            jmin, bad = corner_min(Xs, True)
+            jmin, bad = corners.moved(Xs, nodes)
         # strict (a coarser grid's start, or every node after one): counts that go up and down
         # without a new low ran all 60 rounds on a wild outline's grids; on one grid alone (below
         # COARSE_RELAX), counts that rise for rounds before they fall untangled the Roache annulus

@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from .jit_variants import serial_twin
 
-__all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min",
+__all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min", "CornerRows",
            "cell_min_sine", "cells_below", "smallest_cell_sine", "axes_to_plane", "axes_from_plane", "dilate"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
@@ -351,36 +351,85 @@ def _corner_vectors(X, ci, cj, k):
 PARALLEL_CELLS = 1 << 18
 
 
+@njit(cache=True, inline="always")
+def _corner_row(X, ci, skip_grid_corners):
+    """Row ``ci`` of cells: the smallest ``a x b / (|a|^2 + |b|^2)`` of its corners and how many
+    are <= 0 (:func:`corner_min`'s terms, in its order)."""
+    nu = X.shape[0]
+    nv = X.shape[1]
+    best = np.inf
+    bad = 0
+    for cj in range(nv - 1):
+        for k in range(4):
+            i0 = ci + _DI[k]
+            j0 = cj + _DJ[k]
+            if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
+                continue
+            ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
+            J = ax * by - ay * bx
+            N = ax * ax + ay * ay + bx * bx + by * by
+            v = J / N if N > 0.0 else -1.0
+            if v <= 0.0:
+                bad += 1
+            if v < best:
+                best = v
+    return best, bad
+
+
 @njit(cache=True, parallel=True)
 def _corner_min(X, skip_grid_corners):
     nu = X.shape[0]
-    nv = X.shape[1]
     row_best = np.full(nu - 1, np.inf)
     row_bad = np.zeros(nu - 1, dtype=np.int64)
     for r in prange(nu - 1):
         ci = np.int64(r)
-        best = np.inf
-        bad = 0
-        for cj in range(nv - 1):
-            for k in range(4):
-                i0 = ci + _DI[k]
-                j0 = cj + _DJ[k]
-                if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
-                    continue
-                ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
-                J = ax * by - ay * bx
-                N = ax * ax + ay * ay + bx * bx + by * by
-                v = J / N if N > 0.0 else -1.0
-                if v <= 0.0:
-                    bad += 1
-                if v < best:
-                    best = v
-        row_best[ci] = best
-        row_bad[ci] = bad
+        row_best[ci], row_bad[ci] = _corner_row(X, ci, skip_grid_corners)
     return row_best.min(), row_bad.sum()
 
 
 _corner_min_serial = serial_twin(_corner_min)
+
+
+@njit(cache=True, parallel=True)
+def _corner_rows(X, skip_grid_corners, rows, row_best, row_bad):
+    """:func:`_corner_row` of the rows of cells listed, into ``row_best`` and ``row_bad``."""
+    for r in prange(rows.shape[0]):
+        ci = rows[r]
+        row_best[ci], row_bad[ci] = _corner_row(X, ci, skip_grid_corners)
+
+
+_corner_rows_serial = serial_twin(_corner_rows)
+
+
+class CornerRows:
+    """:func:`corner_min` of a grid kept row by row of cells, so that after a sweep over some nodes
+    only the rows of cells with a corner at one of them are measured again: the same minimum and
+    count as :func:`corner_min` of the whole grid (a minimum and a sum of the rows' own)."""
+
+    def __init__(self, X: np.ndarray, skip_grid_corners: bool) -> None:
+        nu = X.shape[0]
+        self.skip = skip_grid_corners
+        self.best = np.full(max(nu - 1, 0), np.inf)
+        self.bad = np.zeros(max(nu - 1, 0), np.int64)
+        self._measure(X, np.arange(max(nu - 1, 0), dtype=np.int64))
+
+    def _measure(self, X: np.ndarray, rows: np.ndarray) -> None:
+        if len(rows) and X.shape[1] > 1:
+            kernel = _corner_rows if len(rows) * (X.shape[1] - 1) >= PARALLEL_CELLS else _corner_rows_serial
+            kernel(X, self.skip, rows, self.best, self.bad)
+
+    def moved(self, X: np.ndarray, nodes: np.ndarray) -> tuple[float, int]:
+        """After ``nodes`` (``(K, 2)`` interior nodes) moved: the rows of cells above and below them
+        measured again; :meth:`figures`."""
+        i = nodes[:, 0]
+        self._measure(X, np.unique(np.concatenate((i - 1, i))).astype(np.int64))
+        return self.figures()
+
+    def figures(self) -> tuple[float, int]:
+        """``(smallest, count <= 0)``: :func:`corner_min`'s."""
+        if not len(self.best):
+            return np.inf, 0
+        return self.best.min(), self.bad.sum()
 
 
 def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
