@@ -217,14 +217,13 @@ def test_edge_extremes_are_the_lengths_extremes_bit_for_bit(rng):
         assert math.sqrt(lo) == lengths.min() and math.sqrt(hi) == lengths.max()
 
 
-def test_moving_sines_match_one_corner_at_a_time():
+def test_moving_sines_match_one_corner_at_a_time(rng):
     """The evening's corner sines of an interior node, taken side by side in 16 lanes, are exactly the
     corners its move changes (those of its four cells that are its own or beside it: not the one
     opposite, not outside the grid, not a grid corner), each with _corner_sine's bits, and a right
     angle (1.0) in the four lanes left over."""
     from clothgrid import evening as E
 
-    rng = np.random.default_rng()
     w = np.empty(E.SINE_SCRATCH)
     for trial in range(200):
         nu, nv = int(rng.integers(3, 7)), int(rng.integers(3, 7))
@@ -252,14 +251,13 @@ def test_moving_sines_match_one_corner_at_a_time():
         assert (out[12:] == 1.0).all()
 
 
-def test_surely_above_is_never_wrong():
+def test_surely_above_is_never_wrong(rng):
     """The evening's test without square roots (a corner surely at the floor or above) passes no
     corner whose sine, as _lane_sines takes it, is below the floor, on corners drawn right at the
     floor (both sides of it, a few units in the last place away), tiny, huge and degenerate; and it
     passes plainly wide angles."""
     from clothgrid import evening as E
 
-    rng = np.random.default_rng()
     w = np.empty(E.SINE_SCRATCH)
     passed = 0
     for trial in range(3000):

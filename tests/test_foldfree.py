@@ -648,7 +648,7 @@ def test_a_first_round_that_untangles_in_its_first_sweeps_ends_there(monkeypatch
 
 
 @pytest.mark.parametrize("parallel", [False, True])
-def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, parallel):
+def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, parallel, rng):
     """cells_below (most cells passed without a square root) marks exactly the cells whose
     cell_min_sine is below the bound, the grid-corner cells taken as a sine of 1: on fresh grids
     with folds and zero-length edges, and with the bound set to a cell's own smallest sine and the
@@ -656,7 +656,6 @@ def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, par
     import clothgrid.foldfree_kernels as fk
 
     monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
-    rng = np.random.default_rng()
     for trial in range(60):
         nu, nv = (int(n) for n in rng.integers(2, 30, size=2))
         X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
@@ -682,14 +681,13 @@ def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, par
 
 
 @pytest.mark.parametrize("parallel", [False, True])
-def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel):
+def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel, rng):
     """smallest_cell_sine gives cell_min_sine(X).min() with the four grid-corner cells set to 1
     (where there are more than four cells), bit for bit, without the array: on fresh grids with
     folds and zero-length edges, on grids of one to four cells, and with a NaN node."""
     import clothgrid.foldfree_kernels as fk
 
     monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
-    rng = np.random.default_rng()
     for trial in range(80):
         nu, nv = (int(n) for n in rng.integers(2, 25, size=2)) if trial % 8 else (2, int(rng.integers(2, 4)))
         X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
@@ -708,14 +706,13 @@ def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel):
 
 
 @pytest.mark.parametrize("parallel", [False, True])
-def test_corner_rows_after_a_sweep_give_corner_min(monkeypatch, parallel):
+def test_corner_rows_after_a_sweep_give_corner_min(monkeypatch, parallel, rng):
     """CornerRows measures again only the rows of cells at the nodes a sweep moved: after sweeps
     over fresh active sets of a tangled grid its minimum and count are corner_min's of the whole
     grid, bit for bit, every time (and corner_min's of an empty grid)."""
     import clothgrid.foldfree_kernels as fk
 
     monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
-    rng = np.random.default_rng()
     for trial in range(12):
         nu, nv = (int(n) for n in rng.integers(5, 40, size=2))
         X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
