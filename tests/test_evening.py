@@ -257,12 +257,13 @@ def test_surely_above_is_never_wrong(rng):
     floor (both sides of it, a few units in the last place away), tiny, huge and degenerate; and it
     passes plainly wide angles."""
     from clothgrid import evening as E
+    from clothgrid.foldfree_kernels import squared_bound
 
     w = np.empty(E.SINE_SCRATCH)
     passed = 0
     for trial in range(3000):
         floor = math.sin(math.radians(rng.uniform(20.0, 45.0)))
-        floor2 = floor * floor * (1.0 + E._FLOOR_MARGIN)
+        floor2 = squared_bound(floor)
         near = rng.choice([0.0, 1e-15, 1e-12, 1e-10, 1e-9, 1e-8, 1e-3, 0.5]) * rng.choice([-1.0, 1.0])
         t = math.asin(floor) * (1.0 + near) if trial % 4 else rng.uniform(-1.0, 3.0)
         m = int(rng.integers(E.LANES))          # the corner drawn; a right angle in the other lanes

@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit, prange
 
 from .blas_threads import one_blas_thread
+from .foldfree_kernels import squared_bound, surely_at_least
 from .jit_variants import serial_twin
 
 __all__ = ["even_edges", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
@@ -241,10 +242,6 @@ def _moving_corner_table() -> tuple[tuple[int, int, int, int, int, int], ...]:
 #: :func:`_moving_corner_table`: 12 corners; the scratch's other 4 lanes hold a right angle.
 MOVING_CORNERS = _moving_corner_table()
 _MOVING = len(MOVING_CORNERS)
-#: :func:`_surely_above`'s relative margin on the squared floor: far above the rounding of the sine's
-#: square roots and division (a few 1e-16), so a corner it passes has a sine at or above the floor,
-#: bit for bit as :func:`_lane_sines` takes it.
-_FLOOR_MARGIN = 1e-9
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -294,16 +291,14 @@ def _moving_edges(X, i, j, w):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _surely_above(w, floor2):
-    """Whether every lane's corner is surely at the floor or above, without a square root or a
-    division: its cross product positive and squared at least ``floor2`` (the floor's square, raised
-    by :data:`_FLOOR_MARGIN`) times its edges' squared lengths, that product a normal number. False
-    sends the node to the exact sines (:func:`_lane_sines`); True is never wrong."""
+    """Whether every lane's corner is surely at the floor or above
+    (:func:`~clothgrid.foldfree_kernels.surely_at_least`, ``floor2`` its squared bound), without a
+    square root or a division. False sends the node to the exact sines (:func:`_lane_sines`); True
+    is never wrong."""
     low = 0
     for m in range(LANES):
         ax, ay, bx, by = w[_AX + m], w[_AY + m], w[_BX + m], w[_BY + m]
-        c = ax * by - ay * bx
-        p = (ax * ax + ay * ay) * (bx * bx + by * by)
-        low += not (c > 0.0 and 1e-280 < p < 1e280 and c * c >= floor2 * p)
+        low += not surely_at_least(ax * by - ay * bx, (ax * ax + ay * ay) * (bx * bx + by * by), floor2)
     return low == 0
 
 
@@ -384,7 +379,7 @@ def _sweep_span(X, lo, hi, lo2, hi2, floor, nodes, index, q0, q1, omega, sweep, 
     nodes moved. A node that failed and whose neighbourhood has not moved since is skipped
     (:func:`_settled`)."""
     w = np.empty(SINE_SCRATCH)
-    floor2 = floor * floor * (1.0 + _FLOOR_MARGIN)
+    floor2 = squared_bound(floor)
     K = nodes.shape[0]
     biggest, moved = 0.0, 0
     for q in range(q0, q1):
@@ -444,7 +439,7 @@ def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
     lo2, hi2 = _inside_band(lo, hi)
     row_big = np.zeros(nu)
     row_moved = np.zeros(nu, np.int64)
-    floor2 = floor * floor * (1.0 + _FLOOR_MARGIN)
+    floor2 = squared_bound(floor)
     for c in range(4):
         ci, cj = c // 2, c % 2
         rows = (nu - 2 - ci + 1) // 2

@@ -520,20 +520,34 @@ def smallest_cell_sine(X: np.ndarray) -> float:
     return float((_smallest_cell_sine if cells >= PARALLEL_CELLS else _smallest_cell_sine_serial)(X))
 
 
-#: :func:`cells_below`'s relative margin on the squared sine: far above the rounding of the sines'
-#: square roots and divisions (a few 1e-16), so a cell it passes has every sine at the bound or above,
-#: bit for bit as :func:`_cell_sine` takes them.
+#: :func:`surely_at_least`'s relative margin on the squared sine: far above the rounding of a sine's
+#: square roots and division (a few 1e-16), so a corner it passes has its sine at the bound or
+#: above, bit for bit as :func:`_cell_sine` (or the evening's sines) take it.
 SINE_MARGIN = 1e-9
+
+
+@njit(cache=True, inline="always")
+def squared_bound(sine):
+    """The bound :func:`surely_at_least` compares with: ``sine^2 (1 + SINE_MARGIN)``."""
+    return sine * sine * (1.0 + SINE_MARGIN)
+
+
+@njit(cache=True, inline="always")
+def surely_at_least(c, p, bound2):
+    """Whether a corner of cross product ``c`` and squared edge lengths' product ``p`` surely has a
+    sine ``c / sqrt(p)`` of at least the bound (``bound2``: :func:`squared_bound`), without a square
+    root or a division: ``c > 0`` and ``c^2 >= bound2 p``, ``p`` a normal number. False means only
+    that the exact sine must tell; True is never wrong."""
+    return c > 0.0 and 1e-280 < p < 1e280 and c * c >= bound2 * p
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _cells_below(X, sine, out):
-    """:func:`cells_below`: a cell whose four corners each have a positive cross product ``c`` with
-    ``c^2 >= sine^2 (1 + SINE_MARGIN) |a|^2 |b|^2`` (that product a normal number) is not below, with
-    no square root or division; any other cell takes :func:`_cell_sine`. The grid-corner cells are
-    compared as a sine of 1."""
+    """:func:`cells_below`: a cell whose four corners are each :func:`surely_at_least` the bound is
+    not below, with no square root or division; any other cell takes :func:`_cell_sine`. The
+    grid-corner cells are compared as a sine of 1."""
     nu, nv = X.shape[0], X.shape[1]
-    s2 = sine * sine * (1.0 + SINE_MARGIN)
+    s2 = squared_bound(sine)
     for r in prange(nu - 1):
         i = np.int64(r)
         for j in range(nv - 1):
@@ -550,7 +564,7 @@ def _cells_below(X, sine, out):
             c2, c3 = tx * wy - ty * wx, vy * tx - vx * ty
             sure = True
             for c, p in ((c0, lu * lv), (c1, lw * lu), (c2, lt * lw), (c3, lv * lt)):
-                if not (c > 0.0 and 1e-280 < p < 1e280 and c * c >= s2 * p):
+                if not surely_at_least(c, p, s2):
                     sure = False
             out[i, j] = False if sure else _cell_sine(X, i, j) < sine
 
