@@ -246,7 +246,7 @@ def test_moving_sines_match_one_corner_at_a_time(rng):
                     if q[0] != i and q[1] != j:
                         continue
                     want.append(E._corner_sine(X, np.array(c[(k + 3) % 4]), np.array(q), np.array(c[(k + 1) % 4])))
-        assert len(want) == 12 == len(E.MOVING_CORNERS)
+        assert len(want) == 12 == E._MOVING
         assert list(out[:12]) == want, (trial, out[:12], want)
         assert (out[12:] == 1.0).all()
 

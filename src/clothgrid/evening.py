@@ -222,26 +222,9 @@ _AX, _AY, _BX, _BY, _SINE, _AFTER, _BEFORE, _NEED = (r * LANES for r in range(8)
 SINE_SCRATCH = 8 * LANES
 
 
-def _moving_corner_table() -> tuple[tuple[int, int, int, int, int, int], ...]:
-    """The corners whose angle a move of an interior node changes, as rows ``(q, r, p)`` of offsets
-    ``(di, dj)`` from the node: the sine at q between q->r and q->p. Of each of the node's four
-    cells (``(i-1, j-1)``, ``(i-1, j)``, ``(i, j-1)``, ``(i, j)``), the corners counter-clockwise
-    that are the node's own or beside it; the corner opposite the node keeps its angle. An
-    interior node's cells are all inside the grid and none of these corners is a grid corner."""
-    rows = []
-    for ci in (-1, 0):
-        for cj in (-1, 0):
-            c = ((ci, cj), (ci + 1, cj), (ci + 1, cj + 1), (ci, cj + 1))
-            for k in range(4):
-                q, r, p = c[k], c[(k + 1) % 4], c[(k + 3) % 4]
-                if q[0] == 0 or q[1] == 0:
-                    rows.append((*q, *r, *p))
-    return tuple(rows)
-
-
-#: :func:`_moving_corner_table`: 12 corners; the scratch's other 4 lanes hold a right angle.
-MOVING_CORNERS = _moving_corner_table()
-_MOVING = len(MOVING_CORNERS)
+#: The corners a move of an interior node changes (:func:`_moving_edges`): in each of its four cells
+#: its own corner and the two beside it; the scratch's other 4 lanes hold a right angle.
+_MOVING = 12
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -270,9 +253,13 @@ def _edge_lane(X, i, j, w, m, qi, qj, ri, rj, pi, pj):
 
 @njit(cache=True, inline="always")
 def _moving_edges(X, i, j, w):
-    """The edges a, b of the corners interior node (i, j) moves into the lanes of ``w``, in
-    :data:`MOVING_CORNERS`' order (written out, so the offsets are constants); a right angle in the
-    lanes left over. ``tests/test_evening.py`` checks the lanes against the table."""
+    """The edges a, b of the corners interior node (i, j) moves into the lanes of ``w``; a right angle
+    in the lanes left over. Lane by lane ``(q, r, p)`` offsets from the node, the sine at q between
+    q->r and q->p: of the cells ``(i-1, j-1)``, ``(i-1, j)``, ``(i, j-1)``, ``(i, j)`` in turn, the
+    corners counter-clockwise that are the node's own or beside it (the one opposite keeps its
+    angle; an interior node's cells are all inside the grid, and none of these is a grid corner).
+    Written out, so the offsets are constants (a table read at run time took 82 ns a node against
+    31); ``tests/test_evening.py`` derives them afresh."""
     _edge_lane(X, i, j, w, 0, 0, -1, 0, 0, -1, -1)
     _edge_lane(X, i, j, w, 1, 0, 0, -1, 0, 0, -1)
     _edge_lane(X, i, j, w, 2, -1, 0, -1, -1, 0, 0)
@@ -305,7 +292,7 @@ def _surely_above(w, floor2):
 @njit(cache=True, error_model="numpy", inline="always")
 def _moving_sines(X, i, j, w, row):
     """The sines of the corners interior node (i, j) moves into ``w[row:row + LANES]`` (in
-    :data:`MOVING_CORNERS`' order; 1.0, a right angle, in the 4 lanes left over), side by side
+    :func:`_moving_edges`' order; 1.0, a right angle, in the 4 lanes left over), side by side
     (:func:`_lane_sines`: :func:`_corner_sine`'s bits)."""
     _moving_edges(X, i, j, w)
     _lane_sines(w)
@@ -321,41 +308,39 @@ def _even_node(X, i, j, lo, hi, lo2, hi2, floor, floor2, w, omega):
     above the floor (:func:`_surely_above`, ``floor2``) takes no sine."""
     gx, gy, curv, e0 = _node_gradient(X, i, j, lo, hi, lo2, hi2)
     g = math.sqrt(gx * gx + gy * gy)
-    d = -1.0
-    if not g < 1e-9:
-        x0, y0 = X[i, j, 0], X[i, j, 1]
-        have_before = False      # the sines before the move: needed only where a corner ends below the floor
-        step = min(omega / curv, 0.25 / g) if curv > 0 else 0.25 / g
-        for _ in range(8):
-            xt, yt = x0 - step * gx, y0 - step * gy
-            X[i, j, 0] = xt
-            X[i, j, 1] = yt
-            ok = _node_energy_below(X, i, j, lo, hi, lo2, hi2, e0)
-            if ok:
-                _moving_edges(X, i, j, w)
-                if not _surely_above(w, floor2):
-                    _lane_sines(w)
-                    for k in range(LANES):
-                        w[_AFTER + k] = w[_SINE + k]
-                    for k in range(LANES):
-                        if w[_AFTER + k] < floor:    # else at the floor or above: never below min(before, floor)
-                            if not have_before:
-                                X[i, j, 0], X[i, j, 1] = x0, y0
-                                _moving_sines(X, i, j, w, _BEFORE)
-                                for q in range(LANES):
-                                    w[_NEED + q] = min(w[_BEFORE + q], floor)
-                                X[i, j, 0], X[i, j, 1] = xt, yt
-                                have_before = True
-                            if w[_AFTER + k] < w[_NEED + k]:
-                                ok = False
-                                break
-            if ok:
-                d = step * g
-                break
-            step *= 0.5
-        if d < 0.0:
-            X[i, j, 0], X[i, j, 1] = x0, y0
-    return d
+    if g < 1e-9:
+        return -1.0
+    x0, y0 = X[i, j, 0], X[i, j, 1]
+    have_before = False      # the sines before the move: needed only where a corner ends below the floor
+    step = min(omega / curv, 0.25 / g) if curv > 0 else 0.25 / g
+    for _ in range(8):
+        xt, yt = x0 - step * gx, y0 - step * gy
+        X[i, j, 0] = xt
+        X[i, j, 1] = yt
+        ok = _node_energy_below(X, i, j, lo, hi, lo2, hi2, e0)
+        if ok:
+            _moving_edges(X, i, j, w)
+            if not _surely_above(w, floor2):
+                _lane_sines(w)
+                for k in range(LANES):
+                    w[_AFTER + k] = w[_SINE + k]
+                for k in range(LANES):
+                    if w[_AFTER + k] < floor:    # else at the floor or above: never below min(before, floor)
+                        if not have_before:
+                            X[i, j, 0], X[i, j, 1] = x0, y0
+                            _moving_sines(X, i, j, w, _BEFORE)
+                            for q in range(LANES):
+                                w[_NEED + q] = min(w[_BEFORE + q], floor)
+                            X[i, j, 0], X[i, j, 1] = xt, yt
+                            have_before = True
+                        if w[_AFTER + k] < w[_NEED + k]:
+                            ok = False
+                            break
+        if ok:
+            return step * g
+        step *= 0.5
+    X[i, j, 0], X[i, j, 1] = x0, y0
+    return -1.0
 
 
 @njit(cache=True, inline="always")
