@@ -683,8 +683,9 @@ def test_cells_below_are_the_cells_whose_smallest_sine_is_below(monkeypatch, par
 @pytest.mark.parametrize("parallel", [False, True])
 def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel, rng):
     """smallest_cell_sine gives cell_min_sine(X).min() with the four grid-corner cells set to 1
-    (where there are more than four cells), bit for bit, without the array: on fresh grids with
-    folds and zero-length edges, on grids of one to four cells, and with a NaN node."""
+    (where there are more than four cells), bit for bit, without the array, and with a cap
+    min(that, cap): on fresh grids with folds and zero-length edges, on grids of one to four
+    cells, and with a NaN node."""
     import clothgrid.foldfree_kernels as fk
 
     monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
@@ -698,6 +699,10 @@ def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel, rng):
         if sines.size > 4:
             sines[0, 0] = sines[-1, 0] = sines[0, -1] = sines[-1, -1] = 1.0
         assert fk.smallest_cell_sine(X) == float(sines.min()), trial
+        # a cap: min(smallest, cap) bit for bit, the cap at a cell's own sine and the floats beside it
+        some = float(rng.choice(sines.ravel()))
+        for cap in (some, np.nextafter(some, -2.0), np.nextafter(some, 2.0), float(rng.uniform(-1, 1)), 0.9):
+            assert fk.smallest_cell_sine(X, cap) == min(float(sines.min()), cap), (trial, cap)
     X = np.stack(np.meshgrid(np.arange(6.0), np.arange(7.0), indexing="ij"), -1)
     X[3, 3] = np.nan
     sines = fk.cell_min_sine(X)

@@ -116,6 +116,30 @@ def test_uv_kernel_gives_the_numpy_parameters(monkeypatch, seed):
     assert np.all(ref[0, :, 0] == 0) and np.all(ref[:, 0, 1] == 0) and np.all(ref[-1, :, 0] == 1) and np.all(ref[:, -1, 1] == 1)
 
 
+
+def test_mask_places_is_argwhere(monkeypatch, rng):
+    """grid_kernels.mask_places lists a mask's true entries as numpy.argwhere does, in the same
+    order, by NumPy under _PARALLEL_ENTRIES and by the parallel kernels above: fresh masks of
+    every density (none, all, a few), widths of one, empty rows and non-contiguous views."""
+    from clothgrid import grid_kernels
+
+    for threshold in (10**12, 0):
+        monkeypatch.setattr(grid_kernels, "_PARALLEL_ENTRIES", threshold)
+        for trial in range(30):
+            nu, nv = (int(n) for n in rng.integers(1, 300, size=2))
+            density = (0.0, 1.0, 1e-3, 0.5)[trial % 4]
+            mask = rng.random((nu, nv)) < density
+            if trial % 5 == 0:
+                mask[rng.integers(nu)] = False        # an empty row
+            if trial % 7 == 0:
+                mask = mask[::2, ::-1]                # a view, not contiguous
+            got = grid_kernels.mask_places(mask)
+            assert got.dtype == np.int64 and got.shape[1] == 2
+            np.testing.assert_array_equal(got, np.argwhere(mask))
+    with pytest.raises(ValueError):
+        grid_kernels.mask_places(np.zeros(5, bool))
+
+
 # --------------------------------------------------------------------------- springs
 
 

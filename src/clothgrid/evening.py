@@ -52,10 +52,11 @@ FLOOR_DEG = 25.0
 FLOOR_MAX_DEG = 40.0
 #: A grid whose edge spread is at most this is left as it is.
 SPREAD_OK = 3.0
-#: The evened grid is kept where its spread is at most the input's times ``1 +`` this: the interior
-#: is scaled to a mean edge of 1 and back, so an edge no sweep moved (the longest, say) may come
-#: back a few units in the last place longer. Without it, 33 of 1200 fresh test pieces lost their
-#: evening to such an edge (73.04184938339515 -> ...705).
+#: The evened grid is kept where its spread is at most the input's times ``1 +`` this: a piece
+#: outside the xy-plane is evened in its plane's coordinates and back, so an edge no sweep moved (the
+#: longest, say) may come back a few units in the last place longer. (The scale of those
+#: coordinates is a power of two, which comes back exactly; a scale of the mean edge itself lost 33
+#: of 1200 fresh test pieces' evening to such an edge, 73.04184938339515 -> ...705.)
 SPREAD_ROUNDING = 1e-9
 #: Edges within this factor of the geometric mean length are left alone (the last stage's band).
 BAND = 1.4
@@ -487,23 +488,30 @@ def _outside(X: np.ndarray, lo: float, hi: float, margin: int) -> tuple[np.ndarr
     return dilate(hot, margin, margin, nu, nv)
 
 
+def _band_limits(band: float, mean_log: float) -> tuple[float, float]:
+    """The logarithms of the shortest and longest edge inside ``band`` of a geometric mean length
+    whose logarithm is ``mean_log`` (in the evening's scaled units)."""
+    return mean_log - math.log(band), mean_log + math.log(band)
+
+
 def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active: np.ndarray,
-               count: int, moved_at: np.ndarray) -> dict[str, Any]:
+               count: int, moved_at: np.ndarray, mean_log: float = 0.0) -> dict[str, Any]:
     """One stage of :func:`even_edges`: sweeps over the ``count`` ``active`` nodes with the energy
     of ``band``, in order (over-relaxed) or, for :data:`~clothgrid.foldfree.PARALLEL_NODES` nodes
     or more, in colours, until a stop rule holds; ``{band, active, sweeps, moved}``. ``moved_at``:
-    the grid's shape, int64, the stage's record of each node's last move (filled here: one array
-    serves every stage)."""
+    the grid's shape, int32 or int64, the stage's record of each node's last move (filled here: one
+    array serves every stage)."""
     from .foldfree import PARALLEL_NODES, node_parts
+    from .grid_kernels import mask_places
 
-    lo, hi = -math.log(band), math.log(band)
+    lo, hi = _band_limits(band, mean_log)
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
     energy = _energy(X, lo, hi)
     ordered = count < PARALLEL_NODES
     if ordered:
         # the list of the active nodes: a sweep of a few thousand no longer scans the grid, and the
         # energy is re-measured on their edges only (the rest of the grid's is a constant)
-        mask, active = active, np.argwhere(active)
+        mask, active = active, mask_places(active)
         part, spread = _stage_energy(X, lo, hi, active, mask)
         rest = energy - part
         sweep_once, omega = _sweep, OVERRELAX
@@ -517,7 +525,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
                 return _sweep_parts(X, lo, hi, floor, split, order, starts, omega, sweep, moved_at, failed_at)
     else:
         sweep_once, omega = _sweep_coloured, 1.0
-        failed_at = np.full(X.shape[:2], -1, np.int64)
+        failed_at = np.full(X.shape[:2], -1, moved_at.dtype)
     moved_at.fill(-1)
     check, progress = (SMALL_CHECK_SWEEPS, SMALL_MIN_PROGRESS) if ordered else (CHECK_SWEEPS, MIN_PROGRESS)
     for sweep in range(max_sweeps):
@@ -565,15 +573,15 @@ def _stage_energy(X, lo, hi, nodes, active):
     return e, (math.sqrt(long / short) if short > 0.0 else np.inf)
 
 
-def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int, wide_ran: bool
-               ) -> tuple[float, np.ndarray, int] | None:
+def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int, wide_ran: bool,
+               mean_log: float = 0.0) -> tuple[float, np.ndarray, int] | None:
     """The last stage's band and active set: ``band``, or the narrowest of ``wider`` whose active
     set is below :data:`~clothgrid.foldfree.PARALLEL_NODES`; where all are that large, the widest
     of them, or none after a wide stage (whose result then stands). None also for no active node."""
     from .foldfree import PARALLEL_NODES
 
     for b in (band, *wider):
-        active, count = _outside(X, -math.log(b), math.log(b), margin)
+        active, count = _outside(X, *_band_limits(b, mean_log), margin)
         if count < PARALLEL_NODES:
             break
     else:
@@ -641,9 +649,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         the spread they reached.
     """
     from .errors import InputError
-    from .foldfree import _grid_copy, _with_interior, plane_frame, to_plane
-    from .foldfree_kernels import PARALLEL_CELLS
-
+    from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame, to_plane
     for name, value in (("band", band), ("wide_band", wide_band)):
         if value is None and name == "wide_band":
             continue
@@ -654,30 +660,42 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     R = _grid_copy(points, "even_edges", copy=copy)
     centre, basis = plane_frame(R, dim)
     X = np.ascontiguousarray(to_plane(R, centre, basis))
-    lengths = (_edge_lengths if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _edge_lengths_serial)(X)
-    shortest = float(lengths.min())
-    spread = float(lengths.max()) / shortest if shortest > 0 else float("inf")
+    shortest2, longest2, log_sum = edge_stats(X)
+    shortest = math.sqrt(shortest2)
+    spread = math.sqrt(longest2) / shortest if shortest > 0 else float("inf")
     info: dict[str, Any] = {"spread_before": spread, "spread_after": spread, "moved": 0, "sweeps": 0,
                             "active": 0, "stages": []}
     if shortest > 0 and spread > spread_ok:
         from .foldfree_kernels import smallest_cell_sine
 
-        scale = float(np.exp(np.log(lengths, out=lengths).mean()))    # the lengths are not read again
+        # The interior is scaled by the power of two nearest the geometric mean edge length: then
+        # X / scale * scale is X bit for bit, and a node no sweep moves comes back as it was; the
+        # bands are taken about the mean, whose logarithm in those units is mean_log (|.| < 0.35).
+        edges = (X.shape[0] - 1) * X.shape[1] + X.shape[0] * (X.shape[1] - 1)
+        log_mean = log_sum / (2 * edges)              # the geometric mean edge length's logarithm
+        power = round(log_mean / math.log(2.0))
+        scale, mean_log = math.ldexp(1.0, power), log_mean - power * math.log(2.0)
         X /= scale
-        smallest = math.degrees(math.asin(min(1.0, max(0.0, smallest_cell_sine(X)))))
+        # only a smallest angle below FLOOR_MAX_DEG counts: a cap a little above its sine spares the
+        # square roots of the cells above it, and a sine at the cap is an angle above FLOOR_MAX_DEG
+        cap = math.sin(math.radians(FLOOR_MAX_DEG)) * (1.0 + 1e-12)
+        smallest = math.degrees(math.asin(min(1.0, max(0.0, smallest_cell_sine(X, cap)))))
         info["floor_deg"] = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
         floor = math.sin(math.radians(info["floor_deg"]))
         wide = wide_band is not None and wide_band > band
         stages = []
-        moved_at = np.empty(X.shape[:2], np.int64)
+        # a node's visit counts fit 32 bits (a grid-size array of half the pages to fault in) unless
+        # the sweeps asked for are very many
+        moved_at = np.empty(X.shape[:2], np.int32 if max_sweeps * PARALLEL_NODES < 2**31 else np.int64)
         if wide:
-            active, count = _outside(X, -math.log(wide_band), math.log(wide_band), margin)
+            active, count = _outside(X, *_band_limits(wide_band, mean_log), margin)
             if count:
-                stages.append(_even_band(X, wide_band, floor, max_sweeps, active, int(count), moved_at))
+                stages.append(_even_band(X, wide_band, floor, max_sweeps, active, int(count), moved_at,
+                                         mean_log))
         wider = tuple(f for f in FINAL_BANDS if f > band and not (wide and f >= wide_band))
-        last = _last_band(X, band, wider, margin, bool(stages))
+        last = _last_band(X, band, wider, margin, bool(stages), mean_log)
         if last is not None:
-            stages.append(_even_band(X, last[0], floor, max_sweeps, last[1], last[2], moved_at))
+            stages.append(_even_band(X, last[0], floor, max_sweeps, last[1], last[2], moved_at, mean_log))
         info["stages"] = stages
         for stage in stages:
             info["active"] = max(info["active"], stage["active"])
@@ -687,7 +705,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         info["seconds"] = time.perf_counter() - t0
         return R, info
     X *= scale
-    shortest2, longest2 = _edge_extremes2(X)
+    shortest2, longest2, _ = edge_stats(X)
     # the lengths' max / min (sqrt is monotone); a zero-length edge (no move makes one: its corners'
     # sines are -1, below any floor) would be an infinite spread
     after = math.sqrt(longest2) / math.sqrt(shortest2) if shortest2 > 0.0 else math.inf
@@ -702,43 +720,55 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     return _with_interior(R, X, centre, basis, dim, copy=False), info   # R: this call's own copy
 
 
+#: :func:`_edge_stats` keeps its running product of squared lengths within 2^-400 .. 2^400, and
+#: takes the logarithm of a squared length outside that range on its own
+_PRODUCT_RANGE = 2.0 ** 400
+
+
+@njit(cache=True, inline="always")
+def _edge_stat(d2, lo, hi, p, e, s):
+    """One squared length into :func:`_edge_stats`' row figures: extremes, running product ``p``
+    (kept in range by moving its binary exponent into ``e``), lone logarithms ``s``."""
+    lo, hi = min(lo, d2), max(hi, d2)
+    if 1.0 / _PRODUCT_RANGE <= d2 <= _PRODUCT_RANGE:
+        p *= d2
+        if not 1.0 / _PRODUCT_RANGE <= p <= _PRODUCT_RANGE:
+            m, k = math.frexp(p)
+            p, e = m, e + k
+    else:
+        s += math.log(d2) if d2 > 0.0 else -np.inf
+    return lo, hi, p, e, s
+
+
 @njit(cache=True, parallel=True)
-def _edge_lengths(X):
-    """The lengths of every u-edge (row-major over ``(nu-1, nv)``), then every v-edge (``(nu, nv-1)``),
-    of a ``(nu, nv, 2)`` grid, flat: NumPy's ``norm(diff(X, axis))`` term by term, in one pass, rows in parallel
-    (the NumPy form's temporaries took 45 ms at 1024^2)."""
+def _edge_stats(X):
+    """The smallest and largest squared edge length ``d0 * d0 + d1 * d1`` of a ``(nu, nv, 2)`` grid
+    (their square roots are the lengths' minimum and maximum, bit for bit) and the sum of every
+    edge's ``log(d2)`` (twice the log of the geometric mean length times the edge count: a running
+    product a row, one logarithm each, within a few 1e-13 of the sum of the logarithms a row),
+    without an array of lengths, rows in parallel. A zero-length edge makes the sum -inf."""
     nu, nv = X.shape[0], X.shape[1]
-    out = np.empty((nu - 1) * nv + nu * (nv - 1))
-    for i in prange(nu - 1):
-        for j in range(nv):
-            d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
-            out[i * nv + j] = math.sqrt(d0 * d0 + d1 * d1)
-    base = (nu - 1) * nv
-    for i in prange(nu):
-        for j in range(nv - 1):
-            d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
-            out[base + i * (nv - 1) + j] = math.sqrt(d0 * d0 + d1 * d1)
-    return out
-
-
-_edge_lengths_serial = serial_twin(_edge_lengths)
-
-
-@njit(cache=True)
-def _edge_extremes2(X):
-    """The smallest and largest squared edge length of a ``(nu, nv, 2)`` grid (:func:`_edge_lengths`'
-    ``d0 * d0 + d1 * d1``, so their square roots are its lengths' minimum and maximum, bit for bit),
-    without the array of lengths."""
-    nu, nv = X.shape[0], X.shape[1]
-    lo, hi = np.inf, 0.0
-    for i in range(nu):
+    rows = np.empty((nu, 3))
+    for r in prange(nu):
+        i = np.int64(r)
+        lo, hi, p, e, s = np.inf, 0.0, 1.0, 0, 0.0
         for j in range(nv):
             if i + 1 < nu:
                 d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
-                d2 = d0 * d0 + d1 * d1
-                lo, hi = min(lo, d2), max(hi, d2)
+                lo, hi, p, e, s = _edge_stat(d0 * d0 + d1 * d1, lo, hi, p, e, s)
             if j + 1 < nv:
                 d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
-                d2 = d0 * d0 + d1 * d1
-                lo, hi = min(lo, d2), max(hi, d2)
-    return lo, hi
+                lo, hi, p, e, s = _edge_stat(d0 * d0 + d1 * d1, lo, hi, p, e, s)
+        rows[i, 0], rows[i, 1] = lo, hi
+        rows[i, 2] = s + (math.log(p) + e * math.log(2.0) if p > 0.0 else -np.inf)
+    return rows[:, 0].min(), rows[:, 1].max(), rows[:, 2].sum()
+
+
+_edge_stats_serial = serial_twin(_edge_stats)
+
+
+def edge_stats(X: np.ndarray) -> tuple[float, float, float]:
+    """:func:`_edge_stats`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
+    from .foldfree_kernels import PARALLEL_CELLS
+
+    return (_edge_stats if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _edge_stats_serial)(X)

@@ -527,10 +527,11 @@ def _smooth(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], sweeps: in
 def _active_nodes(poor: np.ndarray, margin: int) -> np.ndarray:
     """``(K, 2)`` interior nodes within ``margin`` grid lines of a poor cell (``poor``: cells), row by row."""
     from .foldfree_kernels import dilate
+    from .grid_kernels import mask_places
 
     nu, nv = poor.shape[0] + 1, poor.shape[1] + 1
     near, _ = dilate(poor, margin + 1, margin, nu, nv)
-    return np.argwhere(near).astype(np.int64)
+    return mask_places(near)
 
 
 def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:

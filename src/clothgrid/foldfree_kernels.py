@@ -491,35 +491,6 @@ def cell_min_sine(X: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def _smallest_cell_sine(X):
-    nu, nv = X.shape[0], X.shape[1]
-    corners = (nu - 1) * (nv - 1) > 4
-    rows = np.full(nu - 1, np.inf)
-    for r in prange(nu - 1):
-        i = np.int64(r)
-        best = np.inf
-        for j in range(nv - 1):
-            v = 1.0 if corners and (i == 0 or i == nu - 2) and (j == 0 or j == nv - 2) else _cell_sine(X, i, j)
-            if v < best:                # (no cell's sine is NaN: _cell_sine skips NaN corners)
-                best = v
-        rows[i] = best
-    return rows.min()
-
-
-_smallest_cell_sine_serial = serial_twin(_smallest_cell_sine, error_model="numpy")
-
-
-def smallest_cell_sine(X: np.ndarray) -> float:
-    """The smallest of :func:`cell_min_sine` with the four grid-corner cells taken as a sine of 1
-    (where the grid has more than four cells; their angle is the outline's): the same value as
-    that array's ``min()``, without the array."""
-    cells = (X.shape[0] - 1) * (X.shape[1] - 1)
-    if cells <= 0:
-        raise ValueError("a grid of no cells has no smallest sine")
-    return float((_smallest_cell_sine if cells >= PARALLEL_CELLS else _smallest_cell_sine_serial)(X))
-
-
 #: :func:`surely_at_least`'s relative margin on the squared sine: far above the rounding of a sine's
 #: square roots and division (a few 1e-16), so a corner it passes has its sine at the bound or
 #: above, bit for bit as :func:`_cell_sine` (or the evening's sines) take it.
@@ -541,11 +512,28 @@ def surely_at_least(c, p, bound2):
     return c > 0.0 and 1e-280 < p < 1e280 and c * c >= bound2 * p
 
 
+@njit(cache=True, inline="always")
+def _cell_surely_at_least(X, i, j, bound2):
+    """Whether each of cell ``(i, j)``'s four corners is :func:`surely_at_least` the bound
+    (``bound2``: :func:`squared_bound`), with no square root or division (False: the exact sines
+    must tell)."""
+    ux, uy = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+    tx, ty = X[i + 1, j + 1, 0] - X[i, j + 1, 0], X[i + 1, j + 1, 1] - X[i, j + 1, 1]
+    vx, vy = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+    wx, wy = X[i + 1, j + 1, 0] - X[i + 1, j, 0], X[i + 1, j + 1, 1] - X[i + 1, j, 1]
+    lu, lt, lv, lw = ux * ux + uy * uy, tx * tx + ty * ty, vx * vx + vy * vy, wx * wx + wy * wy
+    # the crosses of corners 0-3 (up to the sign conventions of _cell_sine, which only negate)
+    c0, c1 = ux * vy - uy * vx, ux * wy - uy * wx
+    c2, c3 = tx * wy - ty * wx, vy * tx - vx * ty
+    return (surely_at_least(c0, lu * lv, bound2) and surely_at_least(c1, lw * lu, bound2)
+            and surely_at_least(c2, lt * lw, bound2) and surely_at_least(c3, lv * lt, bound2))
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def _cells_below(X, sine, out):
     """:func:`cells_below`: a cell whose four corners are each :func:`surely_at_least` the bound is
-    not below, with no square root or division; any other cell takes :func:`_cell_sine`. The
-    grid-corner cells are compared as a sine of 1."""
+    not below, with no square root or division (:func:`_cell_surely_at_least`); any other cell takes
+    :func:`_cell_sine`. The grid-corner cells are compared as a sine of 1."""
     nu, nv = X.shape[0], X.shape[1]
     s2 = squared_bound(sine)
     for r in prange(nu - 1):
@@ -553,20 +541,44 @@ def _cells_below(X, sine, out):
         for j in range(nv - 1):
             if (i == 0 or i == nu - 2) and (j == 0 or j == nv - 2):
                 out[i, j] = 1.0 < sine
-                continue
-            ux, uy = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
-            tx, ty = X[i + 1, j + 1, 0] - X[i, j + 1, 0], X[i + 1, j + 1, 1] - X[i, j + 1, 1]
-            vx, vy = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
-            wx, wy = X[i + 1, j + 1, 0] - X[i + 1, j, 0], X[i + 1, j + 1, 1] - X[i + 1, j, 1]
-            lu, lt, lv, lw = ux * ux + uy * uy, tx * tx + ty * ty, vx * vx + vy * vy, wx * wx + wy * wy
-            # the crosses of corners 0-3 (up to the sign conventions of _cell_sine, which only negate)
-            c0, c1 = ux * vy - uy * vx, ux * wy - uy * wx
-            c2, c3 = tx * wy - ty * wx, vy * tx - vx * ty
-            sure = True
-            for c, p in ((c0, lu * lv), (c1, lw * lu), (c2, lt * lw), (c3, lv * lt)):
-                if not surely_at_least(c, p, s2):
-                    sure = False
-            out[i, j] = False if sure else _cell_sine(X, i, j) < sine
+            else:
+                out[i, j] = False if _cell_surely_at_least(X, i, j, s2) else _cell_sine(X, i, j) < sine
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _smallest_cell_sine(X, cap):
+    nu, nv = X.shape[0], X.shape[1]
+    corners = (nu - 1) * (nv - 1) > 4
+    s2 = squared_bound(cap)
+    rows = np.full(nu - 1, np.inf)
+    for r in prange(nu - 1):
+        i = np.int64(r)
+        best = np.inf
+        for j in range(nv - 1):
+            if corners and (i == 0 or i == nu - 2) and (j == 0 or j == nv - 2):
+                continue                # a grid-corner cell: a sine of 1
+            if _cell_surely_at_least(X, i, j, s2):
+                continue                # at the cap or above: no square root, no division
+            v = _cell_sine(X, i, j)
+            if v < best:                # (no cell's sine is NaN: _cell_sine skips NaN corners)
+                best = v
+        rows[i] = best
+    return min(rows.min(), 1.0 if corners else np.inf, cap)
+
+
+_smallest_cell_sine_serial = serial_twin(_smallest_cell_sine, error_model="numpy")
+
+
+def smallest_cell_sine(X: np.ndarray, cap: float = np.inf) -> float:
+    """The smallest of :func:`cell_min_sine` with the four grid-corner cells taken as a sine of 1
+    (where the grid has more than four cells; their angle is the outline's), or ``cap`` where that
+    is smaller: the same value as ``min(array.min(), cap)``, without the array, and without the
+    square roots and divisions of the cells whose corners are :func:`surely_at_least` ``cap``."""
+    cells = (X.shape[0] - 1) * (X.shape[1] - 1)
+    if cells <= 0:
+        raise ValueError("a grid of no cells has no smallest sine")
+    kernel = _smallest_cell_sine if cells >= PARALLEL_CELLS else _smallest_cell_sine_serial
+    return float(kernel(X, float(cap)))
 
 
 _cells_below_serial = serial_twin(_cells_below, error_model="numpy")

@@ -183,11 +183,12 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
     local = None if n is not None else (1.0 if orientation is None else float(np.sign(orientation) or 1.0))
     basis = None if n is None else plane_axes(n)              # (2, 3), e1 x e2 = n
     if basis is not None and (nu - 1) * (nv - 1) > KERNEL_CELLS:     # one pass, no temporaries
+        from .grid_kernels import mask_places
         from .quality_kernels import planar_measures
 
         folded, *figures = planar_measures(np.ascontiguousarray(R), np.ascontiguousarray(basis),
                                            STRAIGHT_CORNER_SINE)
-        cells, parts = np.argwhere(folded), [(None, *(float(f) for f in figures))]
+        cells, parts = mask_places(folded), [(None, *(float(f) for f in figures))]
     else:
         cells, parts = _measure_blocks(R, basis, local, n is None)
     with np.errstate(invalid="ignore", divide="ignore"):
