@@ -172,44 +172,51 @@ def angle_and_edge_extremes(P):
 
 
 @njit(cache=True, inline="always")
-def _planar(R, basis, i, j):
-    """Node ``(i, j)`` of ``R`` in the plane's coordinates (``basis`` ``(2, 3)``)."""
-    x = basis[0, 0] * R[i, j, 0] + basis[0, 1] * R[i, j, 1] + basis[0, 2] * R[i, j, 2]
-    y = basis[1, 0] * R[i, j, 0] + basis[1, 1] * R[i, j, 1] + basis[1, 2] * R[i, j, 2]
-    return x, y
+def _unit_edges(x0, y0, x1, y1, n, ex, ey, el):
+    """Edges ``k < n`` from ``(x0[k], y0[k])`` to ``(x1[k], y1[k])`` into ``ex, ey`` (unit vector, zero
+    if degenerate) and ``el`` (length): no dependence from one edge to the next, so the compiler
+    takes several at once in vector registers (square roots and divisions, a quarter of the time)."""
+    for k in range(n):
+        dx, dy = x1[k] - x0[k], y1[k] - y0[k]
+        length = math.sqrt(dx * dx + dy * dy)
+        ok = length > 0
+        ex[k] = dx / length if ok else 0.0
+        ey[k] = dy / length if ok else 0.0
+        el[k] = length
 
 
 @njit(cache=True, inline="always")
-def _edge_xy(x0, y0, x1, y1):
-    """The in-plane edge from ``(x0, y0)`` to ``(x1, y1)``: unit vector (zero if degenerate), length."""
-    dx, dy = x1 - x0, y1 - y0
-    length = math.sqrt(dx * dx + dy * dy)
-    if length > 0:
-        return dx / length, dy / length, length
-    return 0.0, 0.0, length
+def _grid_corner_cell(i, j, mu, mv, bx, by, tx, ty, lx, ly, rx, ry, straight):
+    """Whether a grid-corner cell is folded: its own grid corner's sine may be down to ``-straight``
+    (the outline's angle), its other corners' must be positive (:func:`planar_measures`)."""
+    bad = False
+    for k in range(4):      # corners b x l, b x r, t x r, t x l
+        ax, ay = (bx, by) if k < 2 else (tx, ty)
+        cx, cy = (lx, ly) if k == 0 or k == 3 else (rx, ry)
+        sj = ax * cy - ay * cx
+        grid_corner = ((k == 0 and i == 0 and j == 0) or (k == 1 and i == mu - 1 and j == 0)
+                       or (k == 2 and i == mu - 1 and j == mv - 1) or (k == 3 and i == 0 and j == mv - 1))
+        if grid_corner:
+            if not sj > -straight:
+                bad = True
+        elif not sj > 0:
+            bad = True
+    return bad
 
 
-@njit(cache=True)
-def _row_edges(R, basis, i, e):
-    """The edges of the cells of row ``i`` into ``e`` (rows of ``nv`` values): 0-2 the u-edges from
-    row ``i`` to ``i + 1`` (unit x, y, length), 3-5 the v-edges of row ``i``, 6-8 those of row ``i + 1``:
-    each edge once (:func:`_planar`, then :func:`_edge_xy`), not once for each cell and measure."""
-    nv = R.shape[1]
-    x0, y0 = _planar(R, basis, i, 0)
-    x1, y1 = _planar(R, basis, i + 1, 0)
-    for j in range(nv):
-        e[0, j], e[1, j], e[2, j] = _edge_xy(x0, y0, x1, y1)
-        if j + 1 < nv:
-            xa, ya = _planar(R, basis, i, j + 1)
-            xb, yb = _planar(R, basis, i + 1, j + 1)
-            e[3, j], e[4, j], e[5, j] = _edge_xy(x0, y0, xa, ya)
-            e[6, j], e[7, j], e[8, j] = _edge_xy(x1, y1, xb, yb)
-            x0, y0, x1, y1 = xa, ya, xb, yb
+#: rows of :func:`planar_measures`' scratch a thread: the two node rows' x, y (0-3), the u-edges'
+#: unit x, y and lengths (4-6), the lower and upper v-edges' (7-9, 10-12), cells' sine, aspect,
+#: cosine, shortest edge (13-16)
+_SCRATCH_ROWS = 17
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def planar_measures(R, basis, straight):
     """:func:`clothgrid.quality.quality`'s measures of a planar grid in one pass.
+
+    A row of cells at a time: its two node rows in the plane's coordinates, its edges' unit vectors
+    and lengths (each edge once), then each cell's figures into rows of scratch, each loop free of
+    dependences from one cell to the next (vector registers; the extremes taken after).
 
     Parameters
     ----------
@@ -229,61 +236,66 @@ def planar_measures(R, basis, straight):
     """
     nu, nv = R.shape[0], R.shape[1]
     mu, mv = nu - 1, nv - 1
+    b00, b01, b02, b10, b11, b12 = basis[0, 0], basis[0, 1], basis[0, 2], basis[1, 0], basis[1, 1], basis[1, 2]
     folded = np.zeros((mu, mv), dtype=np.bool_)
     row_sj = np.full(mu, np.inf)
     row_aspect = np.zeros(mu)
     row_cos = np.zeros(mu)
     row_deg = np.zeros(mu, dtype=np.bool_)     # a degenerate cell in the row: deviation 90
     row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row (the last has none); max, min of the v-edges
-    scratch = np.empty((numba.config.NUMBA_NUM_THREADS, 9, nv + 8))   # 8 spare: threads' rows apart
+    scratch = np.empty((numba.config.NUMBA_NUM_THREADS, _SCRATCH_ROWS, nv + 8))   # 8 spare: threads' rows apart
     for r in prange(mu):
         i = np.int64(r)
         e = scratch[numba.get_thread_id()]
-        _row_edges(R, basis, i, e)
-        sj_lo, asp_hi, cos_hi, deg = np.inf, 0.0, 0.0, False
+        xa, ya, xb, yb = e[0], e[1], e[2], e[3]
+        ux, uy, lu, vx, vy, lv, wx, wy, lw = e[4], e[5], e[6], e[7], e[8], e[9], e[10], e[11], e[12]
+        csj, casp, ccos, cshort = e[13], e[14], e[15], e[16]
+        for j in range(nv):     # the nodes in the plane: the same products and sums as ever
+            xa[j] = b00 * R[i, j, 0] + b01 * R[i, j, 1] + b02 * R[i, j, 2]
+            ya[j] = b10 * R[i, j, 0] + b11 * R[i, j, 1] + b12 * R[i, j, 2]
+            xb[j] = b00 * R[i + 1, j, 0] + b01 * R[i + 1, j, 1] + b02 * R[i + 1, j, 2]
+            yb[j] = b10 * R[i + 1, j, 0] + b11 * R[i + 1, j, 1] + b12 * R[i + 1, j, 2]
+        _unit_edges(xa, ya, xb, yb, nv, ux, uy, lu)                        # u-edges, row i to i + 1
+        _unit_edges(xa, ya, xa[1:], ya[1:], mv, vx, vy, lv)                # v-edges of row i
+        _unit_edges(xb, yb, xb[1:], yb[1:], mv, wx, wy, lw)                # v-edges of row i + 1
+        fo = folded[i]
         for j in range(mv):
-            bx, by, lb = e[0, j], e[1, j], e[2, j]                  # bottom (u-edge at j)
-            tx, ty, lt = e[0, j + 1], e[1, j + 1], e[2, j + 1]      # top (u-edge at j + 1)
-            lx, ly, ll = e[3, j], e[4, j], e[5, j]                  # left (v-edge at i)
-            rx, ry, lr = e[6, j], e[7, j], e[8, j]                  # right (v-edge at i + 1)
-            bad = False
-            for k in range(4):      # corners b x l, b x r, t x r, t x l
-                ax, ay = (bx, by) if k < 2 else (tx, ty)
-                cx, cy = (lx, ly) if k == 0 or k == 3 else (rx, ry)
-                sj = ax * cy - ay * cx
-                grid_corner = ((k == 0 and i == 0 and j == 0) or (k == 1 and i == mu - 1 and j == 0)
-                               or (k == 2 and i == mu - 1 and j == mv - 1) or (k == 3 and i == 0 and j == mv - 1))
-                if grid_corner:
-                    if not sj > -straight:
-                        bad = True
-                elif not sj > 0:
-                    bad = True
-                sj_lo = min(sj_lo, sj)
-                cos_hi = max(cos_hi, abs(ax * cx + ay * cy))
+            bx, by, lb = ux[j], uy[j], lu[j]                  # bottom (u-edge at j)
+            tx, ty, lt = ux[j + 1], uy[j + 1], lu[j + 1]      # top (u-edge at j + 1)
+            lx, ly, ll = vx[j], vy[j], lv[j]                  # left (v-edge at i)
+            rx, ry, lr = wx[j], wy[j], lw[j]                  # right (v-edge at i + 1)
+            s0, s1 = bx * ly - by * lx, bx * ry - by * rx     # corners b x l, b x r, t x r, t x l
+            s2, s3 = tx * ry - ty * rx, tx * ly - ty * lx
             shortest = min(min(lb, lt), min(ll, lr))
             longest = max(max(lb, lt), max(ll, lr))
-            if not shortest > 0:
-                bad = True
-                deg = True
-                asp_hi = np.inf
-            else:
-                asp_hi = max(asp_hi, longest / shortest)
-            folded[i, j] = bad
+            csj[j] = min(min(s0, s1), min(s2, s3))
+            ccos[j] = max(max(abs(bx * lx + by * ly), abs(bx * rx + by * ry)),
+                          max(abs(tx * rx + ty * ry), abs(tx * lx + ty * ly)))
+            casp[j] = longest / shortest if shortest > 0 else np.inf
+            cshort[j] = shortest
+            fo[j] = not (s0 > 0 and s1 > 0 and s2 > 0 and s3 > 0 and shortest > 0)
+        if i == 0 or i == mu - 1:           # the grid-corner cells (only their folding differs)
+            for j in (0, mv - 1):
+                fo[j] = _grid_corner_cell(i, j, mu, mv, ux[j], uy[j], ux[j + 1], uy[j + 1], vx[j], vy[j],
+                                          wx[j], wy[j], straight) or not cshort[j] > 0
+        sj_lo, asp_hi, cos_hi, deg = np.inf, 0.0, 0.0, False
+        for j in range(mv):
+            sj_lo = min(sj_lo, csj[j])
+            asp_hi = max(asp_hi, casp[j])
+            cos_hi = max(cos_hi, ccos[j])
+            deg = deg or not cshort[j] > 0
         row_sj[i], row_aspect[i], row_cos[i], row_deg[i] = sj_lo, asp_hi, cos_hi, deg
         # the edge lengths' extremes: row i's u-edges and v-edges (and the last row's v-edges)
         uh, ul, vh, vl = 0.0, np.inf, 0.0, np.inf
         for j in range(nv):
-            length = e[2, j]
-            uh, ul = max(uh, length), min(ul, length)
-            if j + 1 < nv:
-                length = e[5, j]
-                vh, vl = max(vh, length), min(vl, length)
+            uh, ul = max(uh, lu[j]), min(ul, lu[j])
+        for j in range(mv):
+            vh, vl = max(vh, lv[j]), min(vl, lv[j])
         row_u[i, 0], row_u[i, 1], row_u[i, 2], row_u[i, 3] = uh, ul, vh, vl
         if i == mu - 1:
             vh, vl = 0.0, np.inf
-            for j in range(nv - 1):
-                length = e[8, j]
-                vh, vl = max(vh, length), min(vl, length)
+            for j in range(mv):
+                vh, vl = max(vh, lw[j]), min(vl, lw[j])
             row_u[nu - 1, 2], row_u[nu - 1, 3] = vh, vl
     deviation = 90.0 if row_deg.any() else math.degrees(math.asin(min(row_cos.max(), 1.0)))
     return (folded, row_sj.min(), row_aspect.max(), deviation,
