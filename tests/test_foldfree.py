@@ -711,27 +711,40 @@ def test_smallest_cell_sine_is_the_arrays_minimum(monkeypatch, parallel, rng):
 
 
 @pytest.mark.parametrize("parallel", [False, True])
-def test_corner_rows_after_a_sweep_give_corner_min(monkeypatch, parallel, rng):
-    """CornerRows measures again only the rows of cells at the nodes a sweep moved: after sweeps
-    over fresh active sets of a tangled grid its minimum and count are corner_min's of the whole
-    grid, bit for bit, every time (and corner_min's of an empty grid)."""
+def test_corner_cells_after_a_sweep_give_corner_min(monkeypatch, parallel, rng):
+    """CornerCells measures again only the cells with a corner at the nodes a sweep may move (the
+    rest once): after sweeps over fresh active sets of a tangled grid (a block, scattered nodes,
+    every interior node, none) its minimum and count are corner_min's of the whole grid, bit for
+    bit, every time; and a node left out of its set is seen to matter (a sweep over it is missed)."""
     import clothgrid.foldfree_kernels as fk
 
     monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
+    missed = 0
     for trial in range(12):
         nu, nv = (int(n) for n in rng.integers(5, 40, size=2))
         X = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
         X += rng.normal(scale=0.45, size=X.shape)               # folds
         for skip in (True, False):
-            rows = fk.CornerRows(X, skip)
-            assert rows.figures() == fk.corner_min(X, skip)
-            for _ in range(3):
-                mask = np.zeros((nu, nv), bool)
+            mask = np.zeros((nu, nv), bool)
+            kind = (trial + skip) % 4
+            if kind == 0:
                 i0, j0 = int(rng.integers(1, nu - 1)), int(rng.integers(1, nv - 1))
                 mask[i0:i0 + int(rng.integers(1, 6)), j0:j0 + int(rng.integers(1, 6))] = True
-                mask[0], mask[-1], mask[:, 0], mask[:, -1] = False, False, False, False
-                nodes = np.argwhere(mask).astype(np.int64)
+            elif kind == 1:
+                mask = rng.random((nu, nv)) < 0.1
+            elif kind == 2:
+                mask[:] = True
+            mask[0], mask[-1], mask[:, 0], mask[:, -1] = False, False, False, False
+            nodes = np.argwhere(mask).astype(np.int64)
+            cells = fk.CornerCells(X, skip, nodes)
+            assert cells.figures() == fk.corner_min(X, skip)
+            for _ in range(3):
                 fk.sweep_nodes(X, nodes, 0.01, 3, 0.0, 1.0)
-                got = rows.moved(X, nodes)
-                assert got == fk.corner_min(X, skip), (trial, skip)
-    assert fk.CornerRows(np.zeros((1, 5, 2)), True).figures() == fk.corner_min(np.zeros((1, 5, 2)), True)
+                assert cells.moved(X) == fk.corner_min(X, skip), (trial, skip)
+            if len(nodes):              # a sweep over nodes outside the set: their cells are missed
+                cells = fk.CornerCells(X, skip, np.zeros((0, 2), np.int64))
+                fk.sweep_nodes(X, nodes, 0.01, 3, 0.0, 1.0)
+                missed += cells.moved(X) != fk.corner_min(X, skip)
+    assert missed > 0
+    assert fk.CornerCells(np.zeros((1, 5, 2)), True, np.zeros((0, 2), np.int64)).figures() == \
+        fk.corner_min(np.zeros((1, 5, 2)), True)

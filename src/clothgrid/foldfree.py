@@ -544,15 +544,16 @@ def _poor_cells(X: np.ndarray, poor_sine: float) -> np.ndarray:
 
 def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], rounds: int,
                   stall: int | None, strict: bool = False, sweeps: int = RELAX_SWEEPS,
-                  give_up: bool = False) -> tuple[float, int]:
+                  give_up: bool = False) -> tuple[float, int, Any]:
     """Untangling rounds of ``sweeps`` sweeps over ``nodes`` (delta by Escobar's rule) until no
     corner is folded, or until ``stall`` rounds in a row did not lower the count of folded corners
     below the last round's (``strict``: below the fewest so far). ``give_up``: the rounds end after
     the first :data:`GIVE_UP_SWEEPS` sweeps where those left more folded corners than there were,
-    or none."""
-    from .foldfree_kernels import CornerRows
+    or none. Returns the smallest corner term and the folded corners' count (:func:`corner_min`'s
+    of the whole grid), and the :class:`~clothgrid.foldfree_kernels.CornerCells` that kept them."""
+    from .foldfree_kernels import CornerCells
 
-    corners = CornerRows(Xs, True)     # only the sweeps below move Xs: their rows are measured again
+    corners = CornerCells(Xs, True, nodes)  # only the sweeps below move Xs: the cells at their nodes
     jmin, bad = corners.figures()
     stalled, fewest = 0, bad
     while bad and rounds > 0 and len(nodes):
@@ -570,14 +571,14 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
         give_up = False
         done, _ = _sweeps(Xs, nodes, delta2, part, 1e-3)
         stats["sweeps"] += int(done)
-        jmin, bad = corners.moved(Xs, nodes)
+        jmin, bad = corners.moved(Xs)
         if part < sweeps and done == part and bad:
             if bad > before:             # more folds than it started with: this set is given up
                 stats["given_up"] = stats.get("given_up", 0) + 1
-                return float(jmin), int(bad)
+                return float(jmin), int(bad), corners
             done, _ = _sweeps(Xs, nodes, delta2, sweeps - part, 1e-3)
             stats["sweeps"] += int(done)
-            jmin, bad = corners.moved(Xs, nodes)
+            jmin, bad = corners.moved(Xs)
         # strict (a coarser grid's start, or every node after one): counts that go up and down
         # without a new low ran all 60 rounds on a wild outline's grids; on one grid alone (below
         # COARSE_RELAX), counts that rise for rounds before they fall untangled the Roache annulus
@@ -588,7 +589,7 @@ def _relax_rounds(Xs: np.ndarray, nodes: np.ndarray, stats: dict[str, Any], roun
             stalled = stalled + 1 if bad >= before else 0
         if stall is not None and stalled >= stall:
             break
-    return float(jmin), int(bad)
+    return float(jmin), int(bad), corners
 
 
 def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable[[str], None],
@@ -631,23 +632,26 @@ def _relax_all(Xs: np.ndarray, folded: int, stats: dict[str, Any], say: Callable
         else:
             if bad:
                 nodes = _active_nodes(_poor_cells(Xs, POOR_SINE), _margin(nu, nv, MARGIN, MAX_MARGIN))
-                jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
+                jmin, bad, _ = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
             say(f"relax {nu}x{nv}: from the coarser grid, {bad} folded corners left")
             if not bad:
                 return 0, smoothed
     nodes = _interior_nodes(nu, nv)
     # after a coarser grid's start that failed, the strict stall rule (a wild outline: its count
     # rose from the start and fell by a few corners a round, for all 2 * RELAX_ROUNDS rounds)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse or coarser)
+    jmin, bad, _ = _relax_rounds(Xs, nodes, stats, 2 * RELAX_ROUNDS, RELAX_STALL, coarse or coarser)
     say(f"relax {nu}x{nv}: all {len(nodes)} interior nodes, {bad} folded corners left")
     return bad, False
 
 
 def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: Callable[[str], None],
-                  margin: int, whole: bool, quick: bool, coarse: bool = False) -> np.ndarray:
+                  margin: int, whole: bool, quick: bool, coarse: bool = False
+                  ) -> tuple[np.ndarray, tuple[float, int] | None]:
     """:func:`relax`'s work on the scaled planar grid ``Xs`` (in place) with ``poor`` cells: the
     narrow then the wide active set, every node where folds remain, then the smoothing; the
-    ``(K, 2)`` nodes moved. ``coarse``: a finer grid's start (:func:`_relax_all`)."""
+    ``(K, 2)`` nodes moved, and :func:`~clothgrid.foldfree_kernels.corner_min`'s figures of the
+    result where its last rounds kept them (else None). ``coarse``: a finer grid's start
+    (:func:`_relax_all`)."""
     nu, nv = Xs.shape[:2]
     m = max(nu, nv) if whole else _margin(nu, nv, margin, MAX_MARGIN)
     nodes = _interior_nodes(nu, nv) if whole else _active_nodes(poor, m)   # whole: the same nodes, undilated
@@ -655,8 +659,8 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
     retry = not quick and not whole and wide > m
     start = Xs[nodes[:, 0], nodes[:, 1]] if retry else None      # a copy (fancy indexing)
     # the narrow set may be given up early where a coarser grid is to come (GIVE_UP_SWEEPS)
-    jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS,
-                              give_up=not (whole or coarse) and _has_coarser(nu, nv))
+    jmin, bad, corners = _relax_rounds(Xs, nodes, stats, 8, 2, coarse, QUICK_SWEEPS if quick else RELAX_SWEEPS,
+                                       give_up=not (whole or coarse) and _has_coarser(nu, nv))
     say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     if bad and retry:
         # Failed rounds can leave more folds than they found (the all-node untangling then took
@@ -664,17 +668,19 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
         Xs[nodes[:, 0], nodes[:, 1]] = start
         m = wide
         nodes = _active_nodes(poor, m)
-        jmin, bad = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
+        jmin, bad, corners = _relax_rounds(Xs, nodes, stats, 8, 2, coarse)
         say(f"relax {nu}x{nv}: {len(nodes)} nodes within {m} lines of poor cells, {bad} folded corners left")
     smooth = nodes
     if bad and not quick:
         bad, from_smoothed = _relax_all(Xs, bad, stats, say, coarse)
         nodes = smooth = _interior_nodes(nu, nv)
+        corners = None
         if from_smoothed:        # the coarser grid's smoothing did the rest (SMOOTH_MARGIN)
             smooth = _active_nodes(_poor_cells(Xs, SMOOTH_SINE), SMOOTH_MARGIN)
     if bad == 0 and len(smooth):
         _smooth(Xs, smooth, stats, 8 if quick else RELAX_SWEEPS)
-    return nodes
+    # the last rounds' nodes are the ones smoothed: their cells measured again give corner_min's
+    return nodes, (None if corners is None else corners.moved(Xs))
 
 
 @one_blas_thread()     # Numba's threads do the work (clothgrid.blas_threads)
@@ -745,8 +751,8 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         jmin, bad = corner_min(Xs, True)
         stats.update(untangled=bad == 0, min_corner_jacobian=float(jmin), seconds=time.perf_counter() - t0)
         return R, stats
-    nodes = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
-    jmin, bad = corner_min(Xs, True)
+    nodes, figures = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
+    jmin, bad = corner_min(Xs, True) if figures is None else figures
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
     out = _with_interior(R, Xs, centre, basis, dim, copy=False, shift=shift, scale=scale)   # R: this call's own
     stats["seconds"] = time.perf_counter() - t0

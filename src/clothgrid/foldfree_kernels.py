@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from .jit_variants import serial_twin
 
-__all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min", "CornerRows",
+__all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min", "CornerCells",
            "cell_min_sine", "cells_below", "smallest_cell_sine", "axes_to_plane", "axes_from_plane", "dilate"]
 
 # Node offsets of the four corners of cell (ci, cj) in quad order.
@@ -352,38 +352,54 @@ PARALLEL_CELLS = 1 << 18
 
 
 @njit(cache=True, inline="always")
-def _corner_row(X, ci, skip_grid_corners):
-    """Row ``ci`` of cells: the smallest ``a x b / (|a|^2 + |b|^2)`` of its corners and how many
-    are <= 0 (:func:`corner_min`'s terms, in its order)."""
+def _cell_corners(X, ci, cj, skip_grid_corners):
+    """Cell ``(ci, cj)``: the smallest ``a x b / (|a|^2 + |b|^2)`` of its corners and how many are
+    <= 0 (:func:`corner_min`'s terms, in its order; a grid corner's skipped if asked)."""
     nu = X.shape[0]
     nv = X.shape[1]
     best = np.inf
     bad = 0
-    for cj in range(nv - 1):
-        for k in range(4):
-            i0 = ci + _DI[k]
-            j0 = cj + _DJ[k]
-            if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
-                continue
-            ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
-            J = ax * by - ay * bx
-            N = ax * ax + ay * ay + bx * bx + by * by
-            v = J / N if N > 0.0 else -1.0
-            if v <= 0.0:
-                bad += 1
-            if v < best:
-                best = v
+    for k in range(4):
+        i0 = ci + _DI[k]
+        j0 = cj + _DJ[k]
+        if skip_grid_corners and (i0 == 0 or i0 == nu - 1) and (j0 == 0 or j0 == nv - 1):
+            continue
+        ax, ay, bx, by = _corner_vectors(X, ci, cj, k)
+        J = ax * by - ay * bx
+        N = ax * ax + ay * ay + bx * bx + by * by
+        v = J / N if N > 0.0 else -1.0
+        if v <= 0.0:
+            bad += 1
+        if v < best:
+            best = v
+    return best, bad
+
+
+@njit(cache=True, inline="always")
+def _corner_row(X, ci, skip_grid_corners, apart, masked):
+    """Row ``ci`` of cells (those not marked in ``apart`` where ``masked``): :func:`_cell_corners`'
+    smallest and count."""
+    best = np.inf
+    bad = 0
+    for cj in range(X.shape[1] - 1):
+        if masked and apart[ci, cj]:
+            continue
+        v, n = _cell_corners(X, ci, cj, skip_grid_corners)
+        bad += n
+        if v < best:
+            best = v
     return best, bad
 
 
 @njit(cache=True, parallel=True)
-def _corner_min(X, skip_grid_corners):
+def _corner_min(X, skip_grid_corners, apart, masked):
+    """:func:`corner_min` (with ``masked``, of the cells not marked in ``apart``), rows in parallel."""
     nu = X.shape[0]
     row_best = np.full(nu - 1, np.inf)
     row_bad = np.zeros(nu - 1, dtype=np.int64)
     for r in prange(nu - 1):
         ci = np.int64(r)
-        row_best[ci], row_bad[ci] = _corner_row(X, ci, skip_grid_corners)
+        row_best[ci], row_bad[ci] = _corner_row(X, ci, skip_grid_corners, apart, masked)
     return row_best.min(), row_bad.sum()
 
 
@@ -391,45 +407,71 @@ _corner_min_serial = serial_twin(_corner_min)
 
 
 @njit(cache=True, parallel=True)
-def _corner_rows(X, skip_grid_corners, rows, row_best, row_bad):
-    """:func:`_corner_row` of the rows of cells listed, into ``row_best`` and ``row_bad``."""
-    for r in prange(rows.shape[0]):
-        ci = rows[r]
-        row_best[ci], row_bad[ci] = _corner_row(X, ci, skip_grid_corners)
+def _listed_corner_min(X, skip_grid_corners, cells, blocks):
+    """:func:`_cell_corners` of the ``(C, 2)`` cells listed, in ``blocks`` in parallel: the smallest
+    and the count."""
+    n = cells.shape[0]
+    best = np.full(blocks, np.inf)
+    bad = np.zeros(blocks, np.int64)
+    for b in prange(blocks):
+        lo, k = np.inf, 0
+        for q in range(n * b // blocks, n * (b + 1) // blocks):
+            v, d = _cell_corners(X, cells[q, 0], cells[q, 1], skip_grid_corners)
+            k += d
+            if v < lo:
+                lo = v
+        best[b], bad[b] = lo, k
+    return best.min(), bad.sum()
 
 
-_corner_rows_serial = serial_twin(_corner_rows)
+_listed_corner_min_serial = serial_twin(_listed_corner_min)
 
 
-class CornerRows:
-    """:func:`corner_min` of a grid kept row by row of cells, so that after a sweep over some nodes
-    only the rows of cells with a corner at one of them are measured again: the same minimum and
-    count as :func:`corner_min` of the whole grid (a minimum and a sum of the rows' own)."""
+@njit(cache=True)
+def _cells_at(nodes, nu, nv):
+    """``(nu-1, nv-1)`` bool: the cells with a corner at one of ``nodes`` (``(K, 2)``)."""
+    out = np.zeros((nu - 1, nv - 1), np.bool_)
+    for q in range(nodes.shape[0]):
+        i, j = nodes[q, 0], nodes[q, 1]
+        for ci in range(max(i - 1, 0), min(i, nu - 2) + 1):
+            for cj in range(max(j - 1, 0), min(j, nv - 2) + 1):
+                out[ci, cj] = True
+    return out
 
-    def __init__(self, X: np.ndarray, skip_grid_corners: bool) -> None:
-        nu = X.shape[0]
+
+class CornerCells:
+    """:func:`corner_min` of a grid whose ``nodes`` (``(K, 2)``) alone move: the cells with no corner
+    at one of them measured once, the others (listed) again after each move (:meth:`moved`); the
+    same minimum and count as :func:`corner_min` of the whole grid, bit for bit (a minimum and a
+    sum of the cells' own)."""
+
+    def __init__(self, X: np.ndarray, skip_grid_corners: bool, nodes: np.ndarray) -> None:
+        from .grid_kernels import mask_places
+
+        nu, nv = X.shape[:2]
         self.skip = skip_grid_corners
-        self.best = np.full(max(nu - 1, 0), np.inf)
-        self.bad = np.zeros(max(nu - 1, 0), np.int64)
-        self._measure(X, np.arange(max(nu - 1, 0), dtype=np.int64))
+        if nu < 2 or nv < 2:
+            self.cells, self.apart, self.inside = np.zeros((0, 2), np.int64), (np.inf, 0), (np.inf, 0)
+            return
+        touched = _cells_at(np.ascontiguousarray(nodes, dtype=np.int64), nu, nv)
+        self.cells = mask_places(touched)
+        kernel = _corner_min if touched.size >= PARALLEL_CELLS else _corner_min_serial
+        self.apart = kernel(X, skip_grid_corners, touched, True)
+        self.inside = (np.inf, 0)
+        self.moved(X)
 
-    def _measure(self, X: np.ndarray, rows: np.ndarray) -> None:
-        if len(rows) and X.shape[1] > 1:
-            kernel = _corner_rows if len(rows) * (X.shape[1] - 1) >= PARALLEL_CELLS else _corner_rows_serial
-            kernel(X, self.skip, rows, self.best, self.bad)
-
-    def moved(self, X: np.ndarray, nodes: np.ndarray) -> tuple[float, int]:
-        """After ``nodes`` (``(K, 2)`` interior nodes) moved: the rows of cells above and below them
-        measured again; :meth:`figures`."""
-        i = nodes[:, 0]
-        self._measure(X, np.unique(np.concatenate((i - 1, i))).astype(np.int64))
+    def moved(self, X: np.ndarray) -> tuple[float, int]:
+        """After the nodes moved: the listed cells measured again; :meth:`figures`."""
+        n = len(self.cells)
+        if n:
+            blocks = 8 * numba.config.NUMBA_NUM_THREADS
+            kernel = _listed_corner_min if n >= PARALLEL_CELLS else _listed_corner_min_serial
+            self.inside = kernel(X, self.skip, self.cells, blocks if n >= PARALLEL_CELLS else 1)
         return self.figures()
 
     def figures(self) -> tuple[float, int]:
         """``(smallest, count <= 0)``: :func:`corner_min`'s."""
-        if not len(self.best):
-            return np.inf, 0
-        return self.best.min(), self.bad.sum()
+        return min(self.apart[0], self.inside[0]), int(self.apart[1] + self.inside[1])
 
 
 def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
@@ -441,7 +483,8 @@ def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
     cells = (X.shape[0] - 1) * (X.shape[1] - 1)
     if cells <= 0:
         return np.inf, 0
-    return (_corner_min if cells >= PARALLEL_CELLS else _corner_min_serial)(X, skip_grid_corners)
+    none = np.zeros((0, 0), np.bool_)
+    return (_corner_min if cells >= PARALLEL_CELLS else _corner_min_serial)(X, skip_grid_corners, none, False)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
