@@ -193,6 +193,54 @@ def test_evening_never_returns_a_larger_spread():
     assert info["spread_after"] == info["spread_before"] == pytest.approx(sim_figures(out)["edge_spread"])
 
 
+
+def test_the_evening_in_the_plane_puts_a_rejected_grid_back():
+    """even_in_plane works on the plane's coordinates in place: on the piece above, whose evening is
+    rejected, they come back bit for bit (each stage's nodes put back, the power-of-two scale
+    undone exactly); on an evening kept they are the ones even_edges turns into its 3D grid."""
+    from clothgrid.evening import even_in_plane
+    from clothgrid.foldfree import plane_frame, to_plane
+
+    rng = np.random.default_rng(1)
+    for _ in range(95):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=0.12))
+    P = generate(b, weights="paper").points
+    centre, basis = plane_frame(P, 2)
+    X = np.ascontiguousarray(to_plane(P, centre, basis))
+    X0 = X.copy()
+    info = even_in_plane(X)
+    assert info["moved"] == 0 and info["rejected_spread"] > info["spread_before"] and info["stages"]
+    assert np.array_equal(X, X0)
+    P = _crowded(7)
+    X = np.ascontiguousarray(to_plane(P, *plane_frame(P, 2)))
+    info = even_in_plane(X)
+    out, info3 = even_edges(P, dim=2)
+    assert info["moved"] == info3["moved"] > 0 and info["spread_after"] == info3["spread_after"]
+    assert np.array_equal(to_plane(out, *plane_frame(P, 2)), X)
+
+
+def test_generate_in_the_plane_is_relax_then_even_edges(rng):
+    """generate's fold-free step relaxes and evens in the plane's coordinates and makes the 3D grid
+    once: the same grid, bit for bit, as relax's 3D result evened by even_edges, on fresh pieces
+    (paper weights: folds and poor cells) where it relaxed, evened, or both."""
+    from clothgrid.foldfree import relax
+
+    kinds = set()
+    for _ in range(6):
+        b = Boundary.from_sides(*smooth_quad_sides(rng, 33, 21, amp=float(rng.uniform(0.05, 0.2))))
+        length = generate(b, weights="paper")
+        got = generate(b, weights="paper", functional="auto")
+        kinds.add(got.info["functional"])
+        if got.info["functional"] == "length":      # (not drawn so far: every piece evened)
+            continue
+        P, ff = relax(length.points, dim=2)
+        if got.info["functional"] == "evened":
+            P = length.points          # relax moved nothing: the evening of the length grid
+        want, _ = even_edges(P, dim=2)
+        assert np.array_equal(got.points, want)
+    assert "foldfree" in kinds
+
+
 def _lengths(X):
     """Every edge length of a ``(nu, nv, 2)`` grid: NumPy's ``norm(diff(X, axis))``."""
     return np.concatenate([np.linalg.norm(np.diff(X, axis=a), axis=-1).ravel() for a in (0, 1)])

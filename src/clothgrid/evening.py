@@ -43,7 +43,7 @@ from .blas_threads import one_blas_thread
 from .foldfree_kernels import squared_bound, surely_at_least
 from .jit_variants import serial_twin
 
-__all__ = ["even_edges", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
+__all__ = ["even_edges", "even_in_plane", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
 
 #: No corner angle is made smaller than this (degrees), unless it was already ...
 FLOOR_DEG = 25.0
@@ -648,76 +648,114 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
         where the sweeps left it larger, the input grid is returned, ``moved`` is 0 and ``rejected_spread`` holds
         the spread they reached.
     """
+    from .foldfree import _grid_copy, _with_interior, plane_frame, to_plane
+
+    t0 = time.perf_counter()
+    _check_bands(band, wide_band)
+    R = _grid_copy(points, "even_edges", copy=copy)
+    centre, basis = plane_frame(R, dim)
+    X = np.ascontiguousarray(to_plane(R, centre, basis))
+    info = even_in_plane(X, floor_deg=floor_deg, band=band, spread_ok=spread_ok, max_sweeps=max_sweeps,
+                         margin=margin, wide_band=wide_band)
+    info["seconds"] = time.perf_counter() - t0
+    if info["moved"] == 0:                 # as it was, bit for bit
+        return R, info
+    return _with_interior(R, X, centre, basis, dim, copy=False), info   # R: this call's own copy
+
+
+def _check_bands(band: Any, wide_band: Any) -> None:
+    """InputError unless ``band`` (and ``wide_band``, where not None) is a finite number above 1."""
     from .errors import InputError
-    from .foldfree import PARALLEL_NODES, _grid_copy, _with_interior, plane_frame, to_plane
+
     for name, value in (("band", band), ("wide_band", wide_band)):
         if value is None and name == "wide_band":
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                 or not (1.0 < float(value) < math.inf):
             raise InputError(f"{name} must be a finite number greater than 1, not {value!r}")
+
+
+def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = BAND,
+                  spread_ok: float = SPREAD_OK, max_sweeps: int = MAX_SWEEPS, margin: int = 3,
+                  wide_band: float | None = WIDE_BAND) -> dict[str, Any]:
+    """:func:`even_edges`' work on the plane's coordinates ``X`` (C-contiguous float64 ``(nu, nv, 2)``,
+    finite; the boundary nodes kept), in place: for a caller that has them already
+    (:func:`clothgrid.foldfree.relax_in_plane`'s result) and makes the 3D grid once. Where nothing
+    moved, or the evening was rejected (``rejected_spread``), ``X`` is as it came, bit for bit.
+    Returns :func:`even_edges`' info (``seconds`` this call's)."""
+    from .foldfree import PARALLEL_NODES
+    from .grid_kernels import mask_places
+
     t0 = time.perf_counter()
-    R = _grid_copy(points, "even_edges", copy=copy)
-    centre, basis = plane_frame(R, dim)
-    X = np.ascontiguousarray(to_plane(R, centre, basis))
+    _check_bands(band, wide_band)
     shortest2, longest2, log_sum = edge_stats(X)
     shortest = math.sqrt(shortest2)
     spread = math.sqrt(longest2) / shortest if shortest > 0 else float("inf")
     info: dict[str, Any] = {"spread_before": spread, "spread_after": spread, "moved": 0, "sweeps": 0,
                             "active": 0, "stages": []}
-    if shortest > 0 and spread > spread_ok:
-        from .foldfree_kernels import smallest_cell_sine
+    if not (shortest > 0 and spread > spread_ok):
+        info["seconds"] = time.perf_counter() - t0
+        return info
+    from .foldfree_kernels import smallest_cell_sine
 
-        # The interior is scaled by the power of two nearest the geometric mean edge length: then
-        # X / scale * scale is X bit for bit, and a node no sweep moves comes back as it was; the
-        # bands are taken about the mean, whose logarithm in those units is mean_log (|.| < 0.35).
-        edges = (X.shape[0] - 1) * X.shape[1] + X.shape[0] * (X.shape[1] - 1)
-        log_mean = log_sum / (2 * edges)              # the geometric mean edge length's logarithm
-        power = round(log_mean / math.log(2.0))
-        scale, mean_log = math.ldexp(1.0, power), log_mean - power * math.log(2.0)
-        X /= scale
-        # only a smallest angle below FLOOR_MAX_DEG counts: a cap a little above its sine spares the
-        # square roots of the cells above it, and a sine at the cap is an angle above FLOOR_MAX_DEG
-        cap = math.sin(math.radians(FLOOR_MAX_DEG)) * (1.0 + 1e-12)
-        smallest = math.degrees(math.asin(min(1.0, max(0.0, smallest_cell_sine(X, cap)))))
-        info["floor_deg"] = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
-        floor = math.sin(math.radians(info["floor_deg"]))
-        wide = wide_band is not None and wide_band > band
-        stages = []
-        # a node's visit counts fit 32 bits (a grid-size array of half the pages to fault in) unless
-        # the sweeps asked for are very many
-        moved_at = np.empty(X.shape[:2], np.int32 if max_sweeps * PARALLEL_NODES < 2**31 else np.int64)
-        if wide:
-            active, count = _outside(X, *_band_limits(wide_band, mean_log), margin)
-            if count:
-                stages.append(_even_band(X, wide_band, floor, max_sweeps, active, int(count), moved_at,
-                                         mean_log))
-        wider = tuple(f for f in FINAL_BANDS if f > band and not (wide and f >= wide_band))
-        last = _last_band(X, band, wider, margin, bool(stages), mean_log)
-        if last is not None:
-            stages.append(_even_band(X, last[0], floor, max_sweeps, last[1], last[2], moved_at, mean_log))
-        info["stages"] = stages
-        for stage in stages:
-            info["active"] = max(info["active"], stage["active"])
-            info["sweeps"] += stage["sweeps"]
-            info["moved"] += stage["moved"]
+    # The interior is scaled by the power of two nearest the geometric mean edge length: then
+    # X / scale * scale is X bit for bit, and a node no sweep moves comes back as it was; the
+    # bands are taken about the mean, whose logarithm in those units is mean_log (|.| < 0.35).
+    edges = (X.shape[0] - 1) * X.shape[1] + X.shape[0] * (X.shape[1] - 1)
+    log_mean = log_sum / (2 * edges)              # the geometric mean edge length's logarithm
+    power = round(log_mean / math.log(2.0))
+    scale, mean_log = math.ldexp(1.0, power), log_mean - power * math.log(2.0)
+    X /= scale
+    # only a smallest angle below FLOOR_MAX_DEG counts: a cap a little above its sine spares the
+    # square roots of the cells above it, and a sine at the cap is an angle above FLOOR_MAX_DEG
+    cap = math.sin(math.radians(FLOOR_MAX_DEG)) * (1.0 + 1e-12)
+    smallest = math.degrees(math.asin(min(1.0, max(0.0, smallest_cell_sine(X, cap)))))
+    info["floor_deg"] = max(floor_deg, min(smallest, FLOOR_MAX_DEG))
+    floor = math.sin(math.radians(info["floor_deg"]))
+    wide = wide_band is not None and wide_band > band
+    stages: list[dict[str, Any]] = []
+    saved = []      # each stage's nodes as they were: X is put back where the evening is rejected
+    # a node's visit counts fit 32 bits (a grid-size array of half the pages to fault in) unless
+    # the sweeps asked for are very many
+    moved_at = np.empty(X.shape[:2], np.int32 if max_sweeps * PARALLEL_NODES < 2**31 else np.int64)
+
+    def stage(b: float, active: np.ndarray, count: int) -> None:
+        nodes = mask_places(active)
+        saved.append((nodes, X[nodes[:, 0], nodes[:, 1]]))       # a copy (fancy indexing)
+        stages.append(_even_band(X, b, floor, max_sweeps, active, count, moved_at, mean_log))
+
+    if wide:
+        active, count = _outside(X, *_band_limits(wide_band, mean_log), margin)
+        if count:
+            stage(wide_band, active, int(count))
+    wider = tuple(f for f in FINAL_BANDS if f > band and not (wide and f >= wide_band))
+    last = _last_band(X, band, wider, margin, bool(stages), mean_log)
+    if last is not None:
+        stage(*last)
+    info["stages"] = stages
+    for done in stages:
+        info["active"] = max(info["active"], done["active"])
+        info["sweeps"] += done["sweeps"]
+        info["moved"] += done["moved"]
+    X *= scale
     if info["moved"] == 0:                 # as it was, bit for bit
         info["seconds"] = time.perf_counter() - t0
-        return R, info
-    X *= scale
+        return info
     shortest2, longest2, _ = edge_stats(X)
     # the lengths' max / min (sqrt is monotone); a zero-length edge (no move makes one: its corners'
     # sines are -1, below any floor) would be an infinite spread
     after = math.sqrt(longest2) / math.sqrt(shortest2) if shortest2 > 0.0 else math.inf
-    info["seconds"] = time.perf_counter() - t0
     if not after <= info["spread_before"] * (1.0 + SPREAD_ROUNDING):
         # The sweeps lower an energy of every outlying edge, not the spread itself: on about 1 in
         # 250 fresh test pieces the longest or shortest edge got a little worse (24.7 -> 25.3).
-        # Then the grid is returned as it was, bit for bit.
+        # Then the grid is put back as it was, bit for bit (the scale is a power of two).
+        for nodes, was in reversed(saved):
+            X[nodes[:, 0], nodes[:, 1]] = was * scale
         info.update(rejected_spread=after, moved=0)
-        return R, info
-    info["spread_after"] = after
-    return _with_interior(R, X, centre, basis, dim, copy=False), info   # R: this call's own copy
+    else:
+        info["spread_after"] = after
+    info["seconds"] = time.perf_counter() - t0
+    return info
 
 
 #: :func:`_edge_stats` keeps its running product of squared lengths within 2^-400 .. 2^400, and

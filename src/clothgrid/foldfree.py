@@ -82,12 +82,17 @@ def plane_frame(points: np.ndarray, dim: int = 3) -> tuple[np.ndarray, np.ndarra
     return centre, basis
 
 
+def check_grid_shape(R: np.ndarray, who: str) -> None:
+    """InputError unless ``R`` is an ``(nu, nv, 3)`` grid with ``nu, nv >= 3``."""
+    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
+        raise InputError(f"{who} needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
+
+
 def _grid_copy(points: np.ndarray, who: str, copy: bool = True) -> np.ndarray:
     """A float64 copy of an ``(nu, nv, 3)`` grid with ``nu, nv >= 3`` and finite nodes (else InputError);
     with ``copy=False`` the array itself where it is C-contiguous float64 already."""
     R = np.array(points, dtype=np.float64) if copy else np.ascontiguousarray(points, dtype=np.float64)
-    if R.ndim != 3 or R.shape[2] != 3 or R.shape[0] < 3 or R.shape[1] < 3:
-        raise InputError(f"{who} needs an (nu, nv, 3) grid with nu, nv >= 3, not shape {R.shape}")
+    check_grid_shape(R, who)
     if not np.isfinite(R).all():
         raise InputError(f"{who} needs finite node coordinates")
     return R
@@ -731,11 +736,30 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
         ``method``, and ``levels`` (the grids, where every node was untangled
         from coarser ones).
     """
+    t0 = time.perf_counter()
+    R = _grid_copy(points, "relax")
+    X, centre, basis, stats = relax_in_plane(R, dim=dim, poor_sine=poor_sine, margin=margin, whole=whole,
+                                             quick=quick, progress=progress)
+    out = R if X is None else _with_interior(R, X, centre, basis, dim, copy=False)   # R: this call's own
+    stats["seconds"] = time.perf_counter() - t0
+    return out, stats
+
+
+def relax_in_plane(R: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
+                   whole: bool = False, quick: bool = False, progress: Callable[[str], None] | None = None
+                   ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, dict[str, Any]]:
+    """:func:`relax`'s work, its result in the plane's coordinates: for a caller that goes on in
+    them (:func:`clothgrid.evening.even_in_plane`) and makes the 3D grid once.
+
+    ``R`` (C-contiguous float64 ``(nu, nv, 3)``, finite, ``nu, nv >= 3``) is not changed. Returns
+    ``X``, the result's ``(nu, nv, 2)`` coordinates ``(p - centre) @ basis.T`` (a new array; None
+    where no cell is poor and nothing moved), the frame ``centre, basis`` (:func:`plane_frame`),
+    and :func:`relax`'s info (``seconds`` this call's).
+    """
     from .foldfree_kernels import corner_min
 
     t0 = time.perf_counter()
     say = progress or (lambda _msg: None)
-    R = _grid_copy(points, "relax")
     centre, basis = plane_frame(R, dim)
     nu, nv = R.shape[:2]
     loop = to_plane(boundary_loop(R), centre, basis)    # X's boundary, before X is made
@@ -750,10 +774,14 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     if not poor.any():
         jmin, bad = corner_min(Xs, True)
         stats.update(untangled=bad == 0, min_corner_jacobian=float(jmin), seconds=time.perf_counter() - t0)
-        return R, stats
+        return None, centre, basis, stats
     nodes, figures = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
     jmin, bad = corner_min(Xs, True) if figures is None else figures
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
-    out = _with_interior(R, Xs, centre, basis, dim, copy=False, shift=shift, scale=scale)   # R: this call's own
+    Xs *= scale         # the shift and scale undone: NumPy's multiply and add, as _with_interior's
+    Xs += shift
+    # the boundary (kept) as to_plane gives it, not through the scale and back
+    for side in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
+        Xs[side] = to_plane(R[side], centre, basis)
     stats["seconds"] = time.perf_counter() - t0
-    return out, stats
+    return Xs, centre, basis, stats

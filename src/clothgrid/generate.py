@@ -297,11 +297,14 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
 
     q = quality(grid)
     grid.info.update(functional="length", folded_before=q.folded, folded=q.folded)
-    from .evening import even_edges
-    from .foldfree import relax
+    from .evening import even_in_plane
+    from .foldfree import _with_interior, check_grid_shape, relax_in_plane, to_plane
 
+    R = grid.points        # finite (generate checked), C-contiguous float64 (Grid's), not changed here
     try:
-        points, ff = relax(grid.points, dim=grid.dim, whole=functional == "foldfree", progress=say)
+        check_grid_shape(R, "relax")
+        # relax and the evening both in the plane's coordinates, the 3D grid made once at the end
+        X, centre, basis, ff = relax_in_plane(R, dim=grid.dim, whole=functional == "foldfree", progress=say)
     except InputError as exc:
         if functional == "foldfree":
             raise
@@ -309,13 +312,18 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         say(f"warning: {q.folded} folded cells kept: {exc}")
         return grid
     relaxed = not (functional == "auto" and ff.get("moved", 0) == 0)
-    points, ev = even_edges(points, dim=grid.dim, copy=False)     # relax's result: a copy of its own
+    moved = X is not None
+    if X is None:
+        X = np.ascontiguousarray(to_plane(R, centre, basis))
+    ev = even_in_plane(X)
     kept = f"; kept, the sweeps reached {ev['rejected_spread']:.3g}" if "rejected_spread" in ev else ""
     say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
         f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
     if not relaxed and ev["moved"] == 0:     # nothing poor, nothing to even: the length grid as it is
         grid.info.update(relax=ff, evened=ev)
         return grid
+    moved = moved or ev["moved"] > 0
+    points = _with_interior(R, X, centre, basis, grid.dim) if moved else R.copy()
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
     q_after = quality(new)
