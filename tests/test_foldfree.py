@@ -748,3 +748,44 @@ def test_corner_cells_after_a_sweep_give_corner_min(monkeypatch, parallel, rng):
     assert missed > 0
     assert fk.CornerCells(np.zeros((1, 5, 2)), True, np.zeros((0, 2), np.int64)).figures() == \
         fk.corner_min(np.zeros((1, 5, 2)), True)
+
+
+def test_grid_from_plane_is_the_copy_with_its_interior_set(rng):
+    """foldfree_kernels.grid_from_plane makes the 3D grid of planar coordinates in one pass: the same
+    array, bit for bit, as a copy of the grid with its interior set by axes_from_plane (and z = 0),
+    for every frame that only swaps and negates the x and y axes."""
+    import clothgrid.foldfree_kernels as fk
+
+    for axes in ([(0, 1.0), (1, 1.0)], [(1, -1.0), (0, 1.0)], [(0, -1.0), (1, -1.0)], [(1, 1.0), (0, -1.0)]):
+        nu, nv = (int(n) for n in rng.integers(3, 60, size=2))
+        R = rng.normal(size=(nu, nv, 3))
+        X = rng.normal(size=(nu, nv, 2))
+        want = R.copy()
+        fk.axes_from_plane(X, axes, None, 1.0, want)
+        want[1:-1, 1:-1, 2] = 0.0
+        got = fk.grid_from_plane(R, X, axes)
+        assert np.array_equal(got, want) and not np.shares_memory(got, R)
+        assert np.array_equal(np.signbit(got), np.signbit(want))
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_unscale_in_plane_is_numpys_multiply_and_add(monkeypatch, parallel, rng):
+    """foldfree_kernels.unscale_in_plane undoes relax's shift and scale in one pass: the interior
+    as NumPy's ``X * scale + shift``, the boundary as to_plane gives it from the 3D grid, bit for bit."""
+    import clothgrid.foldfree_kernels as fk
+    from clothgrid.foldfree import _axis_map, plane_frame, to_plane
+
+    monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
+    for _ in range(4):
+        nu, nv = (int(n) for n in rng.integers(3, 50, size=2))
+        R = np.zeros((nu, nv, 3))
+        R[..., :2] = rng.normal(size=(nu, nv, 2)) * 10.0 ** rng.uniform(-3, 3)
+        centre, basis = plane_frame(R, 2)
+        X = rng.normal(size=(nu, nv, 2))
+        shift, scale = rng.normal(size=2), float(10.0 ** rng.uniform(-3, 3))
+        want = X * scale + shift
+        edge = to_plane(R, centre, basis)
+        for side in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
+            want[side] = edge[side]
+        fk.unscale_in_plane(X, R, _axis_map(centre, basis), shift, scale)
+        assert np.array_equal(X, want)

@@ -156,8 +156,13 @@ def _with_interior(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.n
     one pass with the scale and shift where ``R`` is C-contiguous
     (:func:`~clothgrid.foldfree_kernels.axes_from_plane`).
     """
-    out = R.copy() if copy else R
+    from .foldfree_kernels import PARALLEL_CELLS, grid_from_plane
+
     axes = _axis_map(centre, basis) if dim == 2 else None
+    if copy and shift is None and axes is not None and R.flags.c_contiguous and R.dtype == np.float64 \
+            and X.flags.c_contiguous and X.dtype == np.float64 and R.shape[0] * R.shape[1] >= PARALLEL_CELLS:
+        return grid_from_plane(R, X, axes)     # the copy and the interior in one pass
+    out = R.copy() if copy else R
     if axes is not None and out.flags.c_contiguous and out.dtype == np.float64:
         from .foldfree_kernels import axes_from_plane
 
@@ -778,10 +783,17 @@ def relax_in_plane(R: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE,
     nodes, figures = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
     jmin, bad = corner_min(Xs, True) if figures is None else figures
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
-    Xs *= scale         # the shift and scale undone: NumPy's multiply and add, as _with_interior's
-    Xs += shift
-    # the boundary (kept) as to_plane gives it, not through the scale and back
-    for side in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
-        Xs[side] = to_plane(R[side], centre, basis)
+    # the shift and scale undone (NumPy's multiply and add, as _with_interior's), and the boundary
+    # (kept) as to_plane gives it, not through the scale and back
+    axes = _axis_map(centre, basis)
+    if axes is not None and R.dtype == np.float64:
+        from .foldfree_kernels import unscale_in_plane
+
+        unscale_in_plane(Xs, R, axes, shift, scale)       # the same, in one pass
+    else:
+        Xs *= scale
+        Xs += shift
+        for side in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
+            Xs[side] = to_plane(R[side], centre, basis)
     stats["seconds"] = time.perf_counter() - t0
     return Xs, centre, basis, stats

@@ -667,7 +667,44 @@ def _axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
                 R[i, j, k1] = X[i, j, 1] * s1
 
 
+@njit(cache=True, parallel=True)
+def _grid_from_plane(R, X, k0, s0, k1, s1, out):
+    """A new grid ``out`` in one pass: ``R``'s boundary nodes as they are, the interior's
+    ``out[i, j, k0] = X[i, j, 0] * s0`` (and ``k1``) with the third coordinate 0 (a piece in the
+    xy-plane): :func:`_axes_from_plane` into a copy of ``R``, without the copy."""
+    nu, nv = R.shape[0], R.shape[1]
+    k2 = 3 - k0 - k1
+    for i in prange(nu):
+        for j in range(nv):
+            if i == 0 or i == nu - 1 or j == 0 or j == nv - 1:
+                out[i, j, 0], out[i, j, 1], out[i, j, 2] = R[i, j, 0], R[i, j, 1], R[i, j, 2]
+            else:
+                out[i, j, k0] = X[i, j, 0] * s0
+                out[i, j, k1] = X[i, j, 1] * s1
+                out[i, j, k2] = 0.0
+
+
 _axes_to_plane_serial = serial_twin(_axes_to_plane)
+
+
+@njit(cache=True, parallel=True)
+def _unscale_in_plane(X, R, k0, s0, k1, s1, shift0, shift1, scale):
+    """``X``'s interior ``X * scale + shift`` in place (NumPy's multiply, then add), its boundary
+    ``R``'s as :func:`_axes_to_plane` gives it (not through the scale and back), in one pass."""
+    nu, nv = X.shape[0], X.shape[1]
+    for i in prange(nu):
+        for j in range(nv):
+            if i == 0 or i == nu - 1 or j == 0 or j == nv - 1:
+                X[i, j, 0] = R[i, j, k0] * s0
+                X[i, j, 1] = R[i, j, k1] * s1
+            else:
+                X[i, j, 0] = X[i, j, 0] * scale + shift0
+                X[i, j, 1] = X[i, j, 1] * scale + shift1
+
+
+_unscale_in_plane_serial = serial_twin(_unscale_in_plane)
+
+
 _axes_from_plane_serial = serial_twin(_axes_from_plane)
 
 
@@ -684,6 +721,23 @@ def axes_to_plane(R: np.ndarray, axes: list[tuple[int, float]], shift, scale: fl
     no shift or scale), rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
     kernel = _axes_to_plane if R.shape[0] * R.shape[1] >= PARALLEL_CELLS else _axes_to_plane_serial
     kernel(R, *_axes_args(axes, shift, scale), X)
+
+
+def unscale_in_plane(X: np.ndarray, R: np.ndarray, axes: list[tuple[int, float]], shift, scale: float) -> None:
+    """:func:`_unscale_in_plane` (``axes``: :func:`clothgrid.foldfree._axis_map`'s), rows in parallel
+    on a large grid (:data:`PARALLEL_CELLS`)."""
+    (k0, s0), (k1, s1) = axes
+    kernel = _unscale_in_plane if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _unscale_in_plane_serial
+    kernel(X, R, k0, s0, k1, s1, float(shift[0]), float(shift[1]), float(scale))
+
+
+def grid_from_plane(R: np.ndarray, X: np.ndarray, axes: list[tuple[int, float]]) -> np.ndarray:
+    """:func:`_grid_from_plane` into a new array (``axes``: :func:`clothgrid.foldfree._axis_map`'s,
+    a piece in the xy-plane), rows in parallel."""
+    (k0, s0), (k1, s1) = axes
+    out = np.empty_like(R)
+    _grid_from_plane(R, X, k0, s0, k1, s1, out)
+    return out
 
 
 def axes_from_plane(X: np.ndarray, axes: list[tuple[int, float]], shift, scale: float, R: np.ndarray) -> None:
