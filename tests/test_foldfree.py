@@ -462,9 +462,12 @@ def test_shift_and_scale_in_the_plane_pass_give_numpys_bits(clockwise):
 def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
     """foldfree_kernels.dilate against a direct loop: the nodes within m lines of a corner of a
     marked cell (the relax's active sets), and of a marked node (the edge evening's), the grid's
-    ring left out; fresh random masks and margins."""
+    ring left out; fresh random masks (sparse and dense) and margins, by running counts and by
+    boxes, each in parallel rows and serially."""
     from clothgrid.foldfree import _active_nodes
-    from clothgrid.foldfree_kernels import _dilate, dilate
+    from clothgrid.foldfree_kernels import _dilate, _dilate_boxes, _dilate_boxes_serial, _dilate_serial, dilate
+
+    kernels = (_dilate, _dilate_boxes, _dilate_serial, _dilate_boxes_serial)
 
     rng = np.random.default_rng()
     for _ in range(60):
@@ -476,8 +479,9 @@ def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
             want[max(1, ci - m):min(nu - 1, ci + m + 2), max(1, cj - m):min(nv - 1, cj + m + 2)] = True
         got, count = dilate(cells, m + 1, m, nu, nv)
         assert np.array_equal(got, want) and count == want.sum()
-        got, count = _dilate(cells, m + 1, m, nu, nv)        # the parallel kernel a large grid takes
-        assert np.array_equal(got, want) and count == want.sum()
+        for kernel in kernels:
+            got, count = kernel(cells, m + 1, m, nu, nv)
+            assert np.array_equal(got, want) and count == want.sum(), kernel
         assert np.array_equal(_active_nodes(cells, m), np.argwhere(want))
         nodes = rng.random((nu, nv)) < 0.05
         want = np.zeros((nu, nv), bool)
@@ -485,6 +489,9 @@ def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
             want[max(1, i - m):min(nu - 1, i + m + 1), max(1, j - m):min(nv - 1, j + m + 1)] = True
         got, count = dilate(nodes, m, m, nu, nv)
         assert np.array_equal(got, want) and count == want.sum()
+        for kernel in kernels:
+            got, count = kernel(nodes, m, m, nu, nv)
+            assert np.array_equal(got, want) and count == want.sum(), kernel
 
 
 def test_over_relaxed_ordered_sweeps_untangle_with_fewer_sweeps(monkeypatch):

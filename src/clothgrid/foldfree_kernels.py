@@ -793,10 +793,60 @@ def _dilate(mask, before, after, nu, nv):
 _dilate_serial = serial_twin(_dilate)
 
 
+@njit(cache=True, parallel=True)
+def _true_count(mask):
+    """How many entries of a 2D bool ``mask`` are true, rows in parallel."""
+    rows = np.zeros(mask.shape[0], np.int64)
+    for r in prange(mask.shape[0]):
+        c = 0
+        for j in range(mask.shape[1]):
+            if mask[r, j]:
+                c += 1
+        rows[r] = c
+    return rows.sum()
+
+
+@njit(cache=True, parallel=True)
+def _dilate_boxes(mask, before, after, nu, nv):
+    """:func:`_dilate` of a sparse ``mask``: each true entry ``(ci, cj)`` marks its box of interior
+    nodes ``ci - after <= i <= ci + before``, ``cj - after <= j <= cj + before`` (rows of the mask in
+    parallel: two threads may write True to the same node, the same value), then the marked nodes
+    counted. One array of the grid's size, not three: the cost follows the boxes."""
+    mu, mv = mask.shape
+    out = np.zeros((nu, nv), np.bool_)
+    for r in prange(mu):
+        ci = np.int64(r)
+        for cj in range(mv):
+            if mask[ci, cj]:
+                for i in range(max(1, ci - after), min(nu - 2, ci + before) + 1):
+                    for j in range(max(1, cj - after), min(nv - 2, cj + before) + 1):
+                        out[i, j] = True
+    counts = np.zeros(nu, np.int64)
+    for i in prange(nu):
+        c = 0
+        for j in range(nv):
+            if out[i, j]:
+                c += 1
+        counts[i] = c
+    return out, counts.sum()
+
+
+_dilate_boxes_serial = serial_twin(_dilate_boxes)
+_true_count_serial = serial_twin(_true_count)
+
+
 def dilate(mask: np.ndarray, before: int, after: int, nu: int, nv: int) -> tuple[np.ndarray, int]:
-    """:func:`_dilate`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
-    kernel = _dilate if nu * nv >= PARALLEL_CELLS else _dilate_serial
-    out, count = kernel(np.ascontiguousarray(mask), before, after, nu, nv)
+    """:func:`_dilate`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`); by boxes
+    (:func:`_dilate_boxes`, the same nodes) where the true entries' boxes cover the grid at most
+    four times over."""
+    mask = np.ascontiguousarray(mask)
+    parallel = nu * nv >= PARALLEL_CELLS
+    count = (_true_count if parallel else _true_count_serial)(mask)
+    if count * (before + after + 1) ** 2 <= 4 * nu * nv:
+        kernel = _dilate_boxes if parallel else _dilate_boxes_serial
+    else:
+        kernel = _dilate if parallel else _dilate_serial
+    out, count = kernel(mask, before, after, nu, nv)
     return out, int(count)
 
 
