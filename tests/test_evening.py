@@ -526,6 +526,23 @@ def test_the_nodes_near_outlying_edges_are_the_ones_a_direct_loop_finds():
                             want[max(1, p - 3):min(nu - 1, p + 4), max(1, q - 3):min(nv - 1, q + 4)] = True
         active, count = ev._outside(X, lo, hi, 3)
         assert np.array_equal(active, want) and count == want.sum()
+        # at most some nodes: the whole answer where the interior nodes at outlying edges are not
+        # more, else none and their count (at most the margin's, at least the bound)
+        hot = np.zeros_like(want)
+        for i in range(nu):
+            for j in range(nv):
+                for a, b in ((i + 1, j), (i, j + 1)):
+                    if a < nu and b < nv:
+                        t = 0.5 * math.log(float(((X[i, j] - X[a, b]) ** 2).sum()))
+                        if t > hi or t < lo:
+                            hot[i, j] = hot[a, b] = True
+        inner = int(hot[1:-1, 1:-1].sum())
+        for bound in (inner - 1, inner, max(count, inner) + 5):
+            got, n = ev._outside(X, lo, hi, 3, bound)
+            if inner > bound:
+                assert got is None and n == inner and inner <= count
+            else:
+                assert np.array_equal(got, want) and n == count
 
 
 def test_evening_sweeps_in_parts_give_the_ordered_sweeps_bits():

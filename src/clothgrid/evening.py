@@ -479,12 +479,20 @@ def _outside_nodes(X, lo, hi):
 _outside_nodes_serial = serial_twin(_outside_nodes)
 
 
-def _outside(X: np.ndarray, lo: float, hi: float, margin: int) -> tuple[np.ndarray, int]:
-    """Interior nodes within ``margin`` grid lines of an edge outside the band; their count."""
-    from .foldfree_kernels import PARALLEL_CELLS, dilate
+def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | None = None
+             ) -> tuple[np.ndarray | None, int]:
+    """Interior nodes within ``margin`` grid lines of an edge outside the band; their count. With
+    ``at_most``: where the interior nodes at such an edge (all of them near one) are already more,
+    ``(None, their count)``, without the margin's nodes."""
+    from .foldfree_kernels import PARALLEL_CELLS, dilate, true_count
 
     nu, nv = X.shape[:2]
     hot = (_outside_nodes if nu * nv >= PARALLEL_CELLS else _outside_nodes_serial)(X, lo, hi)
+    if at_most is not None:
+        ring = int(hot[0].sum() + hot[-1].sum() + hot[1:-1, 0].sum() + hot[1:-1, -1].sum())
+        inner = true_count(hot) - ring
+        if inner > at_most:
+            return None, inner
     return dilate(hot, margin, margin, nu, nv)
 
 
@@ -580,8 +588,11 @@ def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int
     of them, or none after a wide stage (whose result then stands). None also for no active node."""
     from .foldfree import PARALLEL_NODES
 
-    for b in (band, *wider):
-        active, count = _outside(X, *_band_limits(b, mean_log), margin)
+    bands = (band, *wider)
+    for k, b in enumerate(bands):
+        # (a band whose nodes at outlying edges alone are too many is passed over without its margin)
+        active, count = _outside(X, *_band_limits(b, mean_log), margin,
+                                 None if k == len(bands) - 1 else PARALLEL_NODES)
         if count < PARALLEL_NODES:
             break
     else:

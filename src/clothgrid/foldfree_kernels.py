@@ -835,13 +835,19 @@ _dilate_boxes_serial = serial_twin(_dilate_boxes)
 _true_count_serial = serial_twin(_true_count)
 
 
+def true_count(mask: np.ndarray) -> int:
+    """How many entries of a 2D bool ``mask`` are true (rows in parallel on a large grid)."""
+    mask = np.ascontiguousarray(mask)
+    return int((_true_count if mask.size >= PARALLEL_CELLS else _true_count_serial)(mask))
+
+
 def dilate(mask: np.ndarray, before: int, after: int, nu: int, nv: int) -> tuple[np.ndarray, int]:
     """:func:`_dilate`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`); by boxes
     (:func:`_dilate_boxes`, the same nodes) where the true entries' boxes cover the grid at most
     four times over."""
     mask = np.ascontiguousarray(mask)
     parallel = nu * nv >= PARALLEL_CELLS
-    count = (_true_count if parallel else _true_count_serial)(mask)
+    count = true_count(mask)
     if count * (before + after + 1) ** 2 <= 4 * nu * nv:
         kernel = _dilate_boxes if parallel else _dilate_boxes_serial
     else:
