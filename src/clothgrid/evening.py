@@ -123,26 +123,43 @@ def _term(t, lo, hi):
     return 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _energy(X, lo, hi):
-    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean): the
-    u-edges row by row, then the v-edges, each outlying edge's term added in that order."""
+    """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean): each
+    row's u-edges (to the next row) and v-edges summed in parallel, then the rows in order. (Only
+    the stop rules read it, as a ratio: its last bits, the order's, decide nothing.)"""
     nu, nv = X.shape[0], X.shape[1]
     lo2, hi2 = _inside_band(lo, hi)
-    e = 0.0
-    for i in range(nu - 1):
+    rows = np.zeros(nu)
+    for r in prange(nu):
+        i = np.int64(r)
+        e = 0.0
         for j in range(nv):
-            dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
-            f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-            if slope != 0.0:
-                e += f
+            if i + 1 < nu:
+                dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
+                f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+                if slope != 0.0:
+                    e += f
+            if j + 1 < nv:
+                dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
+                f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+                if slope != 0.0:
+                    e += f
+        rows[i] = e
+    total = 0.0
     for i in range(nu):
-        for j in range(nv - 1):
-            dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
-            f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-            if slope != 0.0:
-                e += f
-    return e
+        total += rows[i]
+    return total
+
+
+_energy_serial = serial_twin(_energy)
+
+
+def _grid_energy(X: np.ndarray, lo: float, hi: float) -> float:
+    """:func:`_energy`, rows in parallel on a large grid (:data:`~clothgrid.foldfree_kernels.PARALLEL_CELLS`)."""
+    from .foldfree_kernels import PARALLEL_CELLS
+
+    return (_energy if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _energy_serial)(X, lo, hi)
 
 
 #: Relative margin of :func:`_inside_band`: far above the rounding of ``exp``, ``log`` and the
@@ -514,7 +531,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
 
     lo, hi = _band_limits(band, mean_log)
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
-    energy = _energy(X, lo, hi)
+    energy = _grid_energy(X, lo, hi)
     ordered = count < PARALLEL_NODES
     if ordered:
         # the list of the active nodes: a sweep of a few thousand no longer scans the grid, and the
@@ -551,7 +568,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
                 if now > (1.0 - progress) * energy and not spread < (1.0 - SMALL_MIN_SPREAD_PROGRESS) * was:
                     break
             else:
-                now = _energy(X, lo, hi)
+                now = _grid_energy(X, lo, hi)
                 if (sweep + 1) * count >= WORK_BUDGET and now > (1.0 - progress) * energy:
                     break
             energy = now
