@@ -530,6 +530,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
     from .grid_kernels import mask_places
 
     lo, hi = _band_limits(band, mean_log)
+    mean_length = math.exp(mean_log)       # the geometric mean edge in X's units
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
     energy = _grid_energy(X, lo, hi)
     ordered = count < PARALLEL_NODES
@@ -557,7 +558,7 @@ def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active
         biggest, moved = sweep_once(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
         out["sweeps"] = sweep + 1
         out["moved"] += int(moved)
-        if moved == 0 or biggest < 1e-4:
+        if moved == 0 or biggest < 1e-4 * mean_length:     # a ten-thousandth of the mean edge
             break
         if (sweep + 1) % check == 0:
             if ordered:
