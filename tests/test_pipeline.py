@@ -184,3 +184,33 @@ def test_run_jobs_goes_on_after_a_failed_piece(tmp_path, monkeypatch):
     with pytest.raises(PiecesError) as info:
         run_jobs(jobs)
     assert sorted(f.name for f in info.value.failed) == ["big", "line", "small"]
+
+
+def test_run_job_measures_the_quality_of_each_grid_once(monkeypatch):
+    """generate's fold-free step measures the length grid's quality first; where it hands that grid
+    back (nothing poor, nothing to even), or a grid of its own, run_job reads the measure instead
+    of taking it again: never two quality passes over the same grid."""
+    import importlib
+
+    from clothgrid import Boundary
+
+    quality_module = importlib.import_module("clothgrid.quality")
+    measured = []
+    real = quality_module.quality
+
+    def counting(grid, **kw):
+        measured.append(id(grid))
+        return real(grid, **kw)
+
+    monkeypatch.setattr(quality_module, "quality", counting)
+    monkeypatch.setattr(pipeline, "quality", counting)
+    t = np.linspace(0.0, 1.0, 9)
+    z = np.zeros_like(t)
+    b = Boundary.from_sides(np.c_[t, z, z], np.c_[z + 1, t, z], np.c_[t, z + 1, z], np.c_[z, t, z])
+    kinds = set()
+    for options in (GridOptions(functional="auto"), GridOptions(functional="auto", weights="paper")):
+        measured.clear()
+        result = run_job(pipeline.Job(name="square", boundary=b, nodes=(33, 21), outputs=[], options=options))
+        kinds.add(result.grid.info["functional"])
+        assert len(measured) == len(set(measured)) >= 1, measured
+    assert "length" in kinds        # a square with uniform weights: nothing to relax or even

@@ -310,6 +310,7 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
             raise
         grid.info["foldfree_skipped"] = str(exc)
         say(f"warning: {q.folded} folded cells kept: {exc}")
+        grid._quality = q
         return grid
     relaxed = not (functional == "auto" and ff.get("moved", 0) == 0)
     moved = X is not None
@@ -321,6 +322,7 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
     if not relaxed and ev["moved"] == 0:     # nothing poor, nothing to even: the length grid as it is
         grid.info.update(relax=ff, evened=ev)
+        grid._quality = q                    # measured once (pipeline.run_job reads it)
         return grid
     moved = moved or ev["moved"] > 0
     points = _with_interior(R, X, centre, basis, grid.dim) if moved else R.copy()
@@ -334,6 +336,7 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
                          f"the length grid {q.folded}", seconds=time.perf_counter() - t0)
         say(f"fold-free: {q.folded} -> {q_after.folded} folded cells in {ff['seconds']:.3f} s; "
             f"the length grid is kept")
+        grid._quality = q
         return grid
     new._quality = q_after   # measured once: pipeline.run_job reads it instead of measuring again
     new.info.update(functional="foldfree" if relaxed else "evened", folded=q_after.folded, evened=ev,
