@@ -777,8 +777,9 @@ def test_grid_from_plane_is_the_copy_with_its_interior_set(rng):
 
 @pytest.mark.parametrize("parallel", [False, True])
 def test_unscale_in_plane_is_numpys_multiply_and_add(monkeypatch, parallel, rng):
-    """foldfree_kernels.unscale_in_plane undoes relax's shift and scale in one pass: the interior
-    as NumPy's ``X * scale + shift``, the boundary as to_plane gives it from the 3D grid, bit for bit."""
+    """foldfree_kernels.unscale_in_plane undoes relax's shift and scale in one pass: the moved
+    interior nodes as NumPy's ``X * scale + shift``, every other node (the boundary, and interior
+    nodes not moved, even if marked on the boundary) as to_plane gives it from the 3D grid, bit for bit."""
     import clothgrid.foldfree_kernels as fk
     from clothgrid.foldfree import _axis_map, plane_frame, to_plane
 
@@ -789,10 +790,44 @@ def test_unscale_in_plane_is_numpys_multiply_and_add(monkeypatch, parallel, rng)
         R[..., :2] = rng.normal(size=(nu, nv, 2)) * 10.0 ** rng.uniform(-3, 3)
         centre, basis = plane_frame(R, 2)
         X = rng.normal(size=(nu, nv, 2))
+        moved = rng.random((nu, nv)) < 0.5
         shift, scale = rng.normal(size=2), float(10.0 ** rng.uniform(-3, 3))
-        want = X * scale + shift
-        edge = to_plane(R, centre, basis)
-        for side in (np.s_[0], np.s_[-1], np.s_[:, 0], np.s_[:, -1]):
-            want[side] = edge[side]
-        fk.unscale_in_plane(X, R, _axis_map(centre, basis), shift, scale)
+        want = to_plane(R, centre, basis)
+        inner = moved.copy()
+        inner[[0, -1]] = inner[:, [0, -1]] = False
+        want[inner] = X[inner] * scale + shift
+        fk.unscale_in_plane(X, R, moved, _axis_map(centre, basis), shift, scale)
         assert np.array_equal(X, want)
+
+
+def test_fold_free_points_write_only_the_moved_nodes_and_put_them_back(rng):
+    """generate's fold-free grid: only the nodes the relax or the evening may have moved take X's
+    values (written into the length grid itself where they are few, with the same values a new
+    grid would get), every other node stays the length grid's bit for bit, and the length grid
+    comes back as it was where the result is not kept; many moved nodes go to a new array."""
+    from clothgrid.foldfree import _with_interior, plane_frame, to_plane
+    from clothgrid.generate import _fold_free_points
+
+    nu, nv = 40, 30
+    R = np.zeros((nu, nv, 3))
+    R[..., :2] = np.stack(np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij"), -1)
+    R[..., :2] += rng.normal(scale=0.1, size=(nu, nv, 2))
+    R0 = R.copy()
+    centre, basis = plane_frame(R, 2)
+    X = np.ascontiguousarray(to_plane(R, centre, basis))
+    moved = np.zeros((nu, nv), bool)
+    moved[5:9, 6:10] = True
+    touched = [np.array([[20, 20], [21, 20]]), np.array([[21, 20], [30, 3]])]
+    changed = moved.copy()
+    for t in touched:
+        changed[t[:, 0], t[:, 1]] = True
+    X[changed] += rng.normal(scale=0.05, size=(int(changed.sum()), 2))
+    want = _with_interior(R0, X, centre, basis, 2)         # a new grid with X's interior
+    points, put_back = _fold_free_points(R, X, centre, basis, 2, moved, touched)
+    assert points is R and np.array_equal(points, want)
+    assert np.array_equal(points[~changed], R0[~changed])
+    put_back()
+    assert np.array_equal(R, R0)
+    many = np.ones((nu, nv), bool)
+    points, put_back = _fold_free_points(R, X, centre, basis, 2, many, [])
+    assert points is not R and np.array_equal(points, want) and np.array_equal(R, R0)

@@ -706,12 +706,13 @@ def _check_bands(band: Any, wide_band: Any) -> None:
 
 def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = BAND,
                   spread_ok: float = SPREAD_OK, max_sweeps: int = MAX_SWEEPS, margin: int = 3,
-                  wide_band: float | None = WIDE_BAND) -> dict[str, Any]:
+                  wide_band: float | None = WIDE_BAND, touched: list | None = None) -> dict[str, Any]:
     """:func:`even_edges`' work on the plane's coordinates ``X`` (C-contiguous float64 ``(nu, nv, 2)``,
     finite; the boundary nodes kept), in place: for a caller that has them already
     (:func:`clothgrid.foldfree.relax_in_plane`'s result) and makes the 3D grid once. Where nothing
-    moved, or the evening was rejected (``rejected_spread``), ``X`` is as it came, bit for bit.
-    Returns :func:`even_edges`' info (``seconds`` this call's)."""
+    moved, or the evening was rejected (``rejected_spread``), ``X`` is as it came, bit for bit; any
+    other node than those of its stages (each a ``(K, 2)`` array appended to ``touched``, where
+    given) is as it came in any case. Returns :func:`even_edges`' info (``seconds`` this call's)."""
     from .foldfree import PARALLEL_NODES
     from .grid_kernels import mask_places
 
@@ -751,6 +752,8 @@ def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = 
     def stage(b: float, active: np.ndarray, count: int) -> None:
         nodes = mask_places(active)
         saved.append((nodes, X[nodes[:, 0], nodes[:, 1]]))       # a copy (fancy indexing)
+        if touched is not None:
+            touched.append(nodes)
         stages.append(_even_band(X, b, floor, max_sweeps, active, count, moved_at, mean_log))
 
     if wide:

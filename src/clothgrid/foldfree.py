@@ -743,8 +743,8 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
     """
     t0 = time.perf_counter()
     R = _grid_copy(points, "relax")
-    X, centre, basis, stats = relax_in_plane(R, dim=dim, poor_sine=poor_sine, margin=margin, whole=whole,
-                                             quick=quick, progress=progress)
+    X, centre, basis, stats, _ = relax_in_plane(R, dim=dim, poor_sine=poor_sine, margin=margin, whole=whole,
+                                                quick=quick, progress=progress)
     out = R if X is None else _with_interior(R, X, centre, basis, dim, copy=False)   # R: this call's own
     stats["seconds"] = time.perf_counter() - t0
     return out, stats
@@ -752,14 +752,16 @@ def relax(points: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, mar
 
 def relax_in_plane(R: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE, margin: int = MARGIN,
                    whole: bool = False, quick: bool = False, progress: Callable[[str], None] | None = None
-                   ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, dict[str, Any]]:
+                   ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, dict[str, Any], np.ndarray | None]:
     """:func:`relax`'s work, its result in the plane's coordinates: for a caller that goes on in
     them (:func:`clothgrid.evening.even_in_plane`) and makes the 3D grid once.
 
     ``R`` (C-contiguous float64 ``(nu, nv, 3)``, finite, ``nu, nv >= 3``) is not changed. Returns
     ``X``, the result's ``(nu, nv, 2)`` coordinates ``(p - centre) @ basis.T`` (a new array; None
     where no cell is poor and nothing moved), the frame ``centre, basis`` (:func:`plane_frame`),
-    and :func:`relax`'s info (``seconds`` this call's).
+    :func:`relax`'s info (``seconds`` this call's), and the ``(nu, nv)`` bool mask of the interior
+    nodes it may have moved (None with ``X``): every other node of ``X`` is ``to_plane``'s of ``R``,
+    bit for bit (not through the relax's shift and scale and back).
     """
     from .foldfree_kernels import corner_min
 
@@ -779,21 +781,27 @@ def relax_in_plane(R: np.ndarray, *, dim: int = 3, poor_sine: float = POOR_SINE,
     if not poor.any():
         jmin, bad = corner_min(Xs, True)
         stats.update(untangled=bad == 0, min_corner_jacobian=float(jmin), seconds=time.perf_counter() - t0)
-        return None, centre, basis, stats
+        return None, centre, basis, stats, None
     nodes, figures = _relax_scaled(Xs, poor, stats, say, margin, whole, quick)
     jmin, bad = corner_min(Xs, True) if figures is None else figures
     stats.update(moved=int(len(nodes)), untangled=bad == 0, min_corner_jacobian=float(jmin))
-    # the shift and scale undone (NumPy's multiply and add, as _with_interior's), and the boundary
-    # (kept) as to_plane gives it, not through the scale and back
+    # the nodes moved (the last set: an earlier, narrower one was put back or is inside it)
+    moved = np.zeros((nu, nv), bool)
+    if len(nodes) == (nu - 2) * (nv - 2):
+        moved[1:-1, 1:-1] = True
+    else:
+        moved[nodes[:, 0], nodes[:, 1]] = True
+    # their shift and scale undone (NumPy's multiply and add, as _with_interior's); every other node
+    # as to_plane gives it, not through the scale and back
     axes = _axis_map(centre, basis)
     if axes is not None and R.dtype == np.float64:
         from .foldfree_kernels import unscale_in_plane
 
-        unscale_in_plane(Xs, R, axes, shift, scale)       # the same, in one pass
+        unscale_in_plane(Xs, R, moved, axes, shift, scale)       # the same, in one pass
     else:
         Xs *= scale
         Xs += shift
-        for side in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
-            Xs[side] = to_plane(R[side], centre, basis)
+        kept = ~moved
+        Xs[kept] = to_plane(R, centre, basis)[kept]
     stats["seconds"] = time.perf_counter() - t0
-    return Xs, centre, basis, stats
+    return Xs, centre, basis, stats, moved

@@ -688,18 +688,19 @@ _axes_to_plane_serial = serial_twin(_axes_to_plane)
 
 
 @njit(cache=True, parallel=True)
-def _unscale_in_plane(X, R, k0, s0, k1, s1, shift0, shift1, scale):
-    """``X``'s interior ``X * scale + shift`` in place (NumPy's multiply, then add), its boundary
-    ``R``'s as :func:`_axes_to_plane` gives it (not through the scale and back), in one pass."""
+def _unscale_in_plane(X, R, moved, k0, s0, k1, s1, shift0, shift1, scale):
+    """The nodes of ``X`` that moved (``moved``, interior) ``X * scale + shift`` in place (NumPy's
+    multiply, then add), every other node ``R``'s as :func:`_axes_to_plane` gives it (not through
+    the scale and back: bit for bit), in one pass."""
     nu, nv = X.shape[0], X.shape[1]
     for i in prange(nu):
         for j in range(nv):
-            if i == 0 or i == nu - 1 or j == 0 or j == nv - 1:
-                X[i, j, 0] = R[i, j, k0] * s0
-                X[i, j, 1] = R[i, j, k1] * s1
-            else:
+            if moved[i, j] and 0 < i < nu - 1 and 0 < j < nv - 1:
                 X[i, j, 0] = X[i, j, 0] * scale + shift0
                 X[i, j, 1] = X[i, j, 1] * scale + shift1
+            else:
+                X[i, j, 0] = R[i, j, k0] * s0
+                X[i, j, 1] = R[i, j, k1] * s1
 
 
 _unscale_in_plane_serial = serial_twin(_unscale_in_plane)
@@ -723,12 +724,13 @@ def axes_to_plane(R: np.ndarray, axes: list[tuple[int, float]], shift, scale: fl
     kernel(R, *_axes_args(axes, shift, scale), X)
 
 
-def unscale_in_plane(X: np.ndarray, R: np.ndarray, axes: list[tuple[int, float]], shift, scale: float) -> None:
-    """:func:`_unscale_in_plane` (``axes``: :func:`clothgrid.foldfree._axis_map`'s), rows in parallel
-    on a large grid (:data:`PARALLEL_CELLS`)."""
+def unscale_in_plane(X: np.ndarray, R: np.ndarray, moved: np.ndarray, axes: list[tuple[int, float]], shift,
+                     scale: float) -> None:
+    """:func:`_unscale_in_plane` (``moved``: ``(nu, nv)`` bool; ``axes``:
+    :func:`clothgrid.foldfree._axis_map`'s), rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
     (k0, s0), (k1, s1) = axes
     kernel = _unscale_in_plane if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _unscale_in_plane_serial
-    kernel(X, R, k0, s0, k1, s1, float(shift[0]), float(shift[1]), float(scale))
+    kernel(X, R, moved, k0, s0, k1, s1, float(shift[0]), float(shift[1]), float(scale))
 
 
 def grid_from_plane(R: np.ndarray, X: np.ndarray, axes: list[tuple[int, float]]) -> np.ndarray:

@@ -291,6 +291,42 @@ def check_size(nodes, *, solver: str = "auto", backend: str = "auto", weights="p
     return name, need
 
 
+def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.ndarray, dim: int,
+                      moved: np.ndarray | None, touched: list[np.ndarray]):
+    """The fold-free grid's nodes from its plane coordinates ``X``, and a function that puts the
+    length grid ``R`` back as it was. Only the nodes the relax (``moved``) or the evening
+    (``touched``) may have moved differ from ``R``'s: where they are at most a quarter of the grid,
+    and the piece lies in the xy-plane, they are written into ``R`` itself (their old values kept
+    to put back), not into a new grid-size array whose pages cost more than the rest of the write
+    (5 ms at 1024^2); else a new array (:func:`~clothgrid.foldfree._with_interior`)."""
+    from .foldfree import _axis_map, _with_interior
+    from .grid_kernels import mask_places
+
+    nu, nv = R.shape[:2]
+    axes = _axis_map(centre, basis) if dim == 2 else None
+    if moved is None and not touched:
+        return R.copy(), lambda: None
+    if moved is None:
+        nodes = np.unique(np.concatenate(touched), axis=0)
+    else:
+        mask = moved.copy()
+        for t in touched:
+            mask[t[:, 0], t[:, 1]] = True
+        nodes = mask_places(mask)
+    if axes is None or len(nodes) > nu * nv // 4:
+        return _with_interior(R, X, centre, basis, dim), lambda: None
+    i, j = nodes[:, 0], nodes[:, 1]
+    old = R[i, j]                                # a copy (fancy indexing)
+    for r, (k, sign) in enumerate(axes):         # _with_interior's values: X's coordinates, swapped and negated
+        R[i, j, k] = X[i, j, r] * sign
+    R[i, j, 3 - axes[0][0] - axes[1][0]] = 0.0
+
+    def put_back() -> None:
+        R[i, j] = old
+
+    return R, put_back
+
+
 def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool) -> Grid:
     """Record the length grid's folds; for ``foldfree`` / poor ``auto`` relax it; then even its edges."""
     from .quality import quality
@@ -298,13 +334,16 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
     q = quality(grid)
     grid.info.update(functional="length", folded_before=q.folded, folded=q.folded)
     from .evening import even_in_plane
-    from .foldfree import _with_interior, check_grid_shape, relax_in_plane, to_plane
+    from .foldfree import check_grid_shape, relax_in_plane, to_plane
 
-    R = grid.points        # finite (generate checked), C-contiguous float64 (Grid's), not changed here
+    # finite (generate checked), C-contiguous float64 (Grid's); the fold-free grid's nodes may be
+    # written into it (_fold_free_points), put back where the length grid is handed back
+    R = grid.points
     try:
         check_grid_shape(R, "relax")
         # relax and the evening both in the plane's coordinates, the 3D grid made once at the end
-        X, centre, basis, ff = relax_in_plane(R, dim=grid.dim, whole=functional == "foldfree", progress=say)
+        X, centre, basis, ff, moved = relax_in_plane(R, dim=grid.dim, whole=functional == "foldfree",
+                                                     progress=say)
     except InputError as exc:
         if functional == "foldfree":
             raise
@@ -313,10 +352,10 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         grid._quality = q
         return grid
     relaxed = not (functional == "auto" and ff.get("moved", 0) == 0)
-    moved = X is not None
     if X is None:
         X = np.ascontiguousarray(to_plane(R, centre, basis))
-    ev = even_in_plane(X)
+    touched: list[np.ndarray] = []
+    ev = even_in_plane(X, touched=touched)
     kept = f"; kept, the sweeps reached {ev['rejected_spread']:.3g}" if "rejected_spread" in ev else ""
     say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
         f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
@@ -324,12 +363,14 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         grid.info.update(relax=ff, evened=ev)
         grid._quality = q                    # measured once (pipeline.run_job reads it)
         return grid
-    moved = moved or ev["moved"] > 0
-    points = _with_interior(R, X, centre, basis, grid.dim) if moved else R.copy()
+    if ev["moved"] == 0:
+        touched.clear()             # a rejected evening put its nodes back
+    points, put_back = _fold_free_points(R, X, centre, basis, grid.dim, moved, touched)
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
     q_after = quality(new)
     if q_after.folded > q.folded:
+        put_back()
         # a wild outline (far from any four-sided shape) where untangling made it worse: never
         # hand back more folds than the length solve had
         grid.info.update(foldfree=ff, foldfree_rejected=f"it left {q_after.folded} folded cells, "
