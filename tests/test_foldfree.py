@@ -831,3 +831,8 @@ def test_fold_free_points_write_only_the_moved_nodes_and_put_them_back(rng):
     many = np.ones((nu, nv), bool)
     points, put_back = _fold_free_points(R, X, centre, basis, 2, many, [])
     assert points is not R and np.array_equal(points, want) and np.array_equal(R, R0)
+    X[21, 20] = np.nan        # a moved node gone non-finite: one clear error, the length grid as it was
+    for mask in (moved, many):
+        with pytest.raises(InputError, match=r"the fold-free step gave a grid with non-finite .* node \(21, 20\)"):
+            _fold_free_points(R, X, centre, basis, 2, mask, touched)
+        assert np.array_equal(R, R0)

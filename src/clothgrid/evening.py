@@ -692,6 +692,24 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     return _with_interior(R, X, centre, basis, dim, copy=False), info   # R: this call's own copy
 
 
+@njit(cache=True, parallel=True)
+def _scale_rows(X, factor):
+    for i in prange(X.shape[0]):
+        for j in range(X.shape[1]):
+            X[i, j, 0] *= factor
+            X[i, j, 1] *= factor
+
+
+_scale_rows_serial = serial_twin(_scale_rows)
+
+
+def _scale_by(X: np.ndarray, factor: float) -> None:
+    """``X *= factor`` in place, rows in parallel on a large grid (NumPy's products, bit for bit)."""
+    from .foldfree_kernels import PARALLEL_CELLS
+
+    (_scale_rows if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _scale_rows_serial)(X, float(factor))
+
+
 def _check_bands(band: Any, wide_band: Any) -> None:
     """InputError unless ``band`` (and ``wide_band``, where not None) is a finite number above 1."""
     from .errors import InputError
@@ -735,7 +753,7 @@ def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = 
     log_mean = log_sum / (2 * edges)              # the geometric mean edge length's logarithm
     power = round(log_mean / math.log(2.0))
     scale, mean_log = math.ldexp(1.0, power), log_mean - power * math.log(2.0)
-    X /= scale
+    _scale_by(X, 1.0 / scale)       # (exact: a power of two)
     # only a smallest angle below FLOOR_MAX_DEG counts: a cap a little above its sine spares the
     # square roots of the cells above it, and a sine at the cap is an angle above FLOOR_MAX_DEG
     cap = math.sin(math.radians(FLOOR_MAX_DEG)) * (1.0 + 1e-12)
@@ -769,7 +787,7 @@ def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = 
         info["active"] = max(info["active"], done["active"])
         info["sweeps"] += done["sweeps"]
         info["moved"] += done["moved"]
-    X *= scale
+    _scale_by(X, scale)
     if info["moved"] == 0:                 # as it was, bit for bit
         info["seconds"] = time.perf_counter() - t0
         return info

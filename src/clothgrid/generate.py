@@ -221,9 +221,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     if functional == "length":
         grid.info["functional"] = "length"
         return grid
-    grid = _apply_functional(grid, functional, say, t0, flip)
-    _check_finite(grid.points, "the fold-free step")
-    return grid
+    return _apply_functional(grid, functional, say, t0, flip)     # its grid's nodes checked finite there
 
 
 def _check_finite(points: np.ndarray, who: str) -> None:
@@ -233,9 +231,14 @@ def _check_finite(points: np.ndarray, who: str) -> None:
     ok = np.isfinite(points)
     if not ok.all():
         i, j = (int(x) for x in np.argwhere(~ok.all(axis=-1))[0][:2])
-        raise InputError(f"{who} gave a grid with non-finite coordinates (NaN or inf; first at node "
-                         f"({i}, {j})): the boundary's coordinates or the weights are too extreme "
-                         "for float64; nothing written")
+        raise _not_finite(who, i, j)
+
+
+def _not_finite(who: str, i: int, j: int) -> InputError:
+    """The error for a grid whose node ``(i, j)`` (the first such) has a non-finite coordinate."""
+    return InputError(f"{who} gave a grid with non-finite coordinates (NaN or inf; first at node "
+                      f"({i}, {j})): the boundary's coordinates or the weights are too extreme "
+                      "for float64; nothing written")
 
 
 def _plan(be, nu: int, nv: int, solver: str, weights, stop: str, dim: int, *, kept: int = 0,
@@ -314,7 +317,9 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
             mask[t[:, 0], t[:, 1]] = True
         nodes = mask_places(mask)
     if axes is None or len(nodes) > nu * nv // 4:
-        return _with_interior(R, X, centre, basis, dim), lambda: None
+        points = _with_interior(R, X, centre, basis, dim)
+        _check_finite(points, "the fold-free step")
+        return points, lambda: None
     i, j = nodes[:, 0], nodes[:, 1]
     old = R[i, j]                                # a copy (fancy indexing)
     for r, (k, sign) in enumerate(axes):         # _with_interior's values: X's coordinates, swapped and negated
@@ -324,6 +329,11 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
     def put_back() -> None:
         R[i, j] = old
 
+    finite = np.isfinite(R[i, j]).all(axis=-1)   # the rest is the length grid's, checked already
+    if not finite.all():
+        put_back()
+        q = int(np.argmin(finite))
+        raise _not_finite("the fold-free step", int(i[q]), int(j[q]))
     return R, put_back
 
 
