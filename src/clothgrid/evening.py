@@ -52,11 +52,11 @@ FLOOR_DEG = 25.0
 FLOOR_MAX_DEG = 40.0
 #: A grid whose edge spread is at most this is left as it is.
 SPREAD_OK = 3.0
-#: The evened grid is kept where its spread is at most the input's times ``1 +`` this: a piece
-#: outside the xy-plane is evened in its plane's coordinates and back, so an edge no sweep moved (the
-#: longest, say) may come back a few units in the last place longer. (The scale of those
-#: coordinates is a power of two, which comes back exactly; a scale of the mean edge itself lost 33
-#: of 1200 fresh test pieces' evening to such an edge, 73.04184938339515 -> ...705.)
+#: The evened grid is kept where its spread is at most the input's times ``1 +`` this. Both spreads
+#: are measured in the plane's coordinates, and the evening's scale is a power of two, which comes
+#: back exactly: an edge no sweep moved keeps its length bit for bit, and this is a margin only. (A
+#: scale of the mean edge itself lost 33 of 1200 fresh test pieces' evening to such an edge coming
+#: back longer in its last bits, 73.04184938339515 -> ...705.)
 SPREAD_ROUNDING = 1e-9
 #: Edges within this factor of the geometric mean length are left alone (the last stage's band).
 BAND = 1.4

@@ -305,17 +305,14 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
     from .foldfree import _axis_map, _with_interior
     from .grid_kernels import mask_places
 
-    nu, nv = R.shape[:2]
-    axes = _axis_map(centre, basis) if dim == 2 else None
     if moved is None and not touched:
         return R.copy(), lambda: None
-    if moved is None:
-        nodes = np.unique(np.concatenate(touched), axis=0)
-    else:
-        mask = moved.copy()
-        for t in touched:
-            mask[t[:, 0], t[:, 1]] = True
-        nodes = mask_places(mask)
+    nu, nv = R.shape[:2]
+    mask = np.zeros((nu, nv), bool) if moved is None else moved.copy()
+    for t in touched:
+        mask[t[:, 0], t[:, 1]] = True
+    nodes = mask_places(mask)
+    axes = _axis_map(centre, basis) if dim == 2 else None
     if axes is None or len(nodes) > nu * nv // 4:
         points = _with_interior(R, X, centre, basis, dim)
         _check_finite(points, "the fold-free step")
