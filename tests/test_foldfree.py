@@ -258,6 +258,79 @@ def _two_parts(nodes):
     return order, np.searchsorted(part[order], np.arange(3)).astype(np.int64)
 
 
+def _quiet_reference(X, nodes, delta2, sweeps, tol, omega, quiet, colours=False):
+    """sweep_nodes' sweeps with its skip rule, written out in Python over the kernel's node step:
+    a node is stepped where it or one of its 8 neighbours moved more than ``quiet`` in this sweep or
+    the last (every node in the first sweep); ``colours``: the nodes colour by colour
+    (``2 (i mod 2) + (j mod 2)``), as sweep_nodes_coloured takes them. Returns what the kernels do."""
+    import clothgrid.foldfree_kernels as fk
+
+    w = fk.new_scratch(1)[0]
+    stamp = {}
+    if colours:
+        nodes = nodes[np.argsort(2 * (nodes[:, 0] & 1) + (nodes[:, 1] & 1), kind="stable")]
+    done, last, visits = 0, 0.0, 0
+    for s in range(1, sweeps + 1):
+        done += 1
+        last = 0.0
+        for i, j in nodes:
+            if quiet > 0 and max(stamp.get((a, b), 0) for a in (i - 1, i, i + 1) for b in (j - 1, j, j + 1)) < s - 1:
+                continue
+            visits += 1
+            mv = fk._relax_node(X, i, j, delta2, w, omega)
+            if quiet > 0 and mv > quiet:
+                stamp[i, j] = s
+            last = max(last, mv)
+        if last < tol:
+            break
+    return done, last, visits
+
+
+@pytest.mark.parametrize("quiet", [0.0, 1e-3, 3e-2])
+def test_relax_sweeps_pass_over_quiet_nodes_as_written(quiet):
+    """The sweeps' skip rule (``quiet``: a node is stepped only where it or a neighbour moved more
+    than ``quiet`` in this sweep or the last) against the rule written out in Python, on fresh
+    folded blocks: the ordered sweeps, their parts on the threads and the coloured sweeps give the
+    reference's grid bit for bit, its sweeps, last move and node steps; ``quiet = 0`` steps every
+    node every sweep, and a ``quiet`` above zero passes some over."""
+    import clothgrid.foldfree as ff
+    import clothgrid.foldfree_kernels as fk
+
+    rng = np.random.default_rng()
+    nu, nv = 60, 70
+    u, v = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
+    X = np.stack([u, v], -1)
+    mask = np.zeros((nu, nv), bool)
+    for a, b in ((2, 2), (2, 37), (32, 2), (32, 37)):
+        i, j = int(rng.integers(a, a + 14)), int(rng.integers(b, b + 19))
+        mask[i:i + 12, j:j + 12] = True
+        X[i + 3:i + 9, j + 3:j + 9] += rng.normal(scale=0.45, size=(6, 6, 2))
+    nodes = np.argwhere(mask).astype(np.int64)
+    delta2, tol = ff.DELTA_SMOOTH ** 2, 1e-3
+    R = X.copy()
+    want = _quiet_reference(R, nodes, delta2, 40, tol, ff.OVERRELAX, quiet)
+    A = X.copy()
+    got = fk.sweep_nodes(A, nodes, delta2, 40, tol, ff.OVERRELAX, quiet)
+    assert got == want and np.array_equal(A, R) and not np.array_equal(A, X)
+    if quiet == 0.0:
+        assert got[2] == got[0] * len(nodes)
+    else:
+        assert got[2] < got[0] * len(nodes)
+    order, starts = _two_parts(nodes)
+    B = X.copy()
+    assert fk.sweep_nodes_parts(B, np.ascontiguousarray(nodes[order]), starts, delta2, 40, tol, ff.OVERRELAX,
+                                quiet) == want and np.array_equal(B, R)
+    # the coloured sweeps (the plain step) against the reference taken colour by colour
+    R = X.copy()
+    want = _quiet_reference(R, nodes, delta2, 40, tol, 1.0, quiet, colours=True)
+    colour = 2 * (nodes[:, 0] & 1) + (nodes[:, 1] & 1)
+    order = np.argsort(colour, kind="stable")
+    starts = np.searchsorted(colour[order], np.arange(5)).astype(np.int64)
+    C = X.copy()
+    got = fk.sweep_nodes_coloured(C, np.ascontiguousarray(nodes[order]), starts, delta2, 40, tol, 1.0, quiet)
+    assert got == want and np.array_equal(C, R)
+
+
 def test_node_components_join_the_eight_neighbours():
     """node_components against SciPy's labelling with the 3 x 3 structure, on fresh random node sets
     (the same partition; labels numbered by first node)."""

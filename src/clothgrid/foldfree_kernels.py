@@ -266,34 +266,74 @@ def _relax_node(X, i, j, delta2, w, omega):
     return 0.0
 
 
+@njit(cache=True)
+def quiet_stamps(nodes, quiet):
+    """The record of :func:`sweep_nodes`' skip rule (``quiet > 0``): ``(stamps, i0, j0)``, an int32
+    array over the box of ``nodes`` and the nodes round it (node ``(i, j)`` at ``(i - i0, j - j0)``),
+    zero; where ``quiet <= 0`` (no node is skipped) a ``(1, 1)`` array, unused."""
+    if quiet <= 0.0 or nodes.shape[0] == 0:
+        return np.zeros((1, 1), np.int32), 0, 0
+    i0, j0, i1, j1 = nodes[0, 0], nodes[0, 1], nodes[0, 0], nodes[0, 1]
+    for q in range(nodes.shape[0]):
+        i0, i1 = min(i0, nodes[q, 0]), max(i1, nodes[q, 0])
+        j0, j1 = min(j0, nodes[q, 1]), max(j1, nodes[q, 1])
+    return np.zeros((i1 - i0 + 3, j1 - j0 + 3), np.int32), i0 - 1, j0 - 1
+
+
 @njit(cache=True, inline="always")
-def _relax_span(X, nodes, q0, q1, delta2, w, omega):
-    """Node steps of ``nodes[q0:q1]`` in order (:func:`_relax_node`); the largest move."""
+def _stirred(stamps, a, b, since):
+    """Whether the node at ``(a, b)`` of ``stamps`` or one of its 8 neighbours last moved more than
+    the quiet move at sweep ``since`` or later."""
+    for x in range(a - 1, a + 2):
+        for y in range(b - 1, b + 2):
+            if stamps[x, y] >= since:
+                return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _relax_span(X, nodes, q0, q1, delta2, w, omega, stamps, i0, j0, sweep, quiet):
+    """Node steps of ``nodes[q0:q1]`` in order (:func:`_relax_node`) in sweep ``sweep`` (from 1);
+    the largest move and the nodes stepped. With ``quiet > 0`` a node is passed over where neither
+    it nor a neighbour moved more than ``quiet`` in this sweep or the last (``stamps``,
+    :func:`quiet_stamps`)."""
     big = 0.0
+    visits = 0
     for q in range(q0, q1):
-        mv = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w, omega)
+        i, j = nodes[q, 0], nodes[q, 1]
+        if quiet > 0.0 and not _stirred(stamps, i - i0, j - j0, sweep - 1):
+            continue
+        visits += 1
+        mv = _relax_node(X, i, j, delta2, w, omega)
+        if quiet > 0.0 and mv > quiet:
+            stamps[i - i0, j - j0] = sweep
         if mv > big:
             big = mv
-    return big
+    return big, visits
 
 
 @njit(cache=True, error_model="numpy")
-def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0):
+def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0, quiet=0.0):
     """Gauss-Seidel sweeps of node-wise Newton steps over ``nodes`` ((K, 2) int64).
 
-    Returns ``(sweeps done, largest move of the last sweep)``; moves are
+    Returns ``(sweeps done, largest move of the last sweep, node steps taken)``; moves are
     measured in the scaled coordinates (mean cell area 1). Stops early when
-    no node moves more than ``tol``.
+    no node moves more than ``tol``. With ``quiet > 0``, a node is passed over in a sweep where
+    neither it nor any of its 8 neighbours moved more than ``quiet`` in that sweep or the one
+    before (the first sweep visits every node).
     """
     w = new_scratch(1)[0]
+    stamps, i0, j0 = quiet_stamps(nodes, quiet)
     done = 0
     last = 0.0
-    for _ in range(sweeps):
+    visits = 0
+    for s in range(1, sweeps + 1):
         done += 1
-        last = _relax_span(X, nodes, 0, nodes.shape[0], delta2, w, omega)
+        last, n = _relax_span(X, nodes, 0, nodes.shape[0], delta2, w, omega, stamps, i0, j0, s, quiet)
+        visits += n
         if last < tol:
             break
-    return done, last
+    return done, last, visits
 
 
 #: Blocks a colour of :func:`sweep_nodes_coloured` is dealt in, per thread.
@@ -301,7 +341,7 @@ CHUNKS = 8
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
+def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0, quiet=0.0):
     """:func:`sweep_nodes` in four colours, the nodes of each colour in parallel.
 
     ``nodes`` are sorted by colour ``2 (i mod 2) + (j mod 2)`` and colour ``c`` is
@@ -310,24 +350,35 @@ def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
     """
     done = 0
     last = 0.0
+    visits = 0
     moves = np.zeros(nodes.shape[0])
     # a colour in CHUNKS blocks, each with its own scratch row, taken once a block (a row taken a
     # node costs Numba an atomic reference count up and down)
     chunks = CHUNKS * numba.config.NUMBA_NUM_THREADS
     scratch = new_scratch(chunks)
-    for _ in range(sweeps):
+    stamps, i0, j0 = quiet_stamps(nodes, quiet)
+    counts = np.zeros(chunks, np.int64)
+    for s in range(1, sweeps + 1):
         done += 1
         for c in range(4):
-            s, n = starts[c], starts[c + 1] - starts[c]
+            a, n = starts[c], starts[c + 1] - starts[c]
             for b in prange(chunks):
                 w = scratch[b]
-                for q in range(s + n * b // chunks, s + n * (b + 1) // chunks):
-                    moves[q] = _relax_node(X, nodes[q, 0], nodes[q, 1], delta2, w, omega)
+                for q in range(a + n * b // chunks, a + n * (b + 1) // chunks):
+                    i, j = nodes[q, 0], nodes[q, 1]
+                    if quiet > 0.0 and not _stirred(stamps, i - i0, j - j0, s - 1):
+                        moves[q] = 0.0
+                        continue
+                    counts[b] += 1
+                    moves[q] = _relax_node(X, i, j, delta2, w, omega)
+                    if quiet > 0.0 and moves[q] > quiet:
+                        stamps[i - i0, j - j0] = s
         big = moves.max() if nodes.shape[0] else 0.0
         last = big
         if big < tol:
             break
-    return done, last
+    visits = counts.sum()
+    return done, last, visits
 
 
 @njit(cache=True, inline="always")
@@ -896,22 +947,27 @@ def node_components(nodes):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def sweep_nodes_parts(X, nodes, starts, delta2, sweeps, tol, omega=1.0):
+def sweep_nodes_parts(X, nodes, starts, delta2, sweeps, tol, omega=1.0, quiet=0.0):
     """:func:`sweep_nodes` with ``nodes`` in parts (part ``p`` is ``nodes[starts[p]:starts[p + 1]]``,
     whole components of :func:`node_components`, each in the order of :func:`sweep_nodes`' list),
     the parts of a sweep in parallel: no node of one part is a neighbour of a node of another, so
     every node's step reads what it read in order, and the grid is the same, bit for bit. The
-    sweeps stop together, on the largest move of all parts, as :func:`sweep_nodes` does."""
+    sweeps stop together, on the largest move of all parts, as :func:`sweep_nodes` does; the nodes
+    passed over (``quiet``) are its own too (a node's neighbours are in its part)."""
     parts = starts.shape[0] - 1
     scratch = new_scratch(parts)
+    stamps, i0, j0 = quiet_stamps(nodes, quiet)
     bigs = np.zeros(parts)
+    counts = np.zeros(parts, np.int64)
     done = 0
     last = 0.0
-    for _ in range(sweeps):
+    for s in range(1, sweeps + 1):
         done += 1
         for p in prange(parts):
-            bigs[p] = _relax_span(X, nodes, starts[p], starts[p + 1], delta2, scratch[p], omega)
+            bigs[p], n = _relax_span(X, nodes, starts[p], starts[p + 1], delta2, scratch[p], omega, stamps, i0, j0,
+                                     s, quiet)
+            counts[p] += n
         last = bigs.max()
         if last < tol:
             break
-    return done, last
+    return done, last, counts.sum()
