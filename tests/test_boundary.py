@@ -398,8 +398,10 @@ def test_load_test_regions(path):
     ("[1, 2]", InputError, ["must be an object", "list"]),
     ({"points": []}, InputError, ["expected the keys", "'bottom'", "'outline'", "'points'"]),
     ({"bottom": [[0, 0], [1, 0]], "top": [[0, 1], [1, 1]]}, InputError, ["missing side(s) right, left"]),
-    ({"outline": [[0, 0], [1, 0], [1, 1], [0, 1]]}, InputError, ["no 'corners'", "must be given",
-                                                                 "not implemented"]),
+    ({"outline": [[0, 0, 0], [1, 0, 0], [1, 1, 1], [0, 1, 0]]}, BoundaryError, ["z varies", "'corners'"]),
+    ({"outline": [[0, 0], [1, 0], [2, 0]]}, BoundaryError, ["encloses no area"]),
+    ({"outline": "abc"}, InputError, ["'outline' must be a list", "str"]),
+    ({"outline": [[0, 0], [1, "x"], [1, 1]]}, BoundaryError, ["must be a list of 2D or 3D points"]),
     ({"outline": "abc", "corners": [0, 1, 2, 3]}, InputError, ["'outline' must be a list", "str"]),
     ({"outline": [[0, 0], [1, 0], [1, 1], [0, 1]], "corners": 4}, InputError, ["'corners' must be a list"]),
     ({"outline": [[0, 0], [1, 0], [1, 1], [0, 1]], "corners": [0, 1, 2, 3], "name": 5},
@@ -464,3 +466,63 @@ def test_resample_keeps_sharp_vertices_and_spreads_the_rest_by_length():
     assert np.array_equal(q[0, :2], p[0]) and np.array_equal(q[-1, :2], p[-1])
     smooth = np.c_[np.linspace(0, 1, 50), np.sin(np.linspace(0, 1, 50))]
     assert len(sharp_vertices(smooth)) == 0       # a sampled smooth curve keeps nothing
+
+
+SLITS = ("roache-airfoil", "roache-nairfoil", "roache-valley")     # outlines that touch themselves
+
+
+def _outline_only(path: Path) -> list:
+    return json.loads(path.read_text())["outline"]
+
+
+@pytest.mark.parametrize("path", [p for p in REGION_FILES if p.stem not in SLITS], ids=lambda p: p.stem)
+def test_an_outline_without_corners_gets_them_chosen(tmp_path, path):
+    """A region file without 'corners' is read with corners chosen as a pattern piece's are: a
+    valid four-sided boundary holding every point of the outline bit for bit, whose fold-free grid
+    has no folded cell; unit squares get their own four corners."""
+    from clothgrid import generate
+
+    outline = _outline_only(path)
+    b = load_boundary(write(tmp_path, "r.json", {"name": path.stem, "outline": outline}))
+    assert b.name == path.stem and b.orientation == 1.0
+    loop = b.outline()[:, :2]
+    pts = np.asarray(outline, float)
+    assert all((loop == q).all(axis=1).any() for q in pts)       # every point of the outline, exactly
+    if path.stem.startswith("few_sides-cuad"):
+        assert b.side_lengths == pytest.approx((1, 1, 1, 1))
+    g = generate(b, 24, functional="auto")
+    assert g.info["folded"] == 0
+
+
+def test_chosen_corners_do_not_depend_on_units_or_direction(tmp_path):
+    """The corners chosen for an outline are the same points whatever its scale (metres or
+    micrometres, a power of ten: not exact in binary) and whichever way it runs, and a constant z
+    is kept."""
+    from clothgrid.patterns import outline_boundary
+
+    rng = np.random.default_rng()
+    pts = np.asarray(_outline_only(REGIONS / "roache-tie.json"), float) + rng.normal(scale=1e-4, size=(76, 2))
+    ref, choice = outline_boundary(pts)
+    corners = np.array([ref.bottom[0], ref.bottom[-1], ref.top[-1], ref.top[0]])
+    for scale in (1e-6, 1e3):
+        b, _ = outline_boundary(pts * scale)
+        got = np.array([b.bottom[0], b.bottom[-1], b.top[-1], b.top[0]])
+        np.testing.assert_allclose(got, corners * scale, rtol=1e-12)
+    b, _ = outline_boundary(pts[::-1])                  # clockwise: taken in reverse
+    assert b.orientation == 1.0
+    np.testing.assert_array_equal(np.array([b.bottom[0], b.bottom[-1], b.top[-1], b.top[0]]), corners)
+    b, _ = outline_boundary(np.column_stack([pts, np.full(len(pts), 2.5)]))
+    assert np.all(b.outline()[:, 2] == 2.5) and b.dim == 3
+    np.testing.assert_array_equal(b.outline()[:, :2], ref.outline()[:, :2])
+
+
+def test_the_command_grids_an_outline_without_corners(tmp_path, capsys):
+    from clothgrid.cli import main
+
+    src = write(tmp_path, "circle.json", {"outline": [[np.cos(t), np.sin(t)] for t in np.linspace(0, 2 * np.pi, 41)[:-1]]})
+    out = tmp_path / "g.npz"
+    assert main(["generate", str(src), "-o", str(out), "-q"]) == 0
+    grid = np.load(out)["points"]
+    assert grid.shape == (11, 11, 3)
+    r = np.hypot(grid[..., 0], grid[..., 1])
+    assert np.allclose(np.r_[r[0], r[-1], r[:, 0], r[:, -1]], 1.0)     # the sides on the circle

@@ -86,6 +86,21 @@ def _as_points(data: Any, what: str) -> np.ndarray:
     return pts
 
 
+def outline_points(points: Any) -> np.ndarray:
+    """The points of a closed outline as an ``(N, 2)`` or ``(N, 3)`` finite float64 array, a last
+    point equal to the first (within :data:`CORNER_TOL` of the outline's size) dropped.
+
+    Raises
+    ------
+    BoundaryError
+        Not a list of 2D or 3D points of finite numbers, or too many of them.
+    """
+    pts = _as_points(points, "the outline")
+    if len(pts) >= 2 and np.linalg.norm(pts[-1] - pts[0]) <= max(CORNER_TOL * _bbox_diagonal(pts), _TINY):
+        pts = pts[:-1]
+    return pts
+
+
 def _flat(data: Any, limit: int = 10_000):
     """The scalars of nested lists (at most ``limit`` of them), for messages."""
     stack = [data]
@@ -519,10 +534,7 @@ class Boundary:
             Invalid points, corners that are not 4 distinct in-range integer
             indices in cyclic order, or any error of :meth:`from_sides`.
         """
-        pts = _as_points(points, "the outline")
-        if len(pts) >= 2 and np.linalg.norm(pts[-1] - pts[0]) <= max(
-                CORNER_TOL * _bbox_diagonal(pts), _TINY):
-            pts = pts[:-1]
+        pts = outline_points(points)
         n = len(pts)
         if n < 4:
             raise BoundaryError(f"the outline needs at least 4 points (one per corner), got {n}")

@@ -44,7 +44,8 @@ Reader = Callable[..., "Boundary | list[Piece]"]
 
 
 def read_json(path: str | Path) -> Boundary:
-    """Read a boundary from a JSON file (sides, or outline and corners)."""
+    """Read a boundary from a JSON file: four sides, or a closed outline and its four corners
+    (without ``corners``, chosen automatically: :func:`clothgrid.patterns.outline_boundary`)."""
     path = Path(path)
     data = read_json_file(path)
     if not isinstance(data, dict):
@@ -60,10 +61,12 @@ def read_json(path: str | Path) -> Boundary:
                 raise InputError(f"{path}: give either 'outline' and 'corners' or the four sides "
                                  f"bottom/right/top/left, not both (found 'outline' and "
                                  f"{', '.join(repr(s) for s in has_sides)})")
-            if data.get("corners") is None:
-                raise InputError(f"{path}: the region has an 'outline' but no 'corners': the four "
-                                 "corner indices (bottom-left, bottom-right, top-right, top-left) "
-                                 "must be given; automatic corner choice is not implemented yet")
+            if data.get("corners") is None:       # chosen as a pattern piece's are
+                if not isinstance(data["outline"], list):
+                    raise InputError(f"{path}: 'outline' must be a list, not {type(data['outline']).__name__}")
+                from .patterns import outline_boundary
+
+                return outline_boundary(data["outline"], name=name)[0]
             for key in ("outline", "corners"):
                 if not isinstance(data[key], list):
                     raise InputError(f"{path}: '{key}' must be a list, not "

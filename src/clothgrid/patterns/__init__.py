@@ -25,8 +25,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..boundary import Boundary
+from ..boundary import Boundary, outline_points
 from ..errors import BoundaryError, InputError
+from ..geometry import signed_area
 from .corners import (MIN_TURN_DEG, CornerCandidate, CornerChoice, choose_corners,
                       corner_candidates, turn_angles)
 from .piece import Piece
@@ -35,7 +36,7 @@ from ..units import UNITS, parse_length
 
 __all__ = [
     "Piece", "CornerCandidate", "CornerChoice", "choose_corners", "corner_candidates", "turn_angles",
-    "piece_boundary", "piece_info", "nodes_for_edge_length", "grid_line_lengths",
+    "piece_boundary", "outline_boundary", "piece_info", "nodes_for_edge_length", "grid_line_lengths",
     "parse_length", "UNITS", "DEFAULT_EDGE_LENGTH_MM", "DEFAULT_REL_TOL", "MIN_TURN_DEG",
 ]
 
@@ -67,6 +68,64 @@ def piece_boundary(piece: Piece, corners: Sequence[int] | None = None, near: Any
         return Boundary.from_outline(choice.outline, list(choice.corners), name=piece.name)
     except BoundaryError as exc:
         raise BoundaryError(f"piece {piece.name!r}: {exc}") from None
+
+
+def outline_boundary(points: Any, *, name: str | None = None) -> tuple[Boundary, CornerChoice]:
+    """The four-sided :class:`~clothgrid.Boundary` of a plain closed outline (a region given
+    without corners), its corners chosen as a pattern piece's are (:func:`choose_corners`).
+
+    The outline's own points are the candidates (every point where it turns by at least
+    :data:`MIN_TURN_DEG`); a smooth one (a circle) is cut into four sides of equal length. The
+    choice does not depend on the outline's units: it is made on the outline scaled by a power of
+    two to about a metre across (exact, so the outline's points come back bit for bit), as if in
+    millimetres.
+
+    Parameters
+    ----------
+    points : array_like
+        ``(N, 2)`` points, or ``(N, 3)`` with one ``z`` for all, of the closed outline, the first
+        not repeated (a last point equal to the first is dropped). A clockwise outline is taken
+        in reverse, so the boundary turns counter-clockwise.
+    name : str, optional
+        The region's name (for messages and output files).
+
+    Returns
+    -------
+    boundary : Boundary
+    choice : CornerChoice
+        The corners chosen (indices into ``choice.outline``, the outline counter-clockwise, in
+        the scaled units, with any point the choice inserted) and how.
+
+    Raises
+    ------
+    BoundaryError
+        Invalid points, a ``z`` that varies, an outline that encloses no area, crosses itself, or
+        whose chosen sides are not a valid boundary.
+    """
+    pts = outline_points(points)
+    if pts.shape[1] == 3 and np.any(pts[:, 2] != pts[0, 2]):
+        raise BoundaryError("automatic corners need an outline in a plane z = constant; this one's z "
+                            "varies: give its four corners ('corners')")
+    xy = pts[:, :2]
+    if len(xy) < 3:
+        raise BoundaryError(f"the outline needs at least 3 points, got {len(xy)}")
+    area = signed_area(xy)
+    if not abs(area) > 0:
+        raise BoundaryError("the outline encloses no area")
+    if area < 0:
+        pts, xy = pts[::-1], xy[::-1]
+    size = float(np.linalg.norm(np.ptp(xy, axis=0)))
+    scale = 2.0 ** round(math.log2(1000.0 / size))
+    piece = Piece(name or "outline", np.ascontiguousarray(xy * scale), np.arange(len(xy)), np.zeros(0, np.int64),
+                  source="outline")
+    try:
+        choice = choose_corners(piece)
+    except InputError as exc:
+        raise BoundaryError(f"could not choose four corners: {exc}") from None
+    out = choice.outline / scale
+    if pts.shape[1] == 3:
+        out = np.column_stack([out, np.full(len(out), pts[0, 2])])
+    return Boundary.from_outline(out, list(choice.corners), name=name), choice
 
 
 def grid_line_lengths(boundary: Boundary, samples: int = 33) -> tuple[float, float]:
