@@ -538,7 +538,9 @@ def test_dilate_marks_the_nodes_near_marked_cells_or_nodes():
     ring left out; fresh random masks (sparse and dense) and margins, by running counts and by
     boxes, each in parallel rows and serially."""
     from clothgrid.foldfree import _active_nodes
-    from clothgrid.foldfree_kernels import _dilate, _dilate_boxes, _dilate_boxes_serial, _dilate_serial, dilate
+    from clothgrid.foldfree_kernels import _dilate, _dilate_boxes, _dilate_boxes_sized, _dilate_sized, dilate
+
+    _dilate_serial, _dilate_boxes_serial = _dilate_sized.serial, _dilate_boxes_sized.serial
 
     kernels = (_dilate, _dilate_boxes, _dilate_serial, _dilate_boxes_serial)
 

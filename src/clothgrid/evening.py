@@ -40,8 +40,8 @@ import numpy as np
 from numba import njit, prange
 
 from .blas_threads import one_blas_thread
-from .foldfree_kernels import squared_bound, surely_at_least
-from .jit_variants import serial_twin
+from .foldfree_kernels import PARALLEL_CELLS, squared_bound, surely_at_least
+from .jit_variants import by_size
 
 __all__ = ["even_edges", "even_in_plane", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
 
@@ -152,14 +152,12 @@ def _energy(X, lo, hi):
     return total
 
 
-_energy_serial = serial_twin(_energy)
+_energy_sized = by_size(_energy, PARALLEL_CELLS)
 
 
 def _grid_energy(X: np.ndarray, lo: float, hi: float) -> float:
     """:func:`_energy`, rows in parallel on a large grid (:data:`~clothgrid.foldfree_kernels.PARALLEL_CELLS`)."""
-    from .foldfree_kernels import PARALLEL_CELLS
-
-    return (_energy if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _energy_serial)(X, lo, hi)
+    return _energy_sized(X.shape[0] * X.shape[1])(X, lo, hi)
 
 
 #: Relative margin of :func:`_inside_band`: far above the rounding of ``exp``, ``log`` and the
@@ -493,7 +491,7 @@ def _outside_nodes(X, lo, hi):
     return hot
 
 
-_outside_nodes_serial = serial_twin(_outside_nodes)
+_outside_nodes_sized = by_size(_outside_nodes, PARALLEL_CELLS)
 
 
 def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | None = None
@@ -501,10 +499,10 @@ def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | No
     """Interior nodes within ``margin`` grid lines of an edge outside the band; their count. With
     ``at_most``: where the interior nodes at such an edge (all of them near one) are already more,
     ``(None, their count)``, without the margin's nodes."""
-    from .foldfree_kernels import PARALLEL_CELLS, dilate, true_count
+    from .foldfree_kernels import dilate, true_count
 
     nu, nv = X.shape[:2]
-    hot = (_outside_nodes if nu * nv >= PARALLEL_CELLS else _outside_nodes_serial)(X, lo, hi)
+    hot = _outside_nodes_sized(nu * nv)(X, lo, hi)
     if at_most is not None:
         ring = int(hot[0].sum() + hot[-1].sum() + hot[1:-1, 0].sum() + hot[1:-1, -1].sum())
         inner = true_count(hot) - ring
@@ -700,14 +698,12 @@ def _scale_rows(X, factor):
             X[i, j, 1] *= factor
 
 
-_scale_rows_serial = serial_twin(_scale_rows)
+_scale_rows_sized = by_size(_scale_rows, PARALLEL_CELLS)
 
 
 def _scale_by(X: np.ndarray, factor: float) -> None:
     """``X *= factor`` in place, rows in parallel on a large grid (NumPy's products, bit for bit)."""
-    from .foldfree_kernels import PARALLEL_CELLS
-
-    (_scale_rows if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _scale_rows_serial)(X, float(factor))
+    _scale_rows_sized(X.shape[0] * X.shape[1])(X, float(factor))
 
 
 def _check_bands(band: Any, wide_band: Any) -> None:
@@ -852,11 +848,9 @@ def _edge_stats(X):
     return rows[:, 0].min(), rows[:, 1].max(), rows[:, 2].sum()
 
 
-_edge_stats_serial = serial_twin(_edge_stats)
+_edge_stats_sized = by_size(_edge_stats, PARALLEL_CELLS)
 
 
 def edge_stats(X: np.ndarray) -> tuple[float, float, float]:
     """:func:`_edge_stats`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
-    from .foldfree_kernels import PARALLEL_CELLS
-
-    return (_edge_stats if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _edge_stats_serial)(X)
+    return _edge_stats_sized(X.shape[0] * X.shape[1])(X)

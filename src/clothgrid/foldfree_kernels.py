@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .jit_variants import serial_twin
+from .jit_variants import by_size
 
 __all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min", "CornerCells",
            "cell_min_sine", "cells_below", "smallest_cell_sine", "axes_to_plane", "axes_from_plane", "dilate"]
@@ -454,7 +454,7 @@ def _corner_min(X, skip_grid_corners, apart, masked):
     return row_best.min(), row_bad.sum()
 
 
-_corner_min_serial = serial_twin(_corner_min)
+_corner_min_sized = by_size(_corner_min, PARALLEL_CELLS)
 
 
 @njit(cache=True, parallel=True)
@@ -475,7 +475,7 @@ def _listed_corner_min(X, skip_grid_corners, cells, blocks):
     return best.min(), bad.sum()
 
 
-_listed_corner_min_serial = serial_twin(_listed_corner_min)
+_listed_corner_min_sized = by_size(_listed_corner_min, PARALLEL_CELLS)
 
 
 @njit(cache=True)
@@ -506,7 +506,7 @@ class CornerCells:
             return
         touched = _cells_at(np.ascontiguousarray(nodes, dtype=np.int64), nu, nv)
         self.cells = mask_places(touched)
-        kernel = _corner_min if touched.size >= PARALLEL_CELLS else _corner_min_serial
+        kernel = _corner_min_sized(touched.size)
         self.apart = kernel(X, skip_grid_corners, touched, True)
         self.inside = (np.inf, 0)
         self.moved(X)
@@ -516,7 +516,7 @@ class CornerCells:
         n = len(self.cells)
         if n:
             blocks = 8 * numba.config.NUMBA_NUM_THREADS
-            kernel = _listed_corner_min if n >= PARALLEL_CELLS else _listed_corner_min_serial
+            kernel = _listed_corner_min_sized(n)
             self.inside = kernel(X, self.skip, self.cells, blocks if n >= PARALLEL_CELLS else 1)
         return self.figures()
 
@@ -535,7 +535,7 @@ def corner_min(X: np.ndarray, skip_grid_corners: bool) -> tuple[float, int]:
     if cells <= 0:
         return np.inf, 0
     none = np.zeros((0, 0), np.bool_)
-    return (_corner_min if cells >= PARALLEL_CELLS else _corner_min_serial)(X, skip_grid_corners, none, False)
+    return _corner_min_sized(cells)(X, skip_grid_corners, none, False)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -574,14 +574,14 @@ def _cell_min_sine(X, out):
             out[i, j] = _cell_sine(X, i, j)
 
 
-_cell_min_sine_serial = serial_twin(_cell_min_sine, error_model="numpy")
+_cell_min_sine_sized = by_size(_cell_min_sine, PARALLEL_CELLS, error_model="numpy")
 
 
 def cell_min_sine(X: np.ndarray) -> np.ndarray:
     """``(nu-1, nv-1)`` smallest signed corner sine ``a x b / (|a| |b|)`` of every cell (<= 0: folded);
     rows of cells in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
     out = np.empty((X.shape[0] - 1, X.shape[1] - 1))
-    (_cell_min_sine if out.size >= PARALLEL_CELLS else _cell_min_sine_serial)(X, out)
+    _cell_min_sine_sized(out.size)(X, out)
     return out
 
 
@@ -660,7 +660,7 @@ def _smallest_cell_sine(X, cap):
     return min(rows.min(), 1.0 if corners else np.inf, cap)
 
 
-_smallest_cell_sine_serial = serial_twin(_smallest_cell_sine, error_model="numpy")
+_smallest_cell_sine_sized = by_size(_smallest_cell_sine, PARALLEL_CELLS, error_model="numpy")
 
 
 def smallest_cell_sine(X: np.ndarray, cap: float = np.inf) -> float:
@@ -671,11 +671,11 @@ def smallest_cell_sine(X: np.ndarray, cap: float = np.inf) -> float:
     cells = (X.shape[0] - 1) * (X.shape[1] - 1)
     if cells <= 0:
         raise ValueError("a grid of no cells has no smallest sine")
-    kernel = _smallest_cell_sine if cells >= PARALLEL_CELLS else _smallest_cell_sine_serial
+    kernel = _smallest_cell_sine_sized(cells)
     return float(kernel(X, float(cap)))
 
 
-_cells_below_serial = serial_twin(_cells_below, error_model="numpy")
+_cells_below_sized = by_size(_cells_below, PARALLEL_CELLS, error_model="numpy")
 
 
 def cells_below(X: np.ndarray, sine: float) -> np.ndarray:
@@ -683,7 +683,7 @@ def cells_below(X: np.ndarray, sine: float) -> np.ndarray:
     cells (whose angle is the outline's) taken as a right angle; the same cells as comparing
     :func:`cell_min_sine`, without most of its square roots and divisions."""
     out = np.empty((X.shape[0] - 1, X.shape[1] - 1), np.bool_)
-    (_cells_below if out.size >= PARALLEL_CELLS else _cells_below_serial)(X, float(sine), out)
+    _cells_below_sized(out.size)(X, float(sine), out)
     return out
 
 
@@ -735,7 +735,7 @@ def _grid_from_plane(R, X, k0, s0, k1, s1, out):
                 out[i, j, k2] = 0.0
 
 
-_axes_to_plane_serial = serial_twin(_axes_to_plane)
+_axes_to_plane_sized = by_size(_axes_to_plane, PARALLEL_CELLS)
 
 
 @njit(cache=True, parallel=True)
@@ -754,10 +754,10 @@ def _unscale_in_plane(X, R, moved, k0, s0, k1, s1, shift0, shift1, scale):
                 X[i, j, 1] = R[i, j, k1] * s1
 
 
-_unscale_in_plane_serial = serial_twin(_unscale_in_plane)
+_unscale_in_plane_sized = by_size(_unscale_in_plane, PARALLEL_CELLS)
 
 
-_axes_from_plane_serial = serial_twin(_axes_from_plane)
+_axes_from_plane_sized = by_size(_axes_from_plane, PARALLEL_CELLS)
 
 
 def _axes_args(axes: list[tuple[int, float]], shift, scale: float) -> tuple:
@@ -771,7 +771,7 @@ def _axes_args(axes: list[tuple[int, float]], shift, scale: float) -> tuple:
 def axes_to_plane(R: np.ndarray, axes: list[tuple[int, float]], shift, scale: float, X: np.ndarray) -> None:
     """:func:`_axes_to_plane` (``axes``: :func:`clothgrid.foldfree._axis_map`'s; ``shift`` None:
     no shift or scale), rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
-    kernel = _axes_to_plane if R.shape[0] * R.shape[1] >= PARALLEL_CELLS else _axes_to_plane_serial
+    kernel = _axes_to_plane_sized(R.shape[0] * R.shape[1])
     kernel(R, *_axes_args(axes, shift, scale), X)
 
 
@@ -780,7 +780,7 @@ def unscale_in_plane(X: np.ndarray, R: np.ndarray, moved: np.ndarray, axes: list
     """:func:`_unscale_in_plane` (``moved``: ``(nu, nv)`` bool; ``axes``:
     :func:`clothgrid.foldfree._axis_map`'s), rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
     (k0, s0), (k1, s1) = axes
-    kernel = _unscale_in_plane if X.shape[0] * X.shape[1] >= PARALLEL_CELLS else _unscale_in_plane_serial
+    kernel = _unscale_in_plane_sized(X.shape[0] * X.shape[1])
     kernel(X, R, moved, k0, s0, k1, s1, float(shift[0]), float(shift[1]), float(scale))
 
 
@@ -796,7 +796,7 @@ def grid_from_plane(R: np.ndarray, X: np.ndarray, axes: list[tuple[int, float]])
 def axes_from_plane(X: np.ndarray, axes: list[tuple[int, float]], shift, scale: float, R: np.ndarray) -> None:
     """:func:`_axes_from_plane` (arguments as :func:`axes_to_plane`'s), rows in parallel on a large
     grid (:data:`PARALLEL_CELLS`)."""
-    kernel = _axes_from_plane if R.shape[0] * R.shape[1] >= PARALLEL_CELLS else _axes_from_plane_serial
+    kernel = _axes_from_plane_sized(R.shape[0] * R.shape[1])
     kernel(X, *_axes_args(axes, shift, scale), R)
 
 
@@ -843,7 +843,7 @@ def _dilate(mask, before, after, nu, nv):
     return out, counts.sum()
 
 
-_dilate_serial = serial_twin(_dilate)
+_dilate_sized = by_size(_dilate, PARALLEL_CELLS)
 
 
 @njit(cache=True, parallel=True)
@@ -884,14 +884,14 @@ def _dilate_boxes(mask, before, after, nu, nv):
     return out, counts.sum()
 
 
-_dilate_boxes_serial = serial_twin(_dilate_boxes)
-_true_count_serial = serial_twin(_true_count)
+_dilate_boxes_sized = by_size(_dilate_boxes, PARALLEL_CELLS)
+_true_count_sized = by_size(_true_count, PARALLEL_CELLS)
 
 
 def true_count(mask: np.ndarray) -> int:
     """How many entries of a 2D bool ``mask`` are true (rows in parallel on a large grid)."""
     mask = np.ascontiguousarray(mask)
-    return int((_true_count if mask.size >= PARALLEL_CELLS else _true_count_serial)(mask))
+    return int(_true_count_sized(mask.size)(mask))
 
 
 def dilate(mask: np.ndarray, before: int, after: int, nu: int, nv: int) -> tuple[np.ndarray, int]:
@@ -899,13 +899,9 @@ def dilate(mask: np.ndarray, before: int, after: int, nu: int, nv: int) -> tuple
     (:func:`_dilate_boxes`, the same nodes) where the true entries' boxes cover the grid at most
     four times over."""
     mask = np.ascontiguousarray(mask)
-    parallel = nu * nv >= PARALLEL_CELLS
     count = true_count(mask)
-    if count * (before + after + 1) ** 2 <= 4 * nu * nv:
-        kernel = _dilate_boxes if parallel else _dilate_boxes_serial
-    else:
-        kernel = _dilate if parallel else _dilate_serial
-    out, count = kernel(mask, before, after, nu, nv)
+    sized = _dilate_boxes_sized if count * (before + after + 1) ** 2 <= 4 * nu * nv else _dilate_sized
+    out, count = sized(nu * nv)(mask, before, after, nu, nv)
     return out, int(count)
 
 

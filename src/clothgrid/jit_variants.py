@@ -18,7 +18,7 @@ import types
 
 import numba
 
-__all__ = ["serial_twin"]
+__all__ = ["serial_twin", "by_size"]
 
 
 def serial_twin(kernel, **options):
@@ -30,3 +30,18 @@ def serial_twin(kernel, **options):
     g = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial", f.__defaults__, f.__closure__)
     g.__qualname__, g.__module__, g.__doc__ = f.__qualname__ + "_serial", f.__module__, f.__doc__
     return numba.njit(cache=True, **options)(g)
+
+
+def by_size(kernel, least: int, **options):
+    """``kernel`` and its serial twin (:func:`serial_twin`, ``options`` the twin's), picked by the
+    work's size: ``pick(n)`` is the parallel kernel where ``n >= least``, else the twin.
+
+    ``pick.parallel`` and ``pick.serial`` are the two dispatchers.
+    """
+    twin = serial_twin(kernel, **options)
+
+    def pick(n: int):
+        return kernel if n >= least else twin
+
+    pick.parallel, pick.serial = kernel, twin
+    return pick
