@@ -846,9 +846,10 @@ def _dilate(mask, before, after, nu, nv):
 _dilate_sized = by_size(_dilate, PARALLEL_CELLS)
 
 
-@njit(cache=True, parallel=True)
-def _true_count(mask):
-    """How many entries of a 2D bool ``mask`` are true, rows in parallel."""
+@njit(cache=True, inline="always")
+def _count_true(mask):
+    """How many entries of a 2D bool ``mask`` are true, rows in ``prange`` (parallel where the
+    kernel it is inlined into is)."""
     rows = np.zeros(mask.shape[0], np.int64)
     for r in prange(mask.shape[0]):
         c = 0
@@ -857,6 +858,12 @@ def _true_count(mask):
                 c += 1
         rows[r] = c
     return rows.sum()
+
+
+@njit(cache=True, parallel=True)
+def _true_count(mask):
+    """:func:`_count_true`, rows in parallel."""
+    return _count_true(mask)
 
 
 @njit(cache=True, parallel=True)
@@ -874,14 +881,7 @@ def _dilate_boxes(mask, before, after, nu, nv):
                 for i in range(max(1, ci - after), min(nu - 2, ci + before) + 1):
                     for j in range(max(1, cj - after), min(nv - 2, cj + before) + 1):
                         out[i, j] = True
-    counts = np.zeros(nu, np.int64)
-    for i in prange(nu):
-        c = 0
-        for j in range(nv):
-            if out[i, j]:
-                c += 1
-        counts[i] = c
-    return out, counts.sum()
+    return out, _count_true(out)
 
 
 _dilate_boxes_sized = by_size(_dilate_boxes, PARALLEL_CELLS)
