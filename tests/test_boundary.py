@@ -526,3 +526,9 @@ def test_the_command_grids_an_outline_without_corners(tmp_path, capsys):
     assert grid.shape == (11, 11, 3)
     r = np.hypot(grid[..., 0], grid[..., 1])
     assert np.allclose(np.r_[r[0], r[-1], r[:, 0], r[:, -1]], 1.0)     # the sides on the circle
+    # -v says where the corners went: a unit square's, whichever of its points the outline starts at
+    src = write(tmp_path, "square.json", {"outline": [[1, 1], [0, 1], [0, 0], [1, 0]]})
+    capsys.readouterr()
+    assert main(["generate", str(src), "-o", str(tmp_path / "s.npz"), "--nodes", "5x5", "-v"]) == 0
+    assert "corners (bottom-left, bottom-right, top-right, top-left) (0, 0) (1, 0) (1, 1) (0, 1); " \
+           "sides of 2, 2, 2, 2 points" in capsys.readouterr().err

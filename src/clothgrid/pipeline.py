@@ -414,6 +414,15 @@ def _size(boundary: Boundary, options: GridOptions, pattern: bool) -> tuple[tupl
     return nodes_for_edge_length(boundary, h), h
 
 
+def _corners_text(b: Boundary) -> str:
+    """Where a boundary's four corners are and how many points its sides have (a line of
+    ``-v``: a region file without corners has them chosen, :func:`clothgrid.patterns.outline_boundary`)."""
+    at = " ".join("(" + ", ".join(f"{c:.6g}" for c in p[:b.dim]) + ")"
+                  for p in (b.bottom[0], b.bottom[-1], b.top[-1], b.top[0]))
+    counts = ", ".join(str(len(s)) for s in (b.bottom, b.right, b.top, b.left))
+    return f"corners (bottom-left, bottom-right, top-right, top-left) {at}; sides of {counts} points"
+
+
 def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Path | None = None, *,
               options: GridOptions = GridOptions(), pieces: Sequence[str] | None = None,
               corners: Sequence[int] | None = None, corners_near: Any = None, min_turn: float | None = None,
@@ -471,7 +480,7 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
                              f"(.svg, .dxf, GarmentCode .json), not for the boundary file {source}")
         paths, plot_path = check_outputs(outputs, plot)
         if progress:
-            progress(f"loaded {source} in {time.perf_counter() - t0:.3f} s")
+            progress(f"loaded {source} in {time.perf_counter() - t0:.3f} s; {_corners_text(got)}")
         nodes, h = _size(got, options, pattern=False)
         unit = units or getattr(got, "length_unit", None) or "m"
         job = Job(got.name or source.stem, got, nodes, paths, plot_path, length_unit=unit,
