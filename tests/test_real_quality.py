@@ -237,3 +237,51 @@ def test_lines_running_past_a_corner_are_cut_back_to_where_they_cross():
     piece = piece_from_polygon("sq", sq, vertices=np.arange(5))
     assert len(piece.outline) == 4 and any("crosses itself" in n for n in piece.notes)
     assert quality(generate_piece(piece, edge_length=10.0)).folded == 0
+
+
+def _rounded_corners_one_by_one(outline, taken, window, wt, min_turn):
+    """rounded_corners written out as it was: every chosen point compared with every one before."""
+    import math
+
+    from clothgrid.patterns.corners import _arc
+
+    s, perimeter = _arc(outline)
+    found, near = [], [float(s[i]) for i in taken]
+    for i in np.argsort(-wt, kind="stable"):
+        if wt[i] < math.radians(min_turn):
+            break
+        x = float(s[i])
+        if any(min(abs(x - y), perimeter - abs(x - y)) < window for y in near):
+            continue
+        found.append(int(i))
+        near.append(x)
+    return sorted(found)
+
+
+def test_rounded_corners_look_at_the_nearest_points_only():
+    """rounded_corners asks only the two chosen points nearest along the outline (sorted arc
+    positions) whether a point is within a window of one: the same corners as comparing it with
+    every one, on fresh noisy and smooth outlines with few and with thousands of sharp candidates,
+    and several windows; and a noisy outline of 20,000 points gets four corners (11 s when every
+    point was compared with every sharp candidate, under a second now)."""
+    from clothgrid.patterns import outline_boundary
+    from clothgrid.patterns.corners import rounded_corners, turn_angles, windowed_turn
+
+    rng = np.random.default_rng()
+    for trial in range(12):
+        n = int(rng.integers(50, 3000))
+        t = np.sort(rng.uniform(0, 2 * np.pi, n))
+        r = 100 * (1 + 0.3 * np.sin(int(rng.integers(2, 7)) * t)) * (1 + rng.choice([0.0, 1e-3, 1e-2]) * rng.standard_normal(n))
+        outline = np.c_[r * np.cos(t), r * np.sin(t)]
+        turn = turn_angles(outline)
+        taken = [int(i) for i in np.flatnonzero(np.abs(np.degrees(turn)) >= rng.choice([5.0, 20.0, 60.0]))]
+        for window in (1.0, 10.0, 60.0):
+            wt = windowed_turn(outline, window)
+            for min_turn in (10.0, 60.0):
+                got = rounded_corners(outline, taken, window, min_turn, wt)
+                assert got == _rounded_corners_one_by_one(outline, taken, window, wt, min_turn), (trial, window)
+    n = 20000
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = 1 + 0.01 * rng.standard_normal(n)
+    b, choice = outline_boundary(np.c_[r * np.cos(t), r * np.sin(t)])
+    assert len(set(choice.corners)) == 4 and b.orientation == 1.0
