@@ -532,3 +532,28 @@ def test_the_command_grids_an_outline_without_corners(tmp_path, capsys):
     assert main(["generate", str(src), "-o", str(tmp_path / "s.npz"), "--nodes", "5x5", "-v"]) == 0
     assert "corners (bottom-left, bottom-right, top-right, top-left) (0, 0) (1, 0) (1, 1) (0, 1); " \
            "sides of 2, 2, 2, 2 points" in capsys.readouterr().err
+
+
+def test_an_outline_too_dense_to_check_is_refused(tmp_path, monkeypatch, capsys):
+    """The self-intersection check counts its pairs of nearby segments before comparing them: an
+    outline whose noise is far wider than its point spacing (quadratic in its points) is refused
+    over clothgrid.limits.MAX_SEGMENT_PAIRS with a message, by the API and by the command (exit 2,
+    no output), while a smooth outline of as many points is checked as before."""
+    from clothgrid import limits
+    from clothgrid.cli import main
+
+    monkeypatch.setattr(limits, "MAX_SEGMENT_PAIRS", 50_000)     # the smooth outline: 11,400 pairs; the noisy: 155,000
+    rng = np.random.default_rng()
+    n = 8000
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    smooth = np.c_[np.cos(t), np.sin(t)]
+    Boundary.from_outline(smooth, [0, n // 4, n // 2, 3 * n // 4])
+    noisy = smooth * (1 + 0.01 * rng.standard_normal(n))[:, None]
+    with pytest.raises(BoundaryError, match=r"too dense to check for self-intersection.*MAX_SEGMENT_PAIRS"):
+        Boundary.from_outline(noisy, [0, n // 4, n // 2, 3 * n // 4])
+    src = write(tmp_path, "noisy.json", {"outline": noisy.tolist()})
+    out = tmp_path / "g.npz"
+    assert main(["generate", str(src), "-o", str(out), "--nodes", "9", "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("clothgrid: error:") and "too dense" in err[0]
+    assert not out.exists()

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from . import limits
 from .errors import BoundaryError, InputError
 from .geometry import PLANAR_TOL, best_fit_plane, cross, plane_axes, roll
 from .limits import MAX_OUTLINE_POINTS, check_coordinates
@@ -383,6 +384,14 @@ def _candidate_pairs(lo: np.ndarray, hi: np.ndarray):
     bounds = np.flatnonzero(np.diff(key)) + 1
     first = np.concatenate([[0], bounds])
     size = np.diff(np.concatenate([first, [len(key)]]))
+    # the work, counted before it is done: a noisy, densely sampled outline has many boxes a cell
+    pairs = int((size * (size - 1) // 2).sum()) + int(big.sum()) * n
+    if pairs > limits.MAX_SEGMENT_PAIRS:
+        raise BoundaryError(
+            f"the outline is too dense to check for self-intersection: {n:,} segments whose wiggles are "
+            f"much wider than their spacing give {pairs:.3g} pairs of nearby segments to compare, more than "
+            f"the limit of {limits.MAX_SEGMENT_PAIRS:,} (clothgrid.limits.MAX_SEGMENT_PAIRS); simplify it "
+            "(fewer points)")
     # pairs within each cell, by offset: element p with element p + off of its cell
     group_end = np.repeat(first + size, size)
     active = np.flatnonzero(np.repeat(size > 1, size))

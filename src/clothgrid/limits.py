@@ -19,7 +19,7 @@ from typing import Any
 from .errors import InputError
 
 __all__ = ["MAX_FILE_BYTES", "MAX_NESTING", "MAX_INT_DIGITS", "MAX_COORDINATE", "MAX_OUTLINE_POINTS",
-           "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_NODES_PER_SIDE", "MAX_BULGE", "MAX_K", "MIN_K", "check_input_file",
+           "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_SEGMENT_PAIRS", "MAX_NODES_PER_SIDE", "MAX_BULGE", "MAX_K", "MIN_K", "check_input_file",
            "load_json", "check_coordinates"]
 
 #: largest input file read (bytes)
@@ -33,6 +33,11 @@ MAX_INT_DIGITS = 20
 MAX_COORDINATE = 1e12
 #: most points of one outline or side, as read or as sampled
 MAX_OUTLINE_POINTS = 5_000_000
+#: most pairs of nearby segments the self-intersection check of one outline compares (about 1e7
+#: a second): a real outline of n points gives about 1.5 n pairs, an outline whose wiggles are
+#: much wider than its point spacing (noise on a densely sampled curve) about n^2 / 400 and more
+#: (a circle of 10^6 points with noise of 0.1 % of its radius: 2.4e8, 24 s)
+MAX_SEGMENT_PAIRS = 200_000_000
 #: most entities (DXF) or elements (SVG) or edges (GarmentCode panel) in one file
 MAX_ENTITIES = 1_000_000
 #: most records of a DXF file (entities, polyline vertices, block and table entries: each
