@@ -532,6 +532,10 @@ def test_the_command_grids_an_outline_without_corners(tmp_path, capsys):
     assert main(["generate", str(src), "-o", str(tmp_path / "s.npz"), "--nodes", "5x5", "-v"]) == 0
     assert "corners (bottom-left, bottom-right, top-right, top-left) (0, 0) (1, 0) (1, 1) (0, 1); " \
            "sides of 2, 2, 2, 2 points" in capsys.readouterr().err
+    # 'clothgrid pieces' is for pattern files: it says what to do with a boundary file instead
+    assert main(["pieces", str(src)]) == 2
+    err = capsys.readouterr().err
+    assert "is a boundary file" in err and "clothgrid generate" in err and "load_boundary()" in err
 
 
 def test_an_outline_too_dense_to_check_is_refused(tmp_path, monkeypatch, capsys):

@@ -255,7 +255,8 @@ def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = 
         raise InputError(f"rel_tol must be a number in (0, 0.01], not {rel_tol!r}")
     got = read_input(path, units=units, rel_tol=rel_tol, line=line, include=include)
     if isinstance(got, Boundary):
-        raise InputError(f"{path}: is a boundary file, not a pattern file: read it with load_boundary")
+        raise InputError(f"{path}: is a boundary file (four sides, or an outline), not a pattern file: grid it "
+                         "with 'clothgrid generate', or read it with clothgrid.load_boundary()")
     return got
 
 
