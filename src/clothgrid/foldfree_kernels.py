@@ -25,6 +25,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from .grid_kernels import row_counts_into
 from .jit_variants import by_size
 
 __all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min", "CornerCells",
@@ -350,7 +351,6 @@ def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0, quiet
     """
     done = 0
     last = 0.0
-    visits = 0
     moves = np.zeros(nodes.shape[0])
     # a colour in CHUNKS blocks, each with its own scratch row, taken once a block (a row taken a
     # node costs Numba an atomic reference count up and down)
@@ -377,8 +377,7 @@ def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0, quiet
         last = big
         if big < tol:
             break
-    visits = counts.sum()
-    return done, last, visits
+    return done, last, counts.sum()
 
 
 @njit(cache=True, inline="always")
@@ -848,15 +847,10 @@ _dilate_sized = by_size(_dilate, PARALLEL_CELLS)
 
 @njit(cache=True, inline="always")
 def _count_true(mask):
-    """How many entries of a 2D bool ``mask`` are true, rows in ``prange`` (parallel where the
-    kernel it is inlined into is)."""
-    rows = np.zeros(mask.shape[0], np.int64)
-    for r in prange(mask.shape[0]):
-        c = 0
-        for j in range(mask.shape[1]):
-            if mask[r, j]:
-                c += 1
-        rows[r] = c
+    """How many entries of a 2D bool ``mask`` are true (:func:`~clothgrid.grid_kernels.row_counts_into`'s
+    rows, parallel where the kernel it is inlined into is)."""
+    rows = np.zeros(mask.shape[0] + 1, np.int64)
+    row_counts_into(mask, rows)
     return rows.sum()
 
 

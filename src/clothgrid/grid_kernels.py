@@ -79,14 +79,22 @@ def _mask_places(mask, out, starts):
                 q += 1
 
 
-@njit(cache=True, parallel=True)
-def _row_counts(mask, counts):
+@njit(cache=True, inline="always")
+def row_counts_into(mask, counts):
+    """``counts[i + 1]``: how many entries of row ``i`` of a 2D bool ``mask`` are true, rows in
+    ``prange`` (parallel where the kernel it is inlined into is)."""
     for r in prange(mask.shape[0]):
         c = 0
         for j in range(mask.shape[1]):
             if mask[r, j]:
                 c += 1
         counts[r + 1] = c
+
+
+@njit(cache=True, parallel=True)
+def _row_counts(mask, counts):
+    """:func:`row_counts_into`, rows in parallel."""
+    row_counts_into(mask, counts)
 
 
 #: below this many entries a mask is listed by NumPy (a parallel kernel's start costs more)
