@@ -628,6 +628,14 @@ def _bad_files() -> dict[str, tuple[str, str | bytes, tuple[str, ...]]]:
                                                                  "$INSUNITS\n70\n0\n"),
                          ("$insunits is 0", "--units")),
         "dxf-not-a-dxf": ("p.dxf", "hello\n", ("dxf",)),
+        # a hand-written SPLINE without the R13+ subclass markers (as in a real fixture of an
+        # open-source pattern tool): not a cut-off file, and the message says what it is
+        "dxf-spline-without-subclass": ("p.dxf", "\n".join(
+            ["0", "SECTION", "2", "HEADER", "9", "$INSUNITS", "70", "4", "0", "ENDSEC",
+             "0", "SECTION", "2", "ENTITIES", "0", "SPLINE", "8", "1", "70", "8", "71", "3", "72", "8", "73", "4"]
+            + [x for k in (0, 0, 0, 0, 1, 1, 1, 1) for x in ("40", str(k))]
+            + [x for px, py in ((0, 0), (10, 20), (20, 20), (30, 0)) for x in ("10", str(px), "20", str(py), "30", "0")]
+            + ["0", "ENDSEC", "0", "EOF", ""]), ("subclass markers",)),
         "garmentcode-open-loop": ("p.json", json.dumps(
             {"pattern": {"panels": {"a": {"vertices": [[0, 0], [1, 0], [1, 1], [0, 1]],
                                           "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]},
@@ -658,6 +666,8 @@ def test_bad_pattern_files_exit_2(capsys, tmp_path, case):
     assert files(out) == []
     code, _, err = run(capsys, "pieces", src)
     assert code == 2 and "clothgrid: error:" in err
+    if case == "dxf-spline-without-subclass":
+        assert "truncated" not in err, err
 
 
 def test_unknown_piece_and_duplicate_outputs(capsys, svg_file, tmp_path):

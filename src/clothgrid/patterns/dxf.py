@@ -559,6 +559,16 @@ def count_records(path: str | Path, stop: int) -> int | None:
     return count
 
 
+def _damage(exc: Exception) -> str:
+    """What a DXF error from ezdxf's reader most likely means, for the message: an entity written
+    without the subclass markers (``100`` group codes) that DXF R13 and later require, as hand-made
+    or old R12-style files have them, or else a damaged or cut-off file."""
+    if "subclass" in str(exc):
+        return ("an entity lacks the subclass markers DXF R13 and later require, as in a hand-written or "
+                "R12-style file: export it again from the CAD program")
+    return "damaged or truncated?"
+
+
 def read_dxf(path: str | Path, *, units: str | None = None,
              rel_tol: float = DEFAULT_REL_TOL, line: str = "sew") -> Pieces:
     """Read the pattern pieces of a DXF file (AAMA/ASTM or plain), in millimetres.
@@ -605,7 +615,7 @@ def read_dxf(path: str | Path, *, units: str | None = None,
     try:
         doc = ezdxf.readfile(str(path))
     except DXFError as exc:
-        raise InputError(f"{path}: not a valid DXF file (truncated?): {exc}") from None
+        raise InputError(f"{path}: not a valid DXF file ({_damage(exc)}): {exc}") from None
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not a valid DXF file ({exc})") from None
     except OSError as exc:
