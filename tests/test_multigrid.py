@@ -956,3 +956,23 @@ def test_the_package_runs_with_numba_jit_disabled():
     assert out.returncode == 0, out.stderr[-2000:]
     functional, folded, converged = out.stdout.split()
     assert functional in ("length", "foldfree", "evened") and folded == "0" and converged == "True"
+
+
+def test_a_level_forms_nw_from_ne_and_refuses_another(rng):
+    """A 9-point level holds ``C, E, N, NE``: ``NW`` is ``NE`` of the column before (a cell's two
+    diagonal couplings are equal), formed on first use; an ``NW`` that is not that is refused, and
+    the cpu kernels, which read ``NE`` of the column before, solve what the matrix says."""
+    from clothgrid.multigrid_levels import Level, diagonal_partner
+
+    nu, nv = 23, 19
+    levels = build_hierarchy(make_weights(random_weights(rng, nu, nv), nu, nv))
+    coarse = levels[1]
+    assert coarse._arrays[4] is None                       # not stored ...
+    NE, NW = np.asarray(coarse.NE), np.asarray(coarse.NW)  # ... but formed when asked
+    assert np.array_equal(NW[1:], NE[:-1]) and not NW[0].any()
+    assert np.array_equal(diagonal_partner(NE), NW)
+    Level(C=coarse.C, E=coarse.E, N=coarse.N, NE=NE, NW=NW.copy())      # the same array: accepted
+    bad = NW.copy()
+    bad[3, 4] *= 1.5
+    with pytest.raises(ValueError, match="NE of the column before"):
+        Level(C=coarse.C, E=coarse.E, N=coarse.N, NE=NE, NW=bad)

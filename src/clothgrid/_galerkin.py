@@ -31,11 +31,13 @@ def _gal(lo, c, up, nv, J, nc):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
+def _coarsen(C, E, N, NE, nine, Cc, Ec, Nc, NEc):
     """Galerkin coarse stencil ``P^T A P`` (linear interpolation along j).
 
-    On level 0 (``nine`` False) ``E``, ``N`` are ``wu``, ``wv`` and ``C``, ``NE``,
-    ``NW`` are unused. Fills the coarse arrays' interior rows; the rest is zero.
+    On level 0 (``nine`` False) ``E``, ``N`` are ``wu``, ``wv`` and ``C``, ``NE``
+    are unused. Fills the coarse arrays' interior rows; the rest is zero. A 9-point
+    level's ``NW`` is ``NE`` of the column before (:class:`~clothgrid.multigrid_levels.Level`),
+    the coarse level's too, so neither is read or formed here.
     """
     nu = Cc.shape[0]
     nc = Cc.shape[1]
@@ -57,7 +59,7 @@ def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
                     c1[j] = -E[i, j]
                     up1[j] = -NE[i, j]
                     if j > 0:
-                        lo1[j] = -NW[i + 1, j - 1]
+                        lo1[j] = -NE[i, j - 1]          # NW[i + 1, j - 1]
             else:
                 s = 0.0
                 if i > 0:
@@ -84,22 +86,3 @@ def _coarsen(C, E, N, NE, NW, nine, Cc, Ec, Nc, NEc, NWc):
             Nc[i, J] = -u0
             Ec[i, J] = -d1
             NEc[i, J] = -u1
-    # NW: coupling (i, J) -> (i-1, J+1) is the di=+1 operator of column i-1 at (J+1 -> J)
-    for i in numba.prange(nu):
-        for J in range(nc):
-            NWc[i, J] = 0.0
-        if i == 0:
-            continue
-        lo1 = np.zeros(nv)
-        c1 = np.zeros(nv)
-        for j in range(nv):
-            if nine:
-                c1[j] = -E[i - 1, j]
-                if j > 0:
-                    lo1[j] = -NW[i, j - 1]
-            else:
-                c1[j] = -E[i - 1, j]
-        for J in range(1, nc - 2):
-            # T_c[J+1, J] = 0.5 lo[f] + 0.25 c[f-1] + 0.5 lo[f-1] with f = 2(J+1)
-            f = 2 * (J + 1)
-            NWc[i, J] = -(0.5 * lo1[f] + 0.25 * c1[f - 1] + 0.5 * lo1[f - 1])

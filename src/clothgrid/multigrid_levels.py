@@ -25,7 +25,7 @@ import numpy as np
 from .weights import Weights
 
 __all__ = ["Level", "Separable", "coarse_rows", "fine_level", "galerkin_1d", "coarsen_separable", "coarsen",
-           "build_hierarchy", "hierarchy_bytes"]
+           "build_hierarchy", "hierarchy_bytes", "diagonal_partner"]
 
 #: Most lines the CPU multigrid's line solves take in one block (its per-thread scratch holds the
 #: factors of that many lines: :func:`hierarchy_bytes`).
@@ -92,11 +92,20 @@ class Level:
 
     The finest level is the 5-point stencil of the edge weights: ``E = wu``
     ``(nu-1, nv)``, ``N = wv`` ``(nu, nv-1)``, ``C``, ``NE``, ``NW`` ``None``
-    (``C`` is the sum of the four weights). Coarser levels hold all five as
-    ``(nu, nv)`` float32 arrays (zero where a coupling leaves the grid). Level
-    ``l+1`` keeps rows :func:`coarse_rows` of level ``l`` and all columns.
+    (``C`` is the sum of the four weights). Coarser levels hold ``C``, ``E``,
+    ``N``, ``NE`` as ``(nu, nv)`` float32 arrays (zero where a coupling leaves
+    the grid). Level ``l+1`` keeps rows :func:`coarse_rows` of level ``l`` and
+    all columns.
 
-    A level 0 may also be given as a 9-point level (all five arrays, ``NE`` and ``NW`` zero): the
+    A cell's two diagonal couplings are equal: ``NW[i+1, j] = NE[i, j]`` (both
+    come from the u-edge between columns ``i`` and ``i+1``, weighted by the
+    interpolation along ``j``, which acts on every column alike), and
+    ``NW[0, j] = 0``. ``NW`` is therefore not stored: the property forms it from
+    ``NE`` on first use (the GPU backends upload it; the cpu kernels read ``NE``
+    of the column before instead). An ``NW`` given to the constructor must be
+    that array.
+
+    A level 0 may also be given as a 9-point level (``C``, ``E``, ``N`` and a zero ``NE``): the
     5-point stencil with an explicit centre, e.g. plus a mass diagonal (:mod:`clothgrid.heat`'s
     time steps); only the cpu backend's multigrid takes it.
 
@@ -109,6 +118,10 @@ class Level:
                  NE: np.ndarray | None = None, NW: np.ndarray | None = None, *, sep: Separable | None = None):
         if E is None and sep is None:
             raise ValueError("a Level needs stencil arrays or a separable form")
+        if NW is not None and (NE is None or NW.shape != NE.shape or np.any(NW[0])
+                               or not np.array_equal(NW[1:], NE[:-1])):
+            raise ValueError("NW must be NE of the column before (NW[i+1, j] = NE[i, j], NW[0] = 0): "
+                             "a cell's two diagonal couplings are equal")
         self._arrays = None if E is None else (C, E, N, NE, NW)
         self.sep = sep
 
@@ -117,11 +130,20 @@ class Level:
             self._arrays = self.sep.stencil()
         return self._arrays
 
+    def _nw(self) -> np.ndarray | None:
+        C, E, N, NE, NW = self._stencil()
+        if NW is None and NE is not None:
+            NW = diagonal_partner(NE)
+            self._arrays = (C, E, N, NE, NW)
+        return NW
+
     C = property(lambda self: self._stencil()[0], doc="Centre coefficients (None on the finest level).")
     E = property(lambda self: self._stencil()[1], doc="Couplings ``(i, j)-(i+1, j)``.")
     N = property(lambda self: self._stencil()[2], doc="Couplings ``(i, j)-(i, j+1)``.")
     NE = property(lambda self: self._stencil()[3], doc="Couplings ``(i, j)-(i+1, j+1)`` (coarse levels).")
-    NW = property(lambda self: self._stencil()[4], doc="Couplings ``(i, j)-(i-1, j+1)`` (coarse levels).")
+    NW = property(lambda self: self._nw(),
+                  doc="Couplings ``(i, j)-(i-1, j+1)`` (coarse levels): ``NE`` of the column before, formed on "
+                      "first use.")
 
     @property
     def nine(self) -> bool:
@@ -134,6 +156,15 @@ class Level:
         if self._arrays is None:
             return len(self.sep.du), len(self.sep.md)
         return (self.N.shape[0], self.N.shape[1] + (0 if self.nine else 1))
+
+
+def diagonal_partner(NE: Any) -> Any:
+    """``NW`` of a 9-point level from its ``NE`` (:class:`Level`): ``NW[i + 1] = NE[i]``, ``NW[0] = 0``,
+    in ``NE``'s dtype and array module."""
+    NW = NE.copy()
+    NW[1:] = NE[:-1]
+    NW[0] = 0
+    return NW
 
 
 def coarse_rows(nv: int) -> np.ndarray:
@@ -225,14 +256,15 @@ def hierarchy_bytes(nu: int, nv: int, ncoords: int = 3, separable: bool = False)
     The level-0 iterate as parity planes (float64, ``8 ncoords`` bytes a node); the coarser levels
     (about ``nu * nv`` nodes in all) with iterate and right-hand side in float32 (``8 ncoords``);
     for weights without a separable form also the stencils: level 0's edge weights split by row
-    parity (16) and five float32 coarse stencil arrays, formed and split (40); and the line
-    solves' per-thread scratch (``12 LINE_BLOCK`` bytes a column and thread).
+    parity (16) and four float32 coarse stencil arrays (``NW`` is ``NE`` of the column before),
+    formed and split (32); and the line solves' per-thread scratch (``12 LINE_BLOCK`` bytes a
+    column and thread).
     """
     import os
 
     n = nu * nv
     scratch = 12 * LINE_BLOCK * (os.cpu_count() or 1) * (nu + 1)   # the line solves' factors, float64 and float32
-    return 16 * ncoords * n + (0 if separable else 56 * n) + scratch
+    return 16 * ncoords * n + (0 if separable else 48 * n) + scratch
 
 
 def coarsen(level: Level, dtype: type = np.float32) -> Level:
@@ -242,9 +274,10 @@ def coarsen(level: Level, dtype: type = np.float32) -> Level:
     ----------
     level : Level
         A level with stencil arrays (the finest level's edge weights or a coarse
-        level's five arrays).
+        level's ``C, E, N, NE``).
     dtype : numpy dtype, optional
-        Of the coarse level's five stencil arrays (float32 by default).
+        Of the coarse level's four stencil arrays (float32 by default; ``NW`` is formed from
+        ``NE`` where a backend asks for it).
 
     Returns
     -------
@@ -255,9 +288,8 @@ def coarsen(level: Level, dtype: type = np.float32) -> Level:
 
     nu, nv = level.shape
     nc = len(coarse_rows(nv))
-    out = [np.empty((nu, nc), dtype=dtype) for _ in range(5)]
+    out = [np.empty((nu, nc), dtype=dtype) for _ in range(4)]
     nine = level.C is not None
     dummy = np.zeros((1, 1))
-    _coarsen(level.C if nine else dummy, level.E, level.N, level.NE if nine else dummy,
-             level.NW if nine else dummy, nine, *out)
-    return Level(C=out[0], E=out[1], N=out[2], NE=out[3], NW=out[4])
+    _coarsen(level.C if nine else dummy, level.E, level.N, level.NE if nine else dummy, nine, *out)
+    return Level(C=out[0], E=out[1], N=out[2], NE=out[3])

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..jit_variants import serial_twin
 from ..memory import DISCARD_MIN_BYTES, Arena, discard
-from ..multigrid_levels import LINE_BLOCK, Level
+from ..multigrid_levels import LINE_BLOCK, Level, diagonal_partner
 
 _PARALLEL_NODES = 1 << 16   # smaller levels run serial kernels: thread start-up would cost more
 # ... except in a hierarchy whose finest level has at least this many nodes: there the parallel
@@ -161,8 +161,11 @@ def _relax5u(xo, xt, bo, eo, nn, p, nv, has_b, mb, scr):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb, scr):
-    """Coarse levels: the same line solves for a 9-point stencil."""
+def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, p, nv, mb, scr):
+    """Coarse levels: the same line solves for a 9-point stencil. A cell's two diagonal couplings are
+    equal (``NW[i, J] = NE[i - 1, J]``, :class:`~clothgrid.multigrid_levels.Level`): the couplings to
+    the rows below and above come from ``NE`` of columns ``i - 1`` and ``i``, one row of each
+    parity's array read from memory a column (the column before's is still in cache)."""
     k, nu = xo.shape[0], xo.shape[1]
     ob = 0 if p == 1 else -1
     m_lo, m_hi = _line_range(nv, p)
@@ -184,7 +187,7 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, p, nv, mb, scr):
                 ivi[q] = 1.0 / d
                 gi[q] = ehi[q] * ivi[q]
             nlo, nhi = Nt[i, ta:tz], No[i, a:z]
-            ne_o, ne_t, nw_o, nw_t = NEo[i, a:z], NEt[i - 1, ta:tz], NWo[i, a:z], NWt[i + 1, ta:tz]
+            ne_o, ne_t, nw_o, nw_t = NEo[i, a:z], NEt[i - 1, ta:tz], NEo[i - 1, a:z], NEt[i, ta:tz]
             for c in range(k):
                 t = xt[c]
                 bi, xp, xi = bo[c, i, a:z], xo[c, i - 1, a:z], xo[c, i, a:z]
@@ -351,7 +354,9 @@ def _restrict5u(xe, xo, be, ee, nn, has_b, bce, bco, xce, xco, rows):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xco, rows):
+def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, bce, bco, xce, xco, rows):
+    """:func:`_restrict5` for a 9-point level (``NW`` read as ``NE`` of the column before, see
+    :func:`_relax9`)."""
     k, nu = xe.shape[0], xe.shape[1]
     nce, nco = bce.shape[2], bco.shape[2]
     nc = nce + nco
@@ -374,7 +379,7 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo, bce, bco, xce, xc
                 row[J] = (be[c, i, m] - Ce[i, m] * x[i, m] + Ee[i - 1, m] * x[i - 1, m] + Ee[i, m] * x[i + 1, m]
                           + No[i, mb] * t[i, mb] + Ne[i, m] * t[i, mb + 1]
                           + NEe[i, m] * t[i + 1, mb + 1] + NEo[i - 1, mb] * t[i - 1, mb]
-                          + NWe[i, m] * t[i - 1, mb + 1] + NWo[i + 1, mb] * t[i + 1, mb])
+                          + NEe[i - 1, m] * t[i - 1, mb + 1] + NEo[i, mb] * t[i + 1, mb])
             oe, oo = bce[c, i], bco[c, i]
             for K in range(nce):
                 oe[K] = row[2 * K]
@@ -994,7 +999,7 @@ def _pick(name: str, nodes: int, finest: int):
 
 #: Each level's stencil split by row parity (:func:`_level_split`), kept as long as the level itself:
 #: a solve with per-edge weights builds two operation sets on one hierarchy (the barrier solve's
-#: and the solve's), and splitting the coarse levels' five arrays twice cost 13 ms at 1024^2.
+#: and the solve's), and splitting the coarse levels' stencil arrays twice cost 13 ms at 1024^2.
 _SPLITS: "weakref.WeakKeyDictionary[Level, tuple]" = weakref.WeakKeyDictionary()
 
 
@@ -1063,7 +1068,7 @@ class CpuMultigrid:
         self.nine0 = fine.sep is None and fine.nine
         if self.nine0:
             self.st = [sum((_split(np.ascontiguousarray(a, dtype=np.float64))
-                            for a in (fine.C, fine.E, fine.N, fine.NE, fine.NW)), ())]
+                            for a in (fine.C, fine.E, fine.N, fine.NE)), ())]
             if rhs is None:
                 self._has_b = True
                 self.b = [_parity_planes(np.zeros(x0.shape))]
@@ -1110,7 +1115,7 @@ class CpuMultigrid:
                              for par in (0, 1))
                 self.st.append(cols + rows)   # cu, kud, du, mde, mdo, mue, muo, kde, kdo, kue, kuo
             else:
-                self.st.append(_level_split(lv, lambda lv=lv: (lv.C, lv.E, lv.N, lv.NE, lv.NW)))
+                self.st.append(_level_split(lv, lambda lv=lv: (lv.C, lv.E, lv.N, lv.NE)))
 
     def _kernel(self, name: str, level: int):
         """Kernel ``name`` for ``level``: parallel, or its serial twin on a small level of a small
@@ -1149,11 +1154,10 @@ class CpuMultigrid:
                 self._kernel("_relax9s", level)(own, other, b, cu, kud, du, md[p], mu[p], kd[p], ku[p],
                                                      mu[q], ku[q], p, nv, mb, scr)
             else:
-                Ce, Co, Ee, Eo, Ne, No, NEe, NEo, NWe, NWo = st
+                Ce, Co, Ee, Eo, Ne, No, NEe, NEo = st
                 q = 1 - p
                 self._kernel("_relax9", level)(own, other, b, (Ce, Co)[p], (Ee, Eo)[p], (Ne, No)[p],
-                                                    (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q],
-                                                    (NWe, NWo)[p], (NWe, NWo)[q], p, nv, mb, scr)
+                                                    (Ne, No)[q], (NEe, NEo)[p], (NEe, NEo)[q], p, nv, mb, scr)
 
     def restrict(self, level: int) -> None:
         """``b[l+1] = P^T (b[l] - A x[l])`` from the even rows (the odd rows' residual is zero
@@ -1172,9 +1176,8 @@ class CpuMultigrid:
             self._kernel("_restrict9s", level)(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo,
                                                     bce, bco, xce, xco, self._rows)
         else:
-            Ce, _, Ee, _, Ne, No, NEe, NEo, NWe, NWo = st
-            self._kernel("_restrict9", level)(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, NWe, NWo,
-                                                   bce, bco, xce, xco, self._rows)
+            Ce, _, Ee, _, Ne, No, NEe, NEo = st
+            self._kernel("_restrict9", level)(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, bce, bco, xce, xco, self._rows)
 
     def prolong(self, level: int) -> None:
         """``x[l] += P x[l+1]`` on the even rows (the odd rows are re-solved next)."""
@@ -1306,7 +1309,8 @@ class CpuMultigrid:
 
     def _residual9(self) -> np.ndarray:
         """``b - A x`` of a 9-point level 0 as an ``(nu, nv, k)`` float64 array (zero on the boundary)."""
-        C, E, N, NE, NW = (_merge_rows(*self.st[0][2 * q:2 * q + 2]) for q in range(5))
+        C, E, N, NE = (_merge_rows(*self.st[0][2 * q:2 * q + 2]) for q in range(4))
+        NW = diagonal_partner(NE)
         x = self.solution()
         b = np.empty(self._shape)
         _merge_grid(*self.b[0], b)
