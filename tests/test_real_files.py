@@ -5,7 +5,9 @@ no other option (10 mm edges, uniform weights, ``--functional auto``, automatic 
 this process. Asserted per file: exit 0 (4 for the file of :data:`FAILED`, whose broken
 outlines are named), one ``.npz`` per piece, no folded cell on any piece,
 and the figures measured when this table was made (``python benchmarks/pattern_survey.py``,
-2026-11-26, after the relax's two-level smoothing and given-up active sets) within small margins, so that a change that makes a file worse fails here:
+2026-11-26, after the relax's two-level smoothing and given-up active sets; the four files whose
+backs and fronts now take the whole relax where the local one left a narrow neck squeezed,
+``generate.WHOLE_RETRY_DEG``, 2026-11-27) within small margins, so that a change that makes a file worse fails here:
 
 - the smallest cell angle of any piece (corner cells aside) at least the measured one - 0.5°,
 - no more pieces under 10° than measured,
@@ -13,8 +15,8 @@ and the figures measured when this table was made (``python benchmarks/pattern_s
   1.15x the measured ones.
 
 The quality targets of the issue are 0 folded cells, a smallest angle of 10° on 95 % of
-pieces and 3° on all, and a median edge spread of 4: over all 455 pieces, 0 folded, 96.0 %
-at 10° or more, 100 % at 3° or more, median spread 2.57 (:func:`test_targets_over_all_files`).
+pieces and 3° on all, and a median edge spread of 4: over all 455 pieces, 0 folded, 97.1 %
+at 10° or more, 100 % at 3° or more, median spread 2.58 (:func:`test_targets_over_all_files`).
 The pieces under 10° share one reason: a deep dart (or a long thin slit-like dart) inside a
 side. A single structured grid fans around the dart tip, so the cells there are small and
 narrow (docs/patterns.md, "Where the targets are missed").
@@ -34,9 +36,9 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "patterns"
 
 #: file: (pieces, smallest angle of any piece (deg), pieces under 10°, median spread, largest spread)
 MEASURED = {
-    "astm_DEEP_ARMHOLE_RACER.DXF": (25, 6.42, 4, 9.63, 52.6),
-    "astm_GLX0924S16_NEW.DXF": (42, 8.14, 1, 2.1, 76.5),
-    "astm_GLX0926S16.DXF": (56, 13.09, 0, 1.6, 48.1),
+    "astm_DEEP_ARMHOLE_RACER.DXF": (25, 10.50, 0, 5.4, 52.6),
+    "astm_GLX0924S16_NEW.DXF": (42, 20.31, 0, 2.1, 17.4),
+    "astm_GLX0926S16.DXF": (56, 22.51, 0, 1.6, 11.0),
     "astm_GLX4802S19_AAMA.DXF": (42, 25.00, 0, 4.24, 10.2),
     "astm_GLX4802S19_ASTM.DXF": (42, 25.00, 0, 4.24, 10.2),
     "astm_GMH1006F18_AAMA.DXF": (90, 25.00, 0, 2.6, 5.7),
@@ -59,7 +61,7 @@ MEASURED = {
     "gcn_rand_TLROKVCYFK_specification.json": (6, 27.05, 0, 2.16, 2.9),
     "gpg_dress_specification.json": (8, 17.12, 0, 1.97, 11.3),
     "gpg_jacket_hood_specification.json": (9, 22.45, 0, 1.99, 6.4),
-    "gpg_jumpsuit_specification.json": (10, 13.59, 0, 2.07, 20.3),
+    "gpg_jumpsuit_specification.json": (10, 27.40, 0, 2.07, 4.0),
     "gpg_pants_flare_specification.json": (4, 27.67, 0, 2.24, 2.3),
     "gpg_skirt_4_panels_specification.json": (4, 78.34, 0, 2.35, 2.7),
 }
