@@ -222,7 +222,8 @@ def test_the_evening_in_the_plane_puts_a_rejected_grid_back():
 def test_generate_in_the_plane_is_relax_then_even_edges(rng):
     """generate's fold-free step relaxes and evens in the plane's coordinates and makes the 3D grid
     once: the same grid, bit for bit, as relax's 3D result evened by even_edges, on fresh pieces
-    (paper weights: folds and poor cells) where it relaxed, evened, or both."""
+    (paper weights: folds and poor cells) where it relaxed, evened, or both; where the auto step
+    kept its whole relax (generate.WHOLE_RETRY_DEG), relax(whole=True) evened."""
     from clothgrid.foldfree import relax
 
     kinds = set()
@@ -240,9 +241,9 @@ def test_generate_in_the_plane_is_relax_then_even_edges(rng):
         retry = (got.info.get("foldfree") or {}).get("whole_retry")
         if retry is not None:
             kinds.add("retried")
-            if retry["kept"]:          # every node relaxed from that, and evened again
+            if retry["kept"]:          # every node relaxed from the length grid, and evened
                 kinds.add("kept")
-                want, _ = even_edges(relax(want, dim=2, whole=True)[0], dim=2)
+                want, _ = even_edges(relax(length.points, dim=2, whole=True)[0], dim=2)
         assert np.array_equal(got.points, want)
     assert "foldfree" in kinds
 

@@ -302,7 +302,7 @@ def _smallest_sine(points):
 def test_auto_relaxes_every_node_where_the_active_sets_squeeze_a_neck(monkeypatch):
     """A racer back: relaxing only the nodes near the length grid's poor cells squeezes the cells
     of the neck between the armhole and the back (6.4 degrees, spread 15); every node relaxed
-    from there is better on both counts, and the auto step keeps that."""
+    from the length grid is better on both counts, and the auto step keeps that."""
     gen = importlib.import_module("clothgrid.generate")     # (the package exports the function)
 
     piece = select_pieces(RACER, ["DEEP ARMHOLE RACERBK_26"])[0]
@@ -348,3 +348,21 @@ def test_the_whole_relax_is_kept_only_where_it_is_better(monkeypatch):
             rejected += 1
             assert np.array_equal(grid.points, local.points)
     assert kept >= 2 and rejected >= 1
+
+
+def test_the_outline_caps_the_smallest_angle_a_relax_can_reach():
+    """Two cells share the outline's angle at a side's inner node: one has at most half of it, and
+    where the outline is reflex (a dart's tip) one has at least half, whose sine is that of 180 less
+    it. The cap is the least of those over the side's inner nodes (grid corners aside), in degrees."""
+    gen = importlib.import_module("clothgrid.generate")
+    u, v = np.meshgrid(np.linspace(0.0, 4.0, 5), np.linspace(0.0, 3.0, 4), indexing="ij")
+    X = np.ascontiguousarray(np.stack([u, v], -1))
+    assert gen._outline_cap_deg(X) == pytest.approx(90.0)
+    for turn in (30.0, 100.0, 200.0, 352.0):       # the outline's inner angle at bottom node (2, 0)
+        Y = X.copy()
+        # keep (1, 0) and (3, 0) on the bottom side; move (2, 0) so that the angle there is `turn`
+        h = 1.0 / np.tan(np.radians(turn) / 2.0)       # apex height over the chord of half-width 1
+        Y[2, 0] = (2.0, -h)
+        inner_neighbours = 270.0 - turn / 2.0            # the outline's angle at (1, 0) and (3, 0) then
+        want = min(min(t / 2.0, 180.0 - t / 2.0) for t in (turn, inner_neighbours))
+        assert gen._outline_cap_deg(Y) == pytest.approx(want, rel=1e-9)

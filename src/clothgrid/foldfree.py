@@ -710,6 +710,8 @@ def _relax_scaled(Xs: np.ndarray, poor: np.ndarray, stats: dict[str, Any], say: 
             smooth = _active_nodes(_poor_cells(Xs, SMOOTH_SINE), SMOOTH_MARGIN)
     if bad == 0 and len(smooth):
         _smooth(Xs, smooth, stats, 8 if quick else RELAX_SWEEPS)
+        if not coarse:
+            stats["smoothed"] = int(len(smooth))      # the finest grid's smoothed nodes
     # the last rounds' nodes are the ones smoothed: their cells measured again give corner_min's
     return nodes, (None if corners is None else corners.moved(Xs))
 

@@ -334,16 +334,22 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
     return R, put_back
 
 
-#: The auto step relaxes only the nodes near poor cells. Where that leaves a smallest angle (corner
-#: cells aside) below this, it also relaxes every node from the length grid, and keeps that grid
-#: where it is better on both counts (a larger smallest angle, an edge spread no larger). On hooked
-#: pieces (racer backs, tank backs) the local relax squeezes the cells of a narrow neck between two
-#: outline curves: 6.4 -> 10.7 degrees and spread 15.2 -> 6.9 on an AAMA racer back, 4.1 -> 25
-#: degrees and 173 -> 23 on a tank back. Over the survey's 455 pieces at 10 mm, 18 pieces retry
-#: (16 keep the whole relax) for 0.44 s more in all (docs/performance.md, seventeenth pass).
+#: The auto step relaxes the nodes near poor cells (and smooths only those, also where it untangled
+#: every node from a coarser grid). Where that leaves a smallest angle (as cell sines measure it,
+#: corner cells aside) below this, it also relaxes every node of the length grid, evens that, and
+#: keeps it where it is better on both counts (a larger smallest angle, an edge spread no larger).
+#: On hooked pieces (racer, tank and GLX backs) the local relax squeezes the cells of a narrow neck
+#: between two outline curves: 6.4 -> 10.7 degrees and spread 15.2 -> 6.9 on an AAMA racer back,
+#: 4.1 -> 25 degrees and 173 -> 23 on a tank back. Over the survey's 455 pieces at 10 mm 33 retry
+#: and 30 keep the whole relax, for 0.74 s more in all (docs/performance.md, seventeenth pass).
 WHOLE_RETRY_DEG = 15.0
-#: ... on grids of at most this many nodes (a whole relax costs seconds at 1024^2).
+#: ... on grids of at most this many nodes (a whole relax costs seconds at 1024^2) ...
 WHOLE_RETRY_MAX_NODES = 1 << 15
+#: ... and only where the smallest angle is below this fraction of what the outline allows
+#: (:func:`_outline_cap_deg`): at a dart's tip the two cells share the outline's reflex angle, and
+#: no relax raises their smaller one (the survey's pants, skirt and torso backs retried for nothing:
+#: 3.88 -> 3.88 degrees, 0.4 s in all).
+WHOLE_RETRY_ROOM = 0.9
 
 
 def _even(X: np.ndarray, touched: list, say: Callable[[str], None]) -> dict:
@@ -358,9 +364,10 @@ def _even(X: np.ndarray, touched: list, say: Callable[[str], None]) -> dict:
 
 
 def _local(ff: dict, R: np.ndarray) -> bool:
-    """Whether the relax moved some nodes but not every interior one (its active sets)."""
+    """Whether the relax moved some nodes but did not smooth every interior one (its active sets, or
+    every node untangled from a coarser grid and only the nodes near poor cells smoothed)."""
     nu, nv = R.shape[:2]
-    return 0 < ff.get("moved", 0) < (nu - 2) * (nv - 2)
+    return ff.get("moved", 0) > 0 and ff.get("smoothed", 0) < (nu - 2) * (nv - 2)
 
 
 def _smallest_deg(X: np.ndarray) -> float:
@@ -370,20 +377,43 @@ def _smallest_deg(X: np.ndarray) -> float:
     return math.degrees(math.asin(min(1.0, max(-1.0, smallest_cell_sine(X)))))
 
 
+def _outline_cap_deg(X: np.ndarray) -> float:
+    """An upper bound of any grid's smallest cell angle (degrees, as the sines measure it: an angle
+    and 180 less it alike; grid-corner cells aside) on this outline: the two cells at a side's
+    inner node share the outline's angle ``t`` there, so one of them has at most ``t / 2`` and, for
+    ``t > 180`` (a dart's tip, a notch), one at least ``t / 2``, whose sine is that of ``180 - t / 2``.
+    Where a grid's smallest angle is at this cap, no relax can raise it."""
+    from .geometry import boundary_loop
+
+    loop = boundary_loop(X)[:, :2]                  # bottom, right, top reversed, left reversed
+    nu, nv = X.shape[:2]
+    n = len(loop)
+    corners = {0, nu - 1, nu + nv - 2, 2 * nu + nv - 3}
+    a, b = np.roll(loop, 1, axis=0) - loop, np.roll(loop, -1, axis=0) - loop
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dot = (a * b).sum(axis=1)
+    inner = np.degrees(np.arctan2(-cross, dot)) % 360.0    # the outline's angle inside the piece (CCW loop)
+    keep = np.array([k not in corners for k in range(n)])
+    if not keep.any():
+        return 90.0
+    half = inner[keep] / 2.0
+    return float(np.minimum(half, 180.0 - half).min())
+
+
 def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):
     """:data:`WHOLE_RETRY_DEG`: the local result ``(X, centre, basis, ff, moved, ev, touched)``, or,
-    where its smallest angle is below that, every node relaxed and evened from it, if that is better
-    (a larger smallest angle, an edge spread no larger, no fold). ``R`` (the length grid) is not
-    changed. Starting from the local result rather than the length grid gives the same grids (the
-    smallest angle and spread within 1 % on the pieces that retry) in 1.5-2.7x fewer node steps."""
-    from .foldfree import _with_interior, relax_in_plane
+    where its smallest angle is below that, every node relaxed and evened from the length grid ``R``
+    (not changed), if that is better (a larger smallest angle, an edge spread no larger, no fold).
+    Starting from the local result instead took 1.5-2.7x fewer node steps and gave the same grids
+    at 10 mm, but at 2 mm it kept a racer back in the local result's squeezed state (4.9 degrees
+    against 9.3 from the length grid)."""
+    from .foldfree import relax_in_plane
 
     local_deg = _smallest_deg(X)
-    if not local_deg < WHOLE_RETRY_DEG:
+    if not local_deg < min(WHOLE_RETRY_DEG, WHOLE_RETRY_ROOM * _outline_cap_deg(X)):
         return X, centre, basis, ff, moved, ev, touched
     t = time.perf_counter()
-    X2, centre2, basis2, ff2, moved2 = relax_in_plane(_with_interior(R, X, centre, basis, dim), dim=dim,
-                                                      whole=True, progress=say)
+    X2, centre2, basis2, ff2, moved2 = relax_in_plane(R, dim=dim, whole=True, progress=say)
     touched2: list[np.ndarray] = []
     ev2 = _even(X2, touched2, say)
     whole_deg = _smallest_deg(X2)
