@@ -865,3 +865,22 @@ def test_snap_to_outline_matches_a_kd_tree(rng):
         assert np.array_equal(ok, dist <= tol)
         assert np.array_equal(nearest[ok], near[ok]) and (nearest[~ok] == -1).all()
 
+
+
+@pytest.mark.parametrize("side_mm, warned", [(40.0, True), (300.0, False), (20_000.0, True)])
+def test_a_piece_size_that_suggests_wrong_units_is_warned_about(capsys, tmp_path, side_mm, warned):
+    """A file read in its own units whose largest piece is under 100 mm or over 10 m (a CLO export
+    that says METRIC with centimetres, millimetres read as inches) gets one warning line naming
+    --units, on 'pieces' and 'generate' alike, and is gridded as it says; --units silences it."""
+    src = tmp_path / "p.svg"
+    src.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" width="{2 * side_mm}mm" height="{2 * side_mm}mm" '
+                   f'viewBox="0 0 {2 * side_mm} {2 * side_mm}"><polygon points="0,0 {side_mm},0 {side_mm},'
+                   f'{0.6 * side_mm} 0,{0.6 * side_mm}"/></svg>')
+    code, _, err = run(capsys, "pieces", src)
+    assert code == 0 and (err.count("warning:") == 1) == warned, err
+    if warned:
+        assert "--units" in err and "mm across" in err
+    code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--nodes", "5", "-q")
+    assert code == 0 and (err.count("warning:") == 1) == warned, err
+    code, _, err = run(capsys, "pieces", src, "--units", "mm")
+    assert code == 0 and "warning:" not in err

@@ -790,6 +790,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                               corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
                               units=args.units, progress=progress, line=args.line,
                               include=args.include)
+    for line in getattr(jobs, "warnings", ()):
+        _say(f"warning: {line}")
     pattern = jobs[0].piece is not None
     many = len(jobs) > 1 or pattern
 
@@ -858,6 +860,9 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
     failed = list(pieces.failed)
     listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json,
                                      failed=failed)
+    doubt = pipeline.units_warning(pieces, args.units)
+    if doubt:
+        _say(f"warning: {doubt}")
     if not listing:
         raise pipeline.no_piece_left(source, failed, "listed")
     skipped = pipeline.skipped_listing(pieces)

@@ -164,13 +164,38 @@ class Job:
 
 class Jobs(list):
     """The jobs of one input file (a plain ``list`` of :class:`Job`), with :attr:`failed`: the
-    pattern pieces that could not be made into a job (:class:`PieceFailure`, in file order)
-    and :attr:`source`, the file."""
+    pattern pieces that could not be made into a job (:class:`PieceFailure`, in file order),
+    :attr:`source`, the file, and :attr:`warnings`: lines for the user about the whole file
+    (:func:`units_warning`)."""
 
-    def __init__(self, jobs: Any = (), failed: Any = (), source: Path | None = None) -> None:
+    def __init__(self, jobs: Any = (), failed: Any = (), source: Path | None = None,
+                 warnings: Sequence[str] = ()) -> None:
         super().__init__(jobs)
         self.failed: list[PieceFailure] = list(failed)
         self.source = source
+        self.warnings: list[str] = list(warnings)
+
+
+#: A pattern file whose largest piece is smaller or larger than this (mm, in the units the file
+#: states) is most likely read in the wrong units: a CLO export that says "UNITS: METRIC" with
+#: coordinates in centimetres reads as pieces of 15-73 mm; millimetres read as inches make a
+#: 600 mm piece 15 m.
+PLAUSIBLE_PIECE_MM = (100.0, 10_000.0)
+
+
+def units_warning(pieces: Sequence[Piece], units: str | None) -> str | None:
+    """A line for the user where the largest of ``pieces`` (mm) is outside :data:`PLAUSIBLE_PIECE_MM`
+    and the units were the file's own (``units`` None), naming the units it was read in; else None."""
+    if units is not None or not pieces:
+        return None
+    size = max(float((p.outline.max(axis=0) - p.outline.min(axis=0)).max()) for p in pieces)
+    lo, hi = PLAUSIBLE_PIECE_MM
+    if lo <= size <= hi:
+        return None
+    unit = pieces[0].units
+    return (f"the largest piece is {size:.3g} mm across, read in the file's units ({unit}): "
+            f"{'a garment piece is rarely under ' + format(lo, 'g') + ' mm' if size < lo else 'that is large for a garment piece'}; "
+            "if the file is in other units, give them with --units (mm, cm, in, ...)")
 
 
 @dataclass
@@ -538,7 +563,8 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     failed.sort(key=lambda f: order.get(f.name, len(order)))
     if not fit:
         raise no_piece_left(source, failed, "read" if all(f.stage == "read" for f in failed) else "gridded")
-    return Jobs(fit, failed, source)
+    doubt = units_warning(chosen, units)
+    return Jobs(fit, failed, source, [doubt] if doubt else [])
 
 
 def _check_size(job: Job, kept: int = 0, what: str = "") -> int:
