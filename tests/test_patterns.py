@@ -539,6 +539,28 @@ def test_sampling_bound_holds():
     assert starts.tolist() == [0, 1]
 
 
+def test_curves_sampled_side_by_side_are_each_curve_sampled_alone(rng):
+    """sample_beziers (a loop's curves of one degree subdivided together) gives every curve's
+    sample_bezier points bit for bit: lines, quadratics, cubics, rational ones, tiny and large,
+    flat and looping, in one mixed list; and it refuses a bad weight as sample_bezier does."""
+    from clothgrid.patterns.sampling import sample_bezier, sample_beziers
+
+    curves = []
+    for _ in range(60):
+        k = int(rng.integers(2, 6))
+        scale = 10.0 ** rng.uniform(-3, 3)
+        ctrl = rng.normal(size=(k, 2)) * scale
+        w = rng.random(k) + 0.2 if rng.random() < 0.4 else None
+        curves.append(Bezier(ctrl, w))
+    for tol in (1e-4, 1e-2, 1.0):
+        got = sample_beziers(curves, tol)
+        assert len(got) == len(curves)
+        for c, pts in zip(curves, got):
+            assert np.array_equal(pts, sample_bezier(c, tol))
+    with pytest.raises(InputError, match="non-positive weight"):
+        sample_beziers([curves[0], Bezier(np.zeros((3, 2)) + 1.0, np.array([1.0, -1.0, 1.0]))], 1e-3)
+
+
 # --------------------------------------------------------------------------- command line
 
 
@@ -884,3 +906,27 @@ def test_a_piece_size_that_suggests_wrong_units_is_warned_about(capsys, tmp_path
     assert code == 0 and (err.count("warning:") == 1) == warned, err
     code, _, err = run(capsys, "pieces", src, "--units", "mm")
     assert code == 0 and "warning:" not in err
+
+
+def test_a_tiny_outline_that_crosses_itself_is_skipped_a_large_one_fails(capsys, tmp_path):
+    """An outline that cannot be made is a failed piece (exit 4, the others written) unless it is
+    tiny against the largest piece, as lettering's glyphs drawn as filled paths are: then it is
+    skipped as too small, with the reason it could not be made."""
+    def svg(eight_mm: float) -> str:
+        e = eight_mm
+        return ('<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="400mm" viewBox="0 0 400 400">'
+                '<rect id="body" x="10" y="10" width="300" height="200"/>'
+                f'<path id="eight" d="M 320 250 L {320 + e} {250 + e} L {320 + e} 250 L 320 {250 + e} Z"/></svg>')
+
+    for e, skipped in ((3.0, True), (60.0, False)):
+        src = tmp_path / f"p{int(e)}.svg"
+        src.write_text(svg(e))
+        code, out, err = run(capsys, "pieces", src, "--json")
+        listing = json.loads(out)
+        assert [p["name"] for p in listing["pieces"]] == ["body"]
+        if skipped:
+            assert code == 0 and not listing["failed"]
+            (s,) = [s for s in listing["skipped"] if s["name"] == "eight"]
+            assert s["kind"] == "small" and "not an outline that can be gridded" in s["reason"]
+        else:
+            assert code == 4 and [f["name"] for f in listing["failed"]] == ["eight"]

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import limits
 from .errors import BoundaryError, InputError
-from .geometry import PLANAR_TOL, best_fit_plane, cross, plane_axes, roll
+from .geometry import PLANAR_TOL, best_fit_plane, candidate_pairs, cross, plane_axes, roll
 from .limits import MAX_OUTLINE_POINTS, check_coordinates
 
 __all__ = ["Boundary", "resample_polyline", "ArcSampler"]
@@ -331,7 +331,7 @@ def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.nda
         return k, k, b[k]
     lo, hi = np.minimum(a, b) - tol, np.maximum(a, b) + tol
     best: tuple[int, int, np.ndarray] | None = None
-    for i, j in _candidate_pairs(lo, hi):
+    for i, j in candidate_pairs(lo, hi):
         keep = (j >= i + 2) & ~((i == 0) & (j == n - 1))       # non-adjacent, each pair once
         keep &= ((lo[i, 0] <= hi[j, 0]) & (lo[j, 0] <= hi[i, 0])
                  & (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1]))
@@ -345,71 +345,6 @@ def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.nda
             if best is None or (int(i[h]), int(j[h])) < best[:2]:
                 best = (int(i[h]), int(j[h]), where[h])
     return best
-
-
-#: candidate pairs handed to the exact segment test at a time
-_PAIR_BATCH = 2_000_000
-
-
-def _candidate_pairs(lo: np.ndarray, hi: np.ndarray):
-    """Yield ``(i, j)`` index arrays, ``i < j``, that include every pair of boxes that overlap.
-
-    Near-linear for outlines: the boxes are hashed into a uniform grid of cells about
-    twice the median box size; boxes spanning many cells (long segments) are tested
-    against all others directly, in batches.
-    """
-    n = len(lo)
-    if n <= 128:                                 # small outlines: every pair at once
-        i, j = np.triu_indices(n, 1)
-        yield i, j
-        return
-    ext = (hi - lo).max(axis=1)
-    span = float((hi.max(axis=0) - lo.min(axis=0)).max())
-    cell = max(2.0 * float(np.median(ext)), span / 2**20, np.finfo(np.float64).tiny)
-    c0 = np.floor((lo - lo.min(axis=0)) / cell).astype(np.int64)
-    c1 = np.floor((hi - lo.min(axis=0)) / cell).astype(np.int64)
-    cx, cy = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
-    big = (cx * cy) > 16
-    small = np.flatnonzero(~big)
-    # every (cell, box) of the small boxes
-    counts = (cx * cy)[small]
-    owner = np.repeat(small, counts)
-    start = np.repeat(np.cumsum(counts) - counts, counts)
-    k = np.arange(len(owner)) - start
-    w = cx[owner]
-    gx, gy = c0[owner, 0] + k % w, c0[owner, 1] + k // w
-    key = gx * (int(c1[:, 1].max()) + 2) + gy
-    order = np.argsort(key, kind="stable")
-    key, owner = key[order], owner[order]
-    bounds = np.flatnonzero(np.diff(key)) + 1
-    first = np.concatenate([[0], bounds])
-    size = np.diff(np.concatenate([first, [len(key)]]))
-    # the work, counted before it is done: a noisy, densely sampled outline has many boxes a cell
-    pairs = int((size * (size - 1) // 2).sum()) + int(big.sum()) * n
-    if pairs > limits.MAX_SEGMENT_PAIRS:
-        raise BoundaryError(
-            f"the outline is too dense to check for self-intersection: {n:,} segments whose wiggles are "
-            f"much wider than their spacing give {pairs:.3g} pairs of nearby segments to compare, more than "
-            f"the limit of {limits.MAX_SEGMENT_PAIRS:,} (clothgrid.limits.MAX_SEGMENT_PAIRS); simplify it "
-            "(fewer points)")
-    # pairs within each cell, by offset: element p with element p + off of its cell
-    group_end = np.repeat(first + size, size)
-    active = np.flatnonzero(np.repeat(size > 1, size))
-    off = 1
-    while active.size:
-        active = active[active + off < group_end[active]]
-        for s0 in range(0, active.size, _PAIR_BATCH):
-            p = active[s0:s0 + _PAIR_BATCH]
-            i, j = owner[p], owner[p + off]
-            yield np.minimum(i, j), np.maximum(i, j)
-        off += 1
-    # the big boxes against every box
-    everything = np.arange(n)
-    for b_ in np.flatnonzero(big):
-        for s0 in range(0, n, _PAIR_BATCH):
-            other = everything[s0:s0 + _PAIR_BATCH]
-            other = other[other != b_]
-            yield np.minimum(other, b_), np.maximum(other, b_)
 
 
 @dataclass(frozen=True, eq=False, repr=False)

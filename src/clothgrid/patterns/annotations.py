@@ -112,10 +112,17 @@ def structure_hint(own: Iterable[str | None], around: Iterable[str | None] = (),
 
 
 def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Even-odd point-in-polygon test of each point (vectorised ray casting)."""
+    """Even-odd point-in-polygon test of each point (vectorised ray casting). Only the polygon's
+    edges whose height range meets the points' can cross a point's ray: the others are left out
+    first (a glyph inside a piece meets a few of its 2,000 edges; the same answer)."""
+    if not len(points):
+        return np.zeros(0, dtype=bool)
     x, y = points[:, 0:1], points[:, 1:2]
     x0, y0 = poly[:, 0], poly[:, 1]
     x1, y1 = roll(x0, -1), roll(y0, -1)
+    low, high = float(points[:, 1].min()), float(points[:, 1].max())
+    near = ~(((y0 > high) & (y1 > high)) | ((y0 <= low) & (y1 <= low)))
+    x0, y0, x1, y1 = x0[near], y0[near], x1[near], y1[near]
     crosses = (y0 > y) != (y1 > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         xs = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
@@ -455,16 +462,29 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
 
             p = replace(p, notes=p.notes + extra)
         out.append(p)
-    # outlines that could not be made: skipped if the file marks them as annotations, else failed
+    # outlines that could not be made: skipped if the file marks them as annotations, or if the
+    # square on their bounding box's longer side is too small against the largest piece (the
+    # glyphs of lettering drawn as filled paths, whose tiny curves touch themselves; a flat or
+    # two-point outline as long as a piece's side is still a failed piece), else failed
     k = len(items)
     failed: list[PieceFailure] = []
     for f, meta in unmade:
         h = meta.get("structure") or {}
+        kept = {kk: v for kk, v in meta.items() if kk not in ("structure", "look", "part", "box")}
+        box = meta.get("box")
+        side = max(box[1][0] - box[0][0], box[1][1] - box[0][1]) if box else None
+        frac = side * side / largest if side is not None and largest > 0 else None
         if h.get("annotation"):
             skipped.append((k, Skipped(
                 f.name, h["annotation"],
                 f"{h['annotation']} (the file marks it {h.get('why')!r}); a degenerate outline: {f.reason}",
-                None, None, {kk: v for kk, v in meta.items() if kk not in ("structure", "look", "part")})))
+                None, None, kept)))
+            k += 1
+        elif frac is not None and frac < MIN_AREA_FRACTION and not (h.get("hint") in ("piece", "cut", "sew")):
+            skipped.append((k, Skipped(
+                f.name, "small", f"too small against the largest piece (the square on its longer side "
+                f"{_fmt_pct(frac)} of its area), and not an outline that can be gridded: {f.reason}",
+                None, None, kept)))
             k += 1
         else:
             failed.append(f)

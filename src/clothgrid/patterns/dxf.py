@@ -52,7 +52,8 @@ from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
 from ..geometry import signed_area
 from .annotations import LINES, classified, structure_hint
 from .chains import chain_loops
-from .piece import Piece, PieceFailure, Pieces, pattern_pieces, piece_failure, piece_from_primitives
+from .piece import (Piece, PieceFailure, Pieces, outline_box, pattern_pieces, piece_failure,
+                    piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
 from ..units import UNITS, unit_to_mm
 
@@ -527,7 +528,7 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
                 where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + ctx.notes),
                 meta=meta))
         except InputError as exc:          # fewer than 3 points, no area: failed or skipped
-            unmade.append((piece_failure(name, exc, ctx.where), meta))
+            unmade.append((piece_failure(name, exc, ctx.where), {**meta, "box": outline_box(_scale(prims, scale))}))
     return classified(pieces, unmade, ctx.where, line=line)
 
 

@@ -219,6 +219,26 @@ class Pieces(list):
                       [s for s in self.skipped if s.name not in wanted])
 
 
+def outline_box(prims: Any) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The bounding box ``((x0, y0), (x1, y1))`` of an outline that could not be made into a piece
+    (its primitives' end points, or an ``(n, 2)`` point array), for
+    :func:`~clothgrid.patterns.annotations.classify` to tell a tiny glyph from a broken piece; None
+    where there is no finite point."""
+    try:
+        if isinstance(prims, np.ndarray):
+            pts = np.asarray(prims, dtype=np.float64).reshape(-1, prims.shape[-1])[:, :2]
+        else:
+            pts = np.array([np.asarray(q.start, dtype=np.float64)[:2] for q in prims]
+                           + [np.asarray(q.end, dtype=np.float64)[:2] for q in prims])
+    except (TypeError, ValueError, AttributeError, IndexError):
+        return None
+    pts = pts[np.isfinite(pts).all(axis=1)] if pts.size else pts
+    if not len(pts):
+        return None
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    return (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))
+
+
 def piece_failure(name: str, exc: BaseException, where: str = "", stage: str = "read",
                   labels: Sequence[str] = ()) -> PieceFailure:
     """A :class:`PieceFailure` from an error about piece ``name``: the message's leading file and

@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Bezier", "EllipseArc", "Primitive", "sample_bezier", "sample_ellipse_arc",
+__all__ = ["Bezier", "EllipseArc", "Primitive", "sample_bezier", "sample_beziers", "sample_ellipse_arc",
            "sample_loop", "bspline_to_beziers", "loop_extent", "DEFAULT_REL_TOL"]
 
 #: default chord tolerance, relative to the piece's size (bounding-box diagonal)
@@ -179,6 +180,62 @@ def sample_bezier(curve: Bezier, tol: float) -> np.ndarray:
     return pts
 
 
+def sample_beziers(curves: Sequence[Bezier], tol: float) -> list[np.ndarray]:
+    """:func:`sample_bezier` of each curve, the same points bit for bit, with the curves of one
+    degree subdivided side by side (one NumPy pass a halving for all of them: a real SVG's 8,700
+    glyph curves took 5.4 s one at a time).
+
+    Raises InputError where a curve has a non-positive weight or a non-finite coordinate, or
+    where the curves together need more than 2 million points."""
+    out: list[np.ndarray | None] = [None] * len(curves)
+    groups: dict[int, list[int]] = {}
+    hs: list[np.ndarray] = []
+    for c, curve in enumerate(curves):
+        h = _homogeneous(curve)
+        if np.any(h[:, 2] <= 0) or not np.isfinite(h).all():
+            raise InputError("a curve has a non-positive weight or a non-finite coordinate")
+        hs.append(h)
+        if len(h) <= 2:
+            out[c] = np.asarray(curve.ctrl[:1], dtype=np.float64).copy()
+        else:
+            groups.setdefault(len(h), []).append(c)
+    for members in groups.values():
+        pending = np.stack([hs[c] for c in members])
+        owner = np.arange(len(members))
+        t0 = np.zeros(len(members))
+        width = 1.0
+        done_c: list[np.ndarray] = []
+        done_t: list[np.ndarray] = []
+        done_p: list[np.ndarray] = []
+        for depth in range(_MAX_DEPTH + 1):
+            proj = pending[..., :2] / pending[..., 2:]
+            flat = (_dist_to_chord(proj) <= tol) if depth < _MAX_DEPTH else np.ones(len(pending), bool)
+            done_c.append(owner[flat])
+            done_t.append(t0[flat])
+            done_p.append(proj[flat, 0])
+            if flat.all():
+                break
+            rest = pending[~flat]
+            left, right = _split_half(rest)
+            width *= 0.5
+            keep = ~flat
+            t0 = np.concatenate([t0[keep], t0[keep] + width])
+            owner = np.concatenate([owner[keep], owner[keep]])
+            pending = np.concatenate([left, right])
+            if len(pending) + sum(len(x) for x in done_t) > _MAX_POINTS:
+                raise InputError("the curves need more than 2 million points to meet the sampling "
+                                 "tolerance; is one degenerate?")
+        cs, ts, ps = np.concatenate(done_c), np.concatenate(done_t), np.concatenate(done_p)
+        order = np.lexsort((ts, cs))          # by curve, then by t (each curve's ts are distinct)
+        cs, ps = cs[order], ps[order]
+        cuts = np.searchsorted(cs, np.arange(len(members) + 1))
+        for m, c in enumerate(members):
+            pts = ps[cuts[m]:cuts[m + 1]].copy()
+            pts[0] = np.asarray(curves[c].ctrl[0], dtype=np.float64)
+            out[c] = pts
+    return out  # type: ignore[return-value]
+
+
 def sample_ellipse_arc(arc: EllipseArc, tol: float) -> np.ndarray:
     """Points of ``arc`` from its start, without its end, every chord within ``tol``."""
     m = np.column_stack([np.asarray(arc.a, float), np.asarray(arc.b, float)])
@@ -228,8 +285,10 @@ def sample_loop(prims: list[Primitive], tol: float) -> tuple[np.ndarray, np.ndar
     if not (math.isfinite(tol) and tol > 0):
         raise InputError(f"the sampling tolerance must be positive, not {tol!r}")
     parts, starts, count = [], [], 0
+    beziers = [p for p in prims if isinstance(p, Bezier)]
+    sampled = iter(sample_beziers(beziers, tol))
     for p in prims:
-        pts = sample_bezier(p, tol) if isinstance(p, Bezier) else sample_ellipse_arc(p, tol)
+        pts = next(sampled) if isinstance(p, Bezier) else sample_ellipse_arc(p, tol)
         starts.append(count)
         parts.append(pts)
         count += len(pts)

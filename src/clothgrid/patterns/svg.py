@@ -40,7 +40,8 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, structure_hint
-from .piece import Piece, PieceFailure, Pieces, piece_failure, piece_from_points, piece_from_primitives
+from .piece import (Piece, PieceFailure, Pieces, outline_box, piece_failure, piece_from_points,
+                    piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
 from ..units import UNITS, unit_to_mm
 
@@ -500,7 +501,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                         name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
                         notes=(f"units: {how}",), meta=meta))
                 except InputError as exc:       # fewer than 3 points, no area: failed or skipped
-                    unmade.append((piece_failure(name, exc, where), meta))
+                    unmade.append((piece_failure(name, exc, where), {**meta, "box": outline_box(prims)}))
                     if id(prims) in drawn:
                         drawn[id(prims)].failure = unmade[-1]
             return
