@@ -139,7 +139,8 @@ def _dist_to_chord(p: np.ndarray) -> np.ndarray:
 
 
 def sample_bezier(curve: Bezier, tol: float) -> np.ndarray:
-    """Points of ``curve`` from its start, without its end, every chord within ``tol``.
+    """Points of ``curve`` from its start, without its end, every chord within ``tol``
+    (:func:`sample_beziers` of the one curve).
 
     Returns
     -------
@@ -147,43 +148,15 @@ def sample_bezier(curve: Bezier, tol: float) -> np.ndarray:
         ``(n, 2)``; ``[0]`` is exactly ``ctrl[0]``. A degree-1 curve gives its
         start only.
     """
-    h = _homogeneous(curve)
-    if np.any(h[:, 2] <= 0) or not np.isfinite(h).all():
-        raise InputError("a curve has a non-positive weight or a non-finite coordinate")
-    if len(h) <= 2:
-        return np.asarray(curve.ctrl[:1], dtype=np.float64).copy()
-    pending = h[None]
-    t0 = np.zeros(1)
-    width = 1.0
-    done_t: list[np.ndarray] = []
-    done_p: list[np.ndarray] = []
-    for depth in range(_MAX_DEPTH + 1):
-        proj = pending[..., :2] / pending[..., 2:]
-        flat = (_dist_to_chord(proj) <= tol) if depth < _MAX_DEPTH else np.ones(len(pending), bool)
-        done_t.append(t0[flat])
-        done_p.append(proj[flat, 0])
-        if flat.all():
-            break
-        rest = pending[~flat]
-        left, right = _split_half(rest)
-        width *= 0.5
-        t0 = np.concatenate([t0[~flat], t0[~flat] + width])
-        pending = np.concatenate([left, right])
-        if len(pending) + sum(len(x) for x in done_t) > _MAX_POINTS:
-            raise InputError("a curve needs more than 2 million points to meet the sampling "
-                             "tolerance; is it degenerate?")
-    ts = np.concatenate(done_t)
-    pts = np.concatenate(done_p)
-    order = np.argsort(ts, kind="stable")
-    pts = pts[order]
-    pts[0] = np.asarray(curve.ctrl[0], dtype=np.float64)
-    return pts
+    return sample_beziers([curve], tol)[0]
 
 
 def sample_beziers(curves: Sequence[Bezier], tol: float) -> list[np.ndarray]:
-    """:func:`sample_bezier` of each curve, the same points bit for bit, with the curves of one
-    degree subdivided side by side (one NumPy pass a halving for all of them: a real SVG's 8,700
-    glyph curves took 5.4 s one at a time).
+    """Points of each curve from its start, without its end, every chord within ``tol``: halved
+    (de Casteljau, in homogeneous coordinates for rational curves) until the inner control points
+    lie within ``tol`` of the chord. The curves of one degree are halved side by side, one NumPy
+    pass a halving for all of them (a real SVG's 8,700 glyph curves took 5.4 s one at a time); a
+    curve's points do not depend on the others'.
 
     Raises InputError where a curve has a non-positive weight or a non-finite coordinate, or
     where the curves together need more than 2 million points."""
