@@ -225,6 +225,23 @@ def test_added_corners_sit_where_the_outline_is_convex():
     assert quality(grid).folded == 0
 
 
+def test_four_candidates_one_of_them_concave_do_not_make_a_corner_of_it():
+    """A J-shaped piece (as a trouser fly's extension) whose only sharp turns are three convex corners
+    and one concave point: the concave point is no grid corner (its cell would fold); a corner is
+    added on the longest side instead, and the default grid has no folded cell."""
+    from clothgrid.patterns import choose_corners
+    t = np.linspace(0.0, np.pi / 2, 40)
+    arc = np.c_[20 + 80 * np.sin(t), 80 - 80 * np.cos(t)]           # the rounded bottom-right
+    outline = np.vstack([[0.0, 0.0], arc, [100.0, 300.0], [60.0, 300.0], [60.0, 60.0]])
+    piece = _poly("j", outline)
+    concave = int(np.argmin(np.linalg.norm(piece.outline - [60.0, 60.0], axis=1)))
+    choice = choose_corners(piece)
+    assert concave not in choice.corners and choice.method == "split"
+    assert f"concave points {concave} are not corners" in choice.message
+    grid = generate_piece(piece, edge_length=10.0)
+    assert quality(grid).folded == 0     # measured: 1 folded cell with the concave corner
+
+
 def test_lines_running_past_a_corner_are_cut_back_to_where_they_cross():
     from clothgrid.geometry import untie_loops
     from clothgrid.patterns.piece import piece_from_polygon

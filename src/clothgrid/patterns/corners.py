@@ -619,11 +619,21 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
     pool = tps if len(tps) >= 4 else geo if len(geo) >= 4 else None
     from_tps = pool is tps
     notes: list[str] = []
-    if pool is not None and len(pool) > 4:
-        convex = [i for i in pool if turn[i] > 0]     # a grid corner on a concave point folds its cell
-        if 4 <= len(convex) < len(pool):
+    if pool is not None:
+        # a grid corner on a concave point folds its cell: such points are left out where more than
+        # four remain, and where fewer than four convex ones would remain (four candidates, one of
+        # them concave: a real SVG's trouser fly kept a folded cell), corners are added to the
+        # convex ones on the longest sides instead
+        convex = [i for i in pool if turn[i] > 0]
+        if len(convex) < len(pool) and (len(pool) > 4 or len(convex) < 4):
             notes.append(f"concave points {_fmt_idx(i for i in pool if turn[i] <= 0)} are not corners")
-            pool = convex
+            if len(convex) < 4 and from_tps:          # too few of the file's turn points: the outline's own
+                convex = [i for i in geo if turn[i] > 0]
+                from_tps = False
+            if len(convex) >= 4:
+                pool = convex
+            else:
+                pool, geo = None, convex
     in_mouth = set(mouths)          # (a set: a noisy outline has thousands of candidates and mouths)
     if pool is not None and mouths and any(i in in_mouth for i in pool):
         rest = [i for i in pool if i not in in_mouth]
@@ -671,6 +681,7 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
         if inserted:
             message += (f" (inserted outline point{'s' if len(inserted) > 1 else ''} "
                         f"{_fmt_idx(inserted)})")
+        message += "".join("; " + n for n in notes)
     ordered = _rotate_to_grain(outline, sorted(chosen), piece.grain_line)
     message += (": " + ", ".join(f"{name} {i}" for name, i in zip(_NAMES, ordered)))
     return CornerChoice(outline, tuple(ordered), method, message, len(cands), tuple(inserted))
