@@ -424,3 +424,21 @@ def test_garment_mode_sews_each_spec_and_resumes(tmp_path, client):
     assert {e["stem"] for e in keep.done_now} == set(by)       # other options: every input again
     with pytest.raises(InputError, match="garment is written as"):
         B.batch([src], out, options=opts, client=client, garment=True, templates=("{piece}.ply",))
+
+
+def test_a_file_whose_pieces_suggest_other_units_has_warnings_in_its_manifest_line(tmp_path):
+    """grid_file (what a worker runs) copies read_jobs' warnings into the file's line: a 40 mm
+    piece read in the file's own units is gridded and named as such; with --units, no warning."""
+    from clothgrid.pipeline import OutputOptions
+
+    src = tmp_path / "tiny.svg"
+    src.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="80mm" height="80mm" viewBox="0 0 80 80">'
+                   '<rect id="patch" x="5" y="5" width="40" height="24"/></svg>')
+    for units, warned in ((None, True), ("mm", False)):
+        out = tmp_path / f"out{units}"
+        task = B.FileTask(str(src), "tiny", str(out), ("{piece}.npz",), OPTS, OutputOptions(), units)
+        entry = B.grid_file(task)
+        assert entry["status"] == "ok" and entry["outputs"] == ["tiny/patch.npz"], entry
+        assert ("warnings" in entry) == warned
+        if warned:
+            assert "40 mm across" in entry["warnings"][0] and "--units" in entry["warnings"][0]

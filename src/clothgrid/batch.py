@@ -223,6 +223,8 @@ def grid_file(task: FileTask) -> dict[str, Any]:
         entry["pieces"].append(piece)
         entry["outputs"] += piece["outputs"]
     entry["failed_pieces"] = [f.as_dict() for f in failed]
+    if getattr(jobs, "warnings", None):
+        entry["warnings"] = list(jobs.warnings)       # e.g. a piece size that suggests other units
     entry["status"] = "partial" if failed else "ok"
     if failed:
         entry["error"] = "; ".join(f.message() for f in failed)
