@@ -382,6 +382,23 @@ def test_aama_metric_and_closed_polyline(tmp_path):
     assert front.extent == pytest.approx((22.0, 30.0))
 
 
+def test_aama_dxf_names_in_utf8_or_a_code_page_and_their_output_files(capsys, tmp_path):
+    """An R12 DXF has no encoding of its own (ezdxf takes cp1252): text that is valid UTF-8 with
+    multi-byte characters is read as UTF-8 (a real ET export's Chinese piece names came out as
+    mojibake), single-byte text as before; output names keep letters of any script."""
+    path = tmp_path / "style.dxf"
+    _aama(path, units_text="METRIC", closed=True)
+    raw = path.read_bytes()
+    (tmp_path / "utf8.dxf").write_bytes(raw.replace(b"FRONT", "前片".encode()).replace(b"BACK", "后片".encode()))
+    (tmp_path / "cp1252.dxf").write_bytes(raw.replace(b"FRONT", "FÄR".encode("cp1252")))
+    assert [p.name for p in read_pieces(tmp_path / "utf8.dxf")] == ["前片", "后片"]
+    assert [p.name for p in read_pieces(tmp_path / "cp1252.dxf")] == ["FÄR", "BACK"]
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "generate", tmp_path / "utf8.dxf", "-o", out / "{piece}.npz", "--nodes", "5", "-q")
+    assert code == 0, err
+    assert files(out) == ["前片.npz", "后片.npz"]
+
+
 # --------------------------------------------------------------------------- GarmentCode
 
 GC = {

@@ -28,7 +28,7 @@ printing.
 Output names: with one job every output path is used as given; with several,
 ``out.obj`` becomes ``out_<piece>.obj``, or ``{piece}`` in a path is replaced by
 the piece's name (``-o meshes/{piece}.obj``). Names are made file-safe
-(characters other than letters, digits, ``.``, ``_`` and ``-`` become ``_``).
+(characters other than letters and digits of any script, ``.``, ``_`` and ``-`` become ``_``).
 Unknown output formats, output folders that cannot be made and two jobs writing one
 file are reported by :func:`read_jobs`, before any grid is made; missing output
 folders are created when the outputs are written (and removed again if writing fails).
@@ -216,13 +216,18 @@ class Result:
 
 
 def safe_name(name: str) -> str:
-    """``name`` with every character other than letters, digits, ``.``, ``_``, ``-`` made ``_``."""
-    out = re.sub(r"[^A-Za-z0-9._-]", "_", name).strip(".")[:MAX_SAFE_NAME]
+    """``name`` (NFC) with every character other than letters, digits (any script: a Chinese
+    export's piece 前片 stays 前片), ``.``, ``_``, ``-`` made ``_``, cut to :data:`MAX_SAFE_NAME`
+    bytes of UTF-8 (at a character's end)."""
+    import unicodedata
+
+    out = re.sub(r"[^\w.-]", "_", unicodedata.normalize("NFC", name)).strip(".")
+    out = out.encode("utf-8")[:MAX_SAFE_NAME].decode("utf-8", errors="ignore").strip(".")
     return out or "piece"
 
 
-#: piece names in output file names are cut to this many characters (file systems allow 255 bytes
-#: a name, and the temporary name adds some)
+#: piece names in output file names are cut to this many bytes of UTF-8 (file systems allow 255
+#: bytes a name, and the temporary name adds some)
 MAX_SAFE_NAME = 120
 #: characters that the temporary file's name adds to an output's name (``.NAME.XXXXXXXX.tmp``)
 _TEMP_EXTRA = 16
