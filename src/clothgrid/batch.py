@@ -223,7 +223,7 @@ def grid_file(task: FileTask) -> dict[str, Any]:
         entry["pieces"].append(piece)
         entry["outputs"] += piece["outputs"]
     entry["failed_pieces"] = [f.as_dict() for f in failed]
-    if getattr(jobs, "warnings", None):
+    if jobs.warnings:
         entry["warnings"] = list(jobs.warnings)       # e.g. a piece size that suggests other units
     entry["status"] = "partial" if failed else "ok"
     if failed:

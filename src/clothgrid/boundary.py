@@ -20,7 +20,7 @@ import numpy as np
 
 from . import limits
 from .errors import BoundaryError, InputError
-from .geometry import PLANAR_TOL, best_fit_plane, candidate_pairs, cross, plane_axes, roll
+from .geometry import PLANAR_TOL, best_fit_plane, cross, loop_segment_pairs, plane_axes, roll
 from .limits import MAX_OUTLINE_POINTS, check_coordinates
 
 __all__ = ["Boundary", "resample_polyline", "ArcSampler"]
@@ -320,7 +320,6 @@ def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.nda
     count only when they fold back onto each other. Returns ``(k, m, point)``
     with ``k < m`` (``k == m`` for a fold-back at the end of ``k``), or None.
     """
-    n = len(p)
     a, b = p, roll(p, -1)
     # adjacent segments: fold back when the turn is a reversal
     u, w = b - a, roll(b - a, -1)
@@ -331,13 +330,7 @@ def _find_self_intersection(p: np.ndarray, tol: float) -> tuple[int, int, np.nda
         return k, k, b[k]
     lo, hi = np.minimum(a, b) - tol, np.maximum(a, b) + tol
     best: tuple[int, int, np.ndarray] | None = None
-    for i, j in candidate_pairs(lo, hi):
-        keep = (j >= i + 2) & ~((i == 0) & (j == n - 1))       # non-adjacent, each pair once
-        keep &= ((lo[i, 0] <= hi[j, 0]) & (lo[j, 0] <= hi[i, 0])
-                 & (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1]))
-        i, j = i[keep], j[keep]
-        if i.size == 0:
-            continue
+    for i, j in loop_segment_pairs(lo, hi):                    # non-adjacent, each pair once
         hit, where = _segments_intersect(a[i], b[i], a[j], b[j], tol)
         if hit.any():
             h = np.flatnonzero(hit)

@@ -790,7 +790,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                               corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
                               units=args.units, progress=progress, line=args.line,
                               include=args.include)
-    for line in getattr(jobs, "warnings", ()):
+    for line in jobs.warnings:
         _say(f"warning: {line}")
     pattern = jobs[0].piece is not None
     many = len(jobs) > 1 or pattern

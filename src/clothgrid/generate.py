@@ -383,21 +383,15 @@ def _outline_cap_deg(X: np.ndarray) -> float:
     inner node share the outline's angle ``t`` there, so one of them has at most ``t / 2`` and, for
     ``t > 180`` (a dart's tip, a notch), one at least ``t / 2``, whose sine is that of ``180 - t / 2``.
     Where a grid's smallest angle is at this cap, no relax can raise it."""
-    from .geometry import boundary_loop
+    from .geometry import boundary_loop, turn_angles
 
-    loop = boundary_loop(X)[:, :2]                  # bottom, right, top reversed, left reversed
     nu, nv = X.shape[:2]
-    n = len(loop)
-    corners = {0, nu - 1, nu + nv - 2, 2 * nu + nv - 3}
-    a, b = np.roll(loop, 1, axis=0) - loop, np.roll(loop, -1, axis=0) - loop
-    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    dot = (a * b).sum(axis=1)
-    inner = np.degrees(np.arctan2(-cross, dot)) % 360.0    # the outline's angle inside the piece (CCW loop)
-    keep = np.array([k not in corners for k in range(n)])
-    if not keep.any():
+    inner = 180.0 - np.degrees(turn_angles(boundary_loop(X)[:, :2]))   # the outline's angle inside
+    inner[[0, nu - 1, nu + nv - 2, 2 * nu + nv - 3]] = np.nan           # the grid corners (loop order)
+    if np.isnan(inner).all():
         return 90.0
-    half = inner[keep] / 2.0
-    return float(np.minimum(half, 180.0 - half).min())
+    half = inner / 2.0
+    return float(np.nanmin(np.minimum(half, 180.0 - half)))
 
 
 def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):

@@ -45,6 +45,16 @@ def boundary_loop(points: np.ndarray) -> np.ndarray:
     return np.concatenate([points[:-1, 0], points[-1, :-1], points[:0:-1, -1], points[0, :0:-1]])
 
 
+def turn_angles(outline: np.ndarray) -> np.ndarray:
+    """Signed turn at every point of a closed outline (radians, + left / convex for CCW)."""
+    p = np.asarray(outline, dtype=np.float64)
+    d_in = p - roll(p, 1)
+    d_out = roll(p, -1) - p
+    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+    dot = (d_in * d_out).sum(axis=1)
+    return np.arctan2(cross, dot)
+
+
 def signed_area(loop: np.ndarray) -> float:
     """Signed area of a closed polygon from its first two coordinates (positive: counter-clockwise)."""
     p = np.asarray(loop)
@@ -262,22 +272,28 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray):
             yield np.minimum(other, b_), np.maximum(other, b_)
 
 
+def loop_segment_pairs(lo: np.ndarray, hi: np.ndarray):
+    """Yield ``(i, j)`` index arrays, ``i < j``, of the non-adjacent segments of a closed loop whose
+    boxes ``lo``, ``hi`` (``(n, 2)``, segment ``k`` from point ``k`` to ``k + 1``) overlap: every
+    such pair once, none empty (:func:`candidate_pairs`, filtered)."""
+    n = len(lo)
+    for i, j in candidate_pairs(lo, hi):
+        keep = (j >= i + 2) & ~((i == 0) & (j == n - 1))
+        keep &= ((lo[i, 0] <= hi[j, 0]) & (lo[j, 0] <= hi[i, 0])
+                 & (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1]))
+        if keep.any():
+            yield i[keep], j[keep]
+
+
 def _first_crossing(p: np.ndarray) -> tuple[int, int, np.ndarray] | None:
     """The first pair ``(i, j)``, ``i < j``, of non-adjacent crossing segments of a closed loop
     (the least ``i``, then the least ``j``), and where they cross. Only the pairs of segments whose
-    boxes overlap are tested (:func:`candidate_pairs`: near-linear; a loop over every segment was
+    boxes overlap are tested (:func:`loop_segment_pairs`: near-linear; a loop over every segment was
     quadratic, 64 ms a call on a 6,700-point glyph outline of a real SVG)."""
-    n = len(p)
     a, b = p, roll(p, -1)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     best: tuple[int, int, np.ndarray] | None = None
-    for i, j in candidate_pairs(lo, hi):
-        keep = (j >= i + 2) & ~((i == 0) & (j == n - 1))
-        keep &= ((lo[j, 0] <= hi[i, 0]) & (hi[j, 0] >= lo[i, 0]) &
-                 (lo[j, 1] <= hi[i, 1]) & (hi[j, 1] >= lo[i, 1]))
-        i, j = i[keep], j[keep]
-        if i.size == 0:
-            continue
+    for i, j in loop_segment_pairs(lo, hi):
         r = b[i] - a[i]
         s = b[j] - a[j]
         den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]

@@ -192,10 +192,9 @@ def units_warning(pieces: Sequence[Piece], units: str | None) -> str | None:
     lo, hi = PLAUSIBLE_PIECE_MM
     if lo <= size <= hi:
         return None
-    unit = pieces[0].units
-    return (f"the largest piece is {size:.3g} mm across, read in the file's units ({unit}): "
-            f"{'a garment piece is rarely under ' + format(lo, 'g') + ' mm' if size < lo else 'that is large for a garment piece'}; "
-            "if the file is in other units, give them with --units (mm, cm, in, ...)")
+    why = f"a garment piece is rarely under {lo:g} mm" if size < lo else "that is large for a garment piece"
+    return (f"the largest piece is {size:.3g} mm across, read in the file's units ({pieces[0].units}): "
+            f"{why}; if the file is in other units, give them with --units (mm, cm, in, ...)")
 
 
 @dataclass

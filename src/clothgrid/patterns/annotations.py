@@ -480,7 +480,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
                 f"{h['annotation']} (the file marks it {h.get('why')!r}); a degenerate outline: {f.reason}",
                 None, None, kept)))
             k += 1
-        elif frac is not None and frac < MIN_AREA_FRACTION and not (h.get("hint") in ("piece", "cut", "sew")):
+        elif frac is not None and frac < MIN_AREA_FRACTION and h.get("hint") not in ("piece", "cut", "sew"):
             skipped.append((k, Skipped(
                 f.name, "small", f"too small against the largest piece (the square on its longer side "
                 f"{_fmt_pct(frac)} of its area), and not an outline that can be gridded: {f.reason}",

@@ -40,7 +40,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import roll
+from ..geometry import roll, turn_angles
 from .piece import Piece
 
 __all__ = ["CornerCandidate", "CornerChoice", "turn_angles", "corner_candidates",
@@ -106,16 +106,6 @@ class CornerChoice:
         return {"indices": list(self.corners), "points": self.points.tolist(),
                 "method": self.method, "message": self.message,
                 "candidates": self.candidates, "inserted": list(self.inserted)}
-
-
-def turn_angles(outline: np.ndarray) -> np.ndarray:
-    """Signed turn at every point of a closed outline (radians, + left / convex for CCW)."""
-    p = np.asarray(outline, dtype=np.float64)
-    d_in = p - roll(p, 1)
-    d_out = roll(p, -1) - p
-    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
-    dot = (d_in * d_out).sum(axis=1)
-    return np.arctan2(cross, dot)
 
 
 def _quality(turn: np.ndarray) -> np.ndarray:

@@ -561,7 +561,8 @@ def count_records(path: str | Path, stop: int) -> int | None:
 
 
 def utf8_text(path: str | Path) -> bool:
-    """Whether an ASCII DXF file has non-ASCII text that is valid UTF-8 throughout. ezdxf decodes a
+    """Whether an ASCII DXF file (:func:`count_records` tells a binary one) has non-ASCII text that
+    is valid UTF-8 throughout. ezdxf decodes a
     file without a ``$DWGCODEPAGE`` (or before R2007) as cp1252 by default, which turns the UTF-8
     of names written by many exporters into mojibake (a real ET export's Chinese piece names);
     valid UTF-8 with multi-byte characters hardly occurs by chance in a single-byte code page."""
@@ -570,9 +571,6 @@ def utf8_text(path: str | Path) -> bool:
     decoder = codecs.getincrementaldecoder("utf-8")()
     wide = False
     with open(path, "rb") as f:
-        if f.read(18) == b"AutoCAD Binary DXF":
-            return False
-        f.seek(0)
         while chunk := f.read(1 << 20):
             if not wide and max(chunk) < 0x80:
                 continue
@@ -644,7 +642,8 @@ def read_dxf(path: str | Path, *, units: str | None = None,
         raise InputError(f"{path}: more than {limits.MAX_DXF_RECORDS:,} records (entities, polyline vertices, "
                          "table entries), the limit for a DXF file")
     try:
-        doc = ezdxf.readfile(str(path), encoding="utf-8" if utf8_text(path) else None)
+        # (records None: a binary DXF, whose text ezdxf decodes itself)
+        doc = ezdxf.readfile(str(path), encoding="utf-8" if records is not None and utf8_text(path) else None)
     except DXFError as exc:
         raise InputError(f"{path}: not a valid DXF file ({_damage(exc)}): {exc}") from None
     except UnicodeDecodeError as exc:
