@@ -898,14 +898,15 @@ def test_fold_free_points_write_only_the_moved_nodes_and_put_them_back(rng):
         changed[t[:, 0], t[:, 1]] = True
     X[changed] += rng.normal(scale=0.05, size=(int(changed.sum()), 2))
     want = _with_interior(R0, X, centre, basis, 2)         # a new grid with X's interior
-    points, put_back = _fold_free_points(R, X, centre, basis, 2, moved, touched)
+    points, put_back, nodes = _fold_free_points(R, X, centre, basis, 2, moved, touched)
     assert points is R and np.array_equal(points, want)
+    assert np.array_equal(nodes, np.argwhere(changed))       # the nodes written, for the quality after
     assert np.array_equal(points[~changed], R0[~changed])
     put_back()
     assert np.array_equal(R, R0)
     many = np.ones((nu, nv), bool)
-    points, put_back = _fold_free_points(R, X, centre, basis, 2, many, [])
-    assert points is not R and np.array_equal(points, want) and np.array_equal(R, R0)
+    points, put_back, nodes = _fold_free_points(R, X, centre, basis, 2, many, [])
+    assert nodes is None and points is not R and np.array_equal(points, want) and np.array_equal(R, R0)
     X[21, 20] = np.nan        # a moved node gone non-finite: one clear error, the length grid as it was
     for mask in (moved, many):
         with pytest.raises(InputError, match=r"the fold-free step gave a grid with non-finite .* node \(21, 20\)"):

@@ -234,7 +234,7 @@ def test_blocks_of_rows_give_the_whole_grid_measures(monkeypatch, curved):
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_planar_kernel_gives_the_numpy_measures(monkeypatch, seed):
-    """Large planar grids are measured by one Numba pass (quality_kernels.planar_measures): on fresh
+    """Large planar grids are measured by one Numba pass (quality_kernels.planar_blocks): on fresh
     grids with folds, a zero-length edge, a straight grid corner and a tilted plane it gives the
     NumPy form's figures (to rounding) and the folded cells by the definition."""
     import importlib
@@ -255,8 +255,8 @@ def test_planar_kernel_gives_the_numpy_measures(monkeypatch, seed):
     ref = quality(grid, normal=normal).as_dict()
     monkeypatch.setattr(q, "KERNEL_CELLS", 0)
     kernels = importlib.import_module("clothgrid.quality_kernels")
-    calls, kernel = [], kernels.planar_measures
-    monkeypatch.setattr(kernels, "planar_measures", lambda *a: calls.append(1) or kernel(*a))
+    calls, kernel = [], kernels.planar_blocks
+    monkeypatch.setattr(kernels, "planar_blocks", lambda *a: calls.append(1) or kernel(*a))
     got = quality(grid, normal=normal).as_dict()
     assert calls, "the kernel was not used"
     assert got.pop("folded_cells") == ref.pop("folded_cells")
@@ -329,3 +329,52 @@ def test_geometry_cross_is_numpys_cross_bit_for_bit():
             b = rng.normal(size=shape) * 10.0 ** rng.integers(-8, 8)
             assert np.array_equal(cross(a, b), np.cross(a, b))
     assert np.array_equal(cross([0.0, 0.0, 1.0], [1.0, 0.0, 0.0]), [0.0, 1.0, 0.0])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_record_remeasures_only_the_moved_nodes_blocks(monkeypatch, seed):
+    """A large planar grid's CellRecord measures a copy with some nodes moved again only in the blocks
+    of cells at those nodes: on fresh tilted grids, with moves that fold cells, unfold them, make a
+    zero-length edge and set new extremes of the edge lengths (at the grid's last row and column as
+    well), the same Quality bit for bit as measuring the moved grid whole, and fewer blocks measured."""
+    import importlib
+
+    from clothgrid import quality_kernels as kernels
+    from clothgrid.quality import quality_record
+
+    q = importlib.import_module("clothgrid.quality")
+    monkeypatch.setattr(q, "KERNEL_CELLS", 0)
+    rng = np.random.default_rng([seed, 77])
+    nu, nv = (int(n) for n in rng.integers(3 * kernels.BLOCK // 2, 3 * kernels.BLOCK, size=2))
+    base = plane_grid(nu, nv, shear=rng.uniform(-0.5, 0.5))
+    p = base.copy()
+    p[1:-1, 1:-1, :2] += rng.uniform(-0.3, 0.3, size=(nu - 2, nv - 2, 2))
+    if seed == 1:
+        p[5:9, 5:9, :2] += rng.uniform(-1.5, 1.5, size=(4, 4, 2))        # folds to be undone
+    rot = random_rotation(seed)
+    normal = rot @ np.array([0.0, 0.0, 1.0])
+    grid = Grid.from_points(p @ rot.T, dim=3)
+    before, record = quality_record(grid, normal=normal)
+    assert record is not None and before.as_dict() == quality(grid, normal=normal).as_dict()
+    assert before.folded > 0 if seed == 1 else True
+    for step in range(4):
+        k = int(rng.integers(1, 12))
+        nodes = np.stack([rng.integers(1, nu - 1, k), rng.integers(1, nv - 1, k)], -1)
+        if step == 1:
+            nodes[0] = (nu - 2, nv - 2)                   # next to the last row and column of cells
+        q2 = p.copy()
+        q2[nodes[:, 0], nodes[:, 1], :2] += rng.normal(scale=[1.0, 0.2, 2.0, 0.05][step], size=(k, 2))
+        if step == 2:
+            q2[nodes[0, 0], nodes[0, 1]] = q2[nodes[0, 0] + 1, nodes[0, 1]]     # a zero-length edge
+        if seed == 1 and step == 3:                       # the folds undone
+            q2 = p.copy()
+            q2[5:9, 5:9] = base[5:9, 5:9]
+            nodes = np.argwhere(q2[..., 0] != p[..., 0])
+        calls, kernel = [], kernels.planar_blocks
+        monkeypatch.setattr(kernels, "planar_blocks", lambda *a: calls.append(int(a[-1].sum())) or kernel(*a))
+        got = record.remeasure(q2 @ rot.T, nodes).as_dict()
+        monkeypatch.setattr(kernels, "planar_blocks", kernel)
+        want = quality(Grid.from_points(q2 @ rot.T, dim=3), normal=normal).as_dict()
+        assert got == want
+        assert calls and calls[0] < record.blocks.shape[0] * record.blocks.shape[1]
+        p = q2

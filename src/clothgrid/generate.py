@@ -296,8 +296,9 @@ def check_size(nodes, *, solver: str = "auto", backend: str = "auto", weights="p
 
 def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: np.ndarray, dim: int,
                       moved: np.ndarray | None, touched: list[np.ndarray]):
-    """The fold-free grid's nodes from its plane coordinates ``X``, and a function that puts the
-    length grid ``R`` back as it was. Only the nodes the relax (``moved``) or the evening
+    """The fold-free grid's nodes from its plane coordinates ``X``, a function that puts the length
+    grid ``R`` back as it was, and the ``(K, 2)`` nodes that may differ from ``R``'s where they were
+    written into ``R`` (else None). Only the nodes the relax (``moved``) or the evening
     (``touched``) may have moved differ from ``R``'s: where they are at most a quarter of the grid,
     and the piece lies in the xy-plane, they are written into ``R`` itself (their old values kept
     to put back), not into a new grid-size array whose pages cost more than the rest of the write
@@ -306,7 +307,7 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
     from .grid_kernels import mask_places
 
     if moved is None and not touched:
-        return R.copy(), lambda: None
+        return R.copy(), lambda: None, None
     nu, nv = R.shape[:2]
     mask = np.zeros((nu, nv), bool) if moved is None else moved.copy()
     for t in touched:
@@ -316,7 +317,7 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
     if axes is None or len(nodes) > nu * nv // 4:
         points = _with_interior(R, X, centre, basis, dim)
         _check_finite(points, "the fold-free step")
-        return points, lambda: None
+        return points, lambda: None, None
     i, j = nodes[:, 0], nodes[:, 1]
     old = R[i, j]                                # a copy (fancy indexing)
     for r, (k, sign) in enumerate(axes):         # _with_interior's values: X's coordinates, swapped and negated
@@ -331,7 +332,7 @@ def _fold_free_points(R: np.ndarray, X: np.ndarray, centre: np.ndarray, basis: n
         put_back()
         q = int(np.argmin(finite))
         raise _not_finite("the fold-free step", int(i[q]), int(j[q]))
-    return R, put_back
+    return R, put_back, nodes
 
 
 #: The auto step relaxes the nodes near poor cells (and smooths only those, also where it untangled
@@ -428,9 +429,9 @@ def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):
 
 def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool) -> Grid:
     """Record the length grid's folds; for ``foldfree`` / poor ``auto`` relax it; then even its edges."""
-    from .quality import quality
+    from .quality import quality, quality_record
 
-    q = quality(grid)
+    q, record = quality_record(grid)
     grid.info.update(functional="length", folded_before=q.folded, folded=q.folded)
     from .foldfree import check_grid_shape, relax_in_plane, to_plane
 
@@ -463,10 +464,11 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
         return grid
     if ev["moved"] == 0:
         touched.clear()             # a rejected evening put its nodes back
-    points, put_back = _fold_free_points(R, X, centre, basis, grid.dim, moved, touched)
+    points, put_back, changed = _fold_free_points(R, X, centre, basis, grid.dim, moved, touched)
     info = dict(grid.info)
     new = Grid.from_points(points, info=info, dim=grid.dim, flip=flip)
-    q_after = quality(new)
+    # where the moved nodes were written into the length grid, only their blocks of cells are measured again
+    q_after = quality(new) if record is None or changed is None else record.remeasure(new.points, changed)
     if q_after.folded > q.folded:
         put_back()
         # a wild outline (far from any four-sided shape) where untangling made it worse: never

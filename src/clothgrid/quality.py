@@ -17,7 +17,7 @@ from .errors import InputError
 from .geometry import PLANAR_TOL, best_fit_plane, boundary_loop, cross, plane_axes, vector_area
 from .grid import Grid
 
-__all__ = ["Quality", "quality", "sim_figures", "edge_spread", "targets_met", "TARGET_MIN_ANGLE_DEG",
+__all__ = ["Quality", "quality", "quality_record", "CellRecord", "sim_figures", "edge_spread", "targets_met", "TARGET_MIN_ANGLE_DEG",
            "FLOOR_MIN_ANGLE_DEG", "TARGET_EDGE_SPREAD"]
 
 #: Largest distance of the boundary loop from its best-fit plane, relative to
@@ -173,24 +173,72 @@ def quality(grid: Grid, *, normal=None, orientation: float | None = None) -> Qua
     Quality
         Cells with a zero-length edge count as folded.
     """
+    return quality_record(grid, normal=normal, orientation=orientation)[0]
+
+
+def quality_record(grid: Grid, *, normal=None, orientation: float | None = None
+                   ) -> tuple[Quality, CellRecord | None]:
+    """:func:`quality`, and where the grid is large and planar (measured by
+    :mod:`clothgrid.quality_kernels`, more than :data:`KERNEL_CELLS` cells) a
+    :class:`CellRecord` of its measures block by block, which measures a copy
+    of the grid with a few nodes moved again only where they are; else None."""
     R = np.asarray(grid.points, dtype=np.float64)
     nu, nv = R.shape[:2]
     if nu < 2 or nv < 2:
         nan = float("nan")
-        return Quality(0, np.zeros((0, 2), np.int64), nan, nan, nan, nan, nan)
+        return Quality(0, np.zeros((0, 2), np.int64), nan, nan, nan, nan, nan), None
 
     n = _reference_normal(grid, normal, orientation)
     local = None if n is not None else (1.0 if orientation is None else float(np.sign(orientation) or 1.0))
     basis = None if n is None else plane_axes(n)              # (2, 3), e1 x e2 = n
     if basis is not None and (nu - 1) * (nv - 1) > KERNEL_CELLS:     # one pass, no temporaries
-        from .grid_kernels import mask_places
-        from .quality_kernels import planar_measures
+        from .quality_kernels import new_blocks
 
-        folded, *figures = planar_measures(np.ascontiguousarray(R), np.ascontiguousarray(basis),
-                                           STRAIGHT_CORNER_SINE)
-        cells, parts = mask_places(folded), [(None, *(float(f) for f in figures))]
-    else:
-        cells, parts = _measure_blocks(R, basis, local, n is None)
+        record = CellRecord(np.ascontiguousarray(basis), *new_blocks(nu, nv))
+        return record.measure(R), record
+    cells, parts = _measure_blocks(R, basis, local, n is None)
+    return _from_parts(cells, parts), None
+
+
+class CellRecord:
+    """A large planar grid's cell measures kept block by block (:func:`quality_record`; a block is
+    :data:`clothgrid.quality_kernels.BLOCK` cells of a row), so that a grid with the same boundary
+    and only some nodes moved is measured again only in the blocks of cells at those nodes
+    (:meth:`remeasure`): the same :class:`Quality`, bit for bit, as measuring it whole."""
+
+    def __init__(self, basis: np.ndarray, folded: np.ndarray, blocks: np.ndarray):
+        self.basis, self.folded, self.blocks = basis, folded, blocks
+
+    def measure(self, points: np.ndarray, todo: np.ndarray | None = None) -> Quality:
+        """Measure the blocks marked in ``todo`` (every block by default) of ``points`` into the
+        record; the whole grid's :class:`Quality`."""
+        from .grid_kernels import mask_places
+        from .quality_kernels import block_figures, planar_blocks
+
+        if todo is None:
+            todo = np.ones(self.blocks.shape[:2], bool)
+        planar_blocks(np.ascontiguousarray(points, dtype=np.float64), self.basis, STRAIGHT_CORNER_SINE,
+                      self.folded, self.blocks, todo)
+        figures = (float(f) for f in block_figures(self.blocks))
+        return _from_parts(mask_places(self.folded), [(None, *figures)])
+
+    def remeasure(self, points: np.ndarray, nodes: np.ndarray) -> Quality:
+        """The :class:`Quality` of ``points``, the grid measured last with only ``nodes`` (``(K,
+        2)`` ``(i, j)``) moved (and its boundary kept): the blocks of the cells at those nodes
+        measured again; the record is then ``points``'."""
+        from .quality_kernels import BLOCK
+
+        mu, mv = self.folded.shape
+        todo = np.zeros(self.blocks.shape[:2], bool)
+        i, j = np.asarray(nodes[:, 0]), np.asarray(nodes[:, 1])
+        for di in (-1, 0):            # a node's four cells; its edges are held by the same blocks
+            for dj in (-1, 0):
+                todo[np.clip(i + di, 0, mu - 1), np.clip(j + dj, 0, mv - 1) // BLOCK] = True
+        return self.measure(points, todo)
+
+
+def _from_parts(cells: np.ndarray, parts: list[tuple]) -> Quality:
+    """A :class:`Quality` from the folded cells and the blocks' figures (:func:`_measure`'s tuples)."""
     with np.errstate(invalid="ignore", divide="ignore"):
         spread_u = np.float64(max(p[4] for p in parts)) / np.float64(min(p[5] for p in parts))
         spread_v = np.float64(max(p[6] for p in parts)) / np.float64(min(p[7] for p in parts))

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["angle_and_edge_extremes", "planar_measures"]
+__all__ = ["angle_and_edge_extremes", "planar_blocks", "new_blocks", "block_figures"]
 
 
 @njit(cache=True, inline="always")
@@ -204,45 +204,59 @@ def _grid_corner_cell(i, j, mu, mv, bx, by, tx, ty, lx, ly, rx, ry, straight):
     return bad
 
 
-#: rows of :func:`planar_measures`' scratch a thread: the two node rows' x, y (0-3), the u-edges'
+#: rows of :func:`planar_blocks`' scratch a thread: the two node rows' x, y (0-3), the u-edges'
 #: unit x, y and lengths (4-6), the lower and upper v-edges' (7-9, 10-12), cells' sine, aspect,
 #: cosine, shortest edge (13-16)
 _SCRATCH_ROWS = 17
+#: Cells of a row in a block of :func:`planar_blocks`' figures (a grid whose nodes mostly stay put
+#: is measured again block by block: :class:`clothgrid.quality.CellRecord`).
+BLOCK = 64
+#: :func:`planar_blocks`' figures of a block: smallest sine, largest aspect, largest |cosine|, a
+#: degenerate cell (1.0), longest and shortest u-edge, longest and shortest v-edge
+_FIGURES = 8
+
+
+def new_blocks(nu, nv):
+    """``(nu-1, nv-1)`` bool folded mask and ``(nu-1, blocks, 8)`` figures for :func:`planar_blocks`."""
+    mu, mv = nu - 1, nv - 1
+    return np.zeros((mu, mv), np.bool_), np.empty((mu, -(-mv // BLOCK), _FIGURES))
+
+
+@njit(cache=True)
+def block_figures(blocks):
+    """:func:`clothgrid.quality.quality`'s figures from :func:`planar_blocks`' blocks: smallest sine, largest
+    aspect, largest angle deviation in degrees, longest and shortest u-edge, longest and shortest
+    v-edge (extremes: the same whatever the blocks)."""
+    sj, asp, cos, deg = np.inf, 0.0, 0.0, False
+    uh, ul, vh, vl = 0.0, np.inf, 0.0, np.inf
+    for i in range(blocks.shape[0]):
+        for b in range(blocks.shape[1]):
+            f = blocks[i, b]
+            sj, asp, cos, deg = min(sj, f[0]), max(asp, f[1]), max(cos, f[2]), deg or f[3] > 0.0
+            uh, ul, vh, vl = max(uh, f[4]), min(ul, f[5]), max(vh, f[6]), min(vl, f[7])
+    deviation = 90.0 if deg else math.degrees(math.asin(min(cos, 1.0)))
+    return sj, asp, deviation, uh, ul, vh, vl
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def planar_measures(R, basis, straight):
-    """:func:`clothgrid.quality.quality`'s measures of a planar grid in one pass.
+def planar_blocks(R, basis, straight, folded, blocks, todo):
+    """:func:`clothgrid.quality.quality`'s measures of a planar grid ``R`` (``(nu, nv, 3)`` float64,
+    ``basis`` the ``(2, 3)`` orthonormal axes of its plane, ``straight``
+    :data:`~clothgrid.quality.STRAIGHT_CORNER_SINE`) on the blocks of cells marked in ``todo`` (``(nu-1, blocks)``
+    bool; a block is :data:`BLOCK` cells of a row): their cells' folding into ``folded`` and their
+    figures into ``blocks`` (:func:`new_blocks`). A cell is folded where a corner's sine is not
+    positive (a grid corner's below ``-straight``) or an edge has zero length.
 
-    A row of cells at a time: its two node rows in the plane's coordinates, its edges' unit vectors
-    and lengths (each edge once), then each cell's figures into rows of scratch, each loop free of
-    dependences from one cell to the next (vector registers; the extremes taken after).
-
-    Parameters
-    ----------
-    R : numpy.ndarray
-        ``(nu, nv, 3)`` float64 nodes.
-    basis : numpy.ndarray
-        ``(2, 3)`` orthonormal axes of the piece's plane (``e1 x e2`` its oriented normal).
-    straight : float
-        :data:`clothgrid.quality.STRAIGHT_CORNER_SINE`.
-
-    Returns
-    -------
-    folded : numpy.ndarray
-        ``(nu-1, nv-1)`` bool: a corner's sine not positive (a grid corner's below ``-straight``)
-        or a zero-length edge.
-    min_sj, max_aspect, max_deviation_deg, max_u, min_u, max_v, min_v : float
-    """
+    A run of marked blocks of a row at a time: its nodes of the two node rows in the plane's
+    coordinates, its edges' unit vectors and lengths (each edge once), then each cell's figures
+    into rows of scratch, each loop free of dependences from one cell to the next (vector
+    registers; the extremes taken after). A cell's figures do not depend on the run it is measured
+    in. A block holds the u-edges at its cells' first nodes (the last block also the row's last)
+    and the v-edges of its cells' lower node row (the last row of cells also the upper row's)."""
     nu, nv = R.shape[0], R.shape[1]
     mu, mv = nu - 1, nv - 1
+    nb = blocks.shape[1]
     b00, b01, b02, b10, b11, b12 = basis[0, 0], basis[0, 1], basis[0, 2], basis[1, 0], basis[1, 1], basis[1, 2]
-    folded = np.zeros((mu, mv), dtype=np.bool_)
-    row_sj = np.full(mu, np.inf)
-    row_aspect = np.zeros(mu)
-    row_cos = np.zeros(mu)
-    row_deg = np.zeros(mu, dtype=np.bool_)     # a degenerate cell in the row: deviation 90
-    row_u = np.zeros((nu, 4))       # max, min of the u-edges at each row (the last has none); max, min of the v-edges
     scratch = np.empty((numba.config.NUMBA_NUM_THREADS, _SCRATCH_ROWS, nv + 8))   # 8 spare: threads' rows apart
     for r in prange(mu):
         i = np.int64(r)
@@ -250,53 +264,65 @@ def planar_measures(R, basis, straight):
         xa, ya, xb, yb = e[0], e[1], e[2], e[3]
         ux, uy, lu, vx, vy, lv, wx, wy, lw = e[4], e[5], e[6], e[7], e[8], e[9], e[10], e[11], e[12]
         csj, casp, ccos, cshort = e[13], e[14], e[15], e[16]
-        for j in range(nv):     # the nodes in the plane: the same products and sums as ever
-            xa[j] = b00 * R[i, j, 0] + b01 * R[i, j, 1] + b02 * R[i, j, 2]
-            ya[j] = b10 * R[i, j, 0] + b11 * R[i, j, 1] + b12 * R[i, j, 2]
-            xb[j] = b00 * R[i + 1, j, 0] + b01 * R[i + 1, j, 1] + b02 * R[i + 1, j, 2]
-            yb[j] = b10 * R[i + 1, j, 0] + b11 * R[i + 1, j, 1] + b12 * R[i + 1, j, 2]
-        _unit_edges(xa, ya, xb, yb, nv, ux, uy, lu)                        # u-edges, row i to i + 1
-        _unit_edges(xa, ya, xa[1:], ya[1:], mv, vx, vy, lv)                # v-edges of row i
-        _unit_edges(xb, yb, xb[1:], yb[1:], mv, wx, wy, lw)                # v-edges of row i + 1
         fo = folded[i]
-        for j in range(mv):
-            bx, by, lb = ux[j], uy[j], lu[j]                  # bottom (u-edge at j)
-            tx, ty, lt = ux[j + 1], uy[j + 1], lu[j + 1]      # top (u-edge at j + 1)
-            lx, ly, ll = vx[j], vy[j], lv[j]                  # left (v-edge at i)
-            rx, ry, lr = wx[j], wy[j], lw[j]                  # right (v-edge at i + 1)
-            s0, s1 = bx * ly - by * lx, bx * ry - by * rx     # corners b x l, b x r, t x r, t x l
-            s2, s3 = tx * ry - ty * rx, tx * ly - ty * lx
-            shortest = min(min(lb, lt), min(ll, lr))
-            longest = max(max(lb, lt), max(ll, lr))
-            csj[j] = min(min(s0, s1), min(s2, s3))
-            ccos[j] = max(max(abs(bx * lx + by * ly), abs(bx * rx + by * ry)),
-                          max(abs(tx * rx + ty * ry), abs(tx * lx + ty * ly)))
-            casp[j] = longest / shortest if shortest > 0 else np.inf
-            cshort[j] = shortest
-            fo[j] = not (s0 > 0 and s1 > 0 and s2 > 0 and s3 > 0 and shortest > 0)
-        if i == 0 or i == mu - 1:           # the grid-corner cells (only their folding differs)
-            for j in (0, mv - 1):
-                fo[j] = _grid_corner_cell(i, j, mu, mv, ux[j], uy[j], ux[j + 1], uy[j + 1], vx[j], vy[j],
-                                          wx[j], wy[j], straight) or not cshort[j] > 0
-        sj_lo, asp_hi, cos_hi, deg = np.inf, 0.0, 0.0, False
-        for j in range(mv):
-            sj_lo = min(sj_lo, csj[j])
-            asp_hi = max(asp_hi, casp[j])
-            cos_hi = max(cos_hi, ccos[j])
-            deg = deg or not cshort[j] > 0
-        row_sj[i], row_aspect[i], row_cos[i], row_deg[i] = sj_lo, asp_hi, cos_hi, deg
-        # the edge lengths' extremes: row i's u-edges and v-edges (and the last row's v-edges)
-        uh, ul, vh, vl = 0.0, np.inf, 0.0, np.inf
-        for j in range(nv):
-            uh, ul = max(uh, lu[j]), min(ul, lu[j])
-        for j in range(mv):
-            vh, vl = max(vh, lv[j]), min(vl, lv[j])
-        row_u[i, 0], row_u[i, 1], row_u[i, 2], row_u[i, 3] = uh, ul, vh, vl
-        if i == mu - 1:
-            vh, vl = 0.0, np.inf
-            for j in range(mv):
-                vh, vl = max(vh, lw[j]), min(vl, lw[j])
-            row_u[nu - 1, 2], row_u[nu - 1, 3] = vh, vl
-    deviation = 90.0 if row_deg.any() else math.degrees(math.asin(min(row_cos.max(), 1.0)))
-    return (folded, row_sj.min(), row_aspect.max(), deviation,
-            row_u[:mu, 0].max(), row_u[:mu, 1].min(), row_u[:, 2].max(), row_u[:, 3].min())
+        b0 = 0
+        while b0 < nb:
+            if not todo[i, b0]:
+                b0 += 1
+                continue
+            b1 = b0 + 1
+            while b1 < nb and todo[i, b1]:
+                b1 += 1
+            c0, c1 = b0 * BLOCK, min(b1 * BLOCK, mv)        # cells c0 .. c1-1, nodes c0 .. c1
+            n = c1 - c0
+            for k in range(n + 1):     # the nodes in the plane: the same products and sums as ever
+                j = c0 + k
+                xa[k] = b00 * R[i, j, 0] + b01 * R[i, j, 1] + b02 * R[i, j, 2]
+                ya[k] = b10 * R[i, j, 0] + b11 * R[i, j, 1] + b12 * R[i, j, 2]
+                xb[k] = b00 * R[i + 1, j, 0] + b01 * R[i + 1, j, 1] + b02 * R[i + 1, j, 2]
+                yb[k] = b10 * R[i + 1, j, 0] + b11 * R[i + 1, j, 1] + b12 * R[i + 1, j, 2]
+            _unit_edges(xa, ya, xb, yb, n + 1, ux, uy, lu)                    # u-edges, row i to i + 1
+            _unit_edges(xa, ya, xa[1:], ya[1:], n, vx, vy, lv)                # v-edges of row i
+            _unit_edges(xb, yb, xb[1:], yb[1:], n, wx, wy, lw)                # v-edges of row i + 1
+            for k in range(n):
+                bx, by, lb = ux[k], uy[k], lu[k]                  # bottom (u-edge at j)
+                tx, ty, lt = ux[k + 1], uy[k + 1], lu[k + 1]      # top (u-edge at j + 1)
+                lx, ly, ll = vx[k], vy[k], lv[k]                  # left (v-edge at i)
+                rx, ry, lr = wx[k], wy[k], lw[k]                  # right (v-edge at i + 1)
+                s0, s1 = bx * ly - by * lx, bx * ry - by * rx     # corners b x l, b x r, t x r, t x l
+                s2, s3 = tx * ry - ty * rx, tx * ly - ty * lx
+                shortest = min(min(lb, lt), min(ll, lr))
+                longest = max(max(lb, lt), max(ll, lr))
+                csj[k] = min(min(s0, s1), min(s2, s3))
+                ccos[k] = max(max(abs(bx * lx + by * ly), abs(bx * rx + by * ry)),
+                              max(abs(tx * rx + ty * ry), abs(tx * lx + ty * ly)))
+                casp[k] = longest / shortest if shortest > 0 else np.inf
+                cshort[k] = shortest
+                fo[c0 + k] = not (s0 > 0 and s1 > 0 and s2 > 0 and s3 > 0 and shortest > 0)
+            if i == 0 or i == mu - 1:           # the grid-corner cells (only their folding differs)
+                for j in (0, mv - 1):
+                    if c0 <= j < c1:
+                        k = j - c0
+                        fo[j] = _grid_corner_cell(i, j, mu, mv, ux[k], uy[k], ux[k + 1], uy[k + 1], vx[k],
+                                                  vy[k], wx[k], wy[k], straight) or not cshort[k] > 0
+            for b in range(b0, b1):
+                k0, k1 = b * BLOCK - c0, min((b + 1) * BLOCK, mv) - c0
+                sj_lo, asp_hi, cos_hi, deg = np.inf, 0.0, 0.0, False
+                for k in range(k0, k1):
+                    sj_lo = min(sj_lo, csj[k])
+                    asp_hi = max(asp_hi, casp[k])
+                    cos_hi = max(cos_hi, ccos[k])
+                    deg = deg or not cshort[k] > 0
+                # the edge lengths' extremes: the block's u-edges and v-edges (and the last row's v-edges)
+                uh, ul, vh, vl = 0.0, np.inf, 0.0, np.inf
+                for k in range(k0, k1 + 1 if b == nb - 1 else k1):
+                    uh, ul = max(uh, lu[k]), min(ul, lu[k])
+                for k in range(k0, k1):
+                    vh, vl = max(vh, lv[k]), min(vl, lv[k])
+                if i == mu - 1:
+                    for k in range(k0, k1):
+                        vh, vl = max(vh, lw[k]), min(vl, lw[k])
+                f = blocks[i, b]
+                f[0], f[1], f[2], f[3] = sj_lo, asp_hi, cos_hi, 1.0 if deg else 0.0
+                f[4], f[5], f[6], f[7] = uh, ul, vh, vl
+            b0 = b1
