@@ -531,8 +531,9 @@ def test_the_nodes_near_outlying_edges_are_the_ones_a_direct_loop_finds():
                     if t > hi or t < lo:      # an outlying edge: the nodes near either end
                         for p, q in ((i, j), (a, b)):
                             want[max(1, p - 3):min(nu - 1, p + 4), max(1, q - 3):min(nv - 1, q + 4)] = True
-        active, count = ev._outside(X, lo, hi, 3)
+        active, count, energy = ev._outside(X, lo, hi, 3)
         assert np.array_equal(active, want) and count == want.sum()
+        assert energy == ev._grid_energy(X, lo, hi)       # the same pass's energy, bit for bit
         # at most some nodes: the whole answer where the interior nodes at outlying edges are not
         # more, else none and their count (at most the margin's, at least the bound)
         hot = np.zeros_like(want)
@@ -545,7 +546,7 @@ def test_the_nodes_near_outlying_edges_are_the_ones_a_direct_loop_finds():
                             hot[i, j] = hot[a, b] = True
         inner = int(hot[1:-1, 1:-1].sum())
         for bound in (inner - 1, inner, max(count, inner) + 5):
-            got, n = ev._outside(X, lo, hi, 3, bound)
+            got, n, _ = ev._outside(X, lo, hi, 3, bound)
             if inner > bound:
                 assert got is None and n == inner and inner <= count
             else:
@@ -563,7 +564,7 @@ def test_evening_sweeps_in_parts_give_the_ordered_sweeps_bits():
     X = np.ascontiguousarray(P0[..., :2])
     X /= np.exp(np.log(_lengths(X)).mean())
     lo, hi = -math.log(ev.BAND), math.log(ev.BAND)
-    active, _ = ev._outside(X, lo, hi, 1)
+    active, _, _ = ev._outside(X, lo, hi, 1)
     nodes = np.argwhere(active).astype(np.int64)
     label, count = node_components(nodes)
     assert count >= 2
@@ -594,7 +595,7 @@ def test_skipping_settled_nodes_leaves_the_same_grid(coloured):
     lengths = _lengths(X)
     X /= np.exp(np.log(lengths).mean())
     lo, hi = -math.log(ev.BAND), math.log(ev.BAND)
-    active, count = ev._outside(X, lo, hi, 3)
+    active, count, _ = ev._outside(X, lo, hi, 3)
     nodes = active if coloured else np.argwhere(active)
     sweep = ev._sweep_coloured if coloured else ev._sweep
     floor, omega = math.sin(math.radians(FLOOR_DEG)), (1.0 if coloured else ev.OVERRELAX)

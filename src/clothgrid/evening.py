@@ -467,48 +467,61 @@ def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
 def _outside_nodes(X, lo, hi):
     """The nodes at an edge outside the band, rows in parallel: first, per node, whether its u-edge
     to ``(i + 1, j)`` (bit 1) and its v-edge to ``(i, j + 1)`` (bit 2) are (each edge looked at
-    once), then whether one of those or the one from ``(i - 1, j)`` or ``(i, j - 1)`` is."""
+    once), then whether one of those or the one from ``(i - 1, j)`` or ``(i, j - 1)`` is; and the
+    grid's energy (:func:`_energy`'s, bit for bit: the same terms summed in the same order)."""
     nu, nv = X.shape[0], X.shape[1]
     lo2, hi2 = _inside_band(lo, hi)
     edges = np.zeros((nu, nv), np.uint8)
-    for i in prange(nu):
+    rows = np.zeros(nu)
+    for r in prange(nu):
+        i = np.int64(r)
+        e = 0.0
         for j in range(nv):
             flags = 0
             if i + 1 < nu:
                 dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
-                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1] != 0.0:
+                f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+                if slope != 0.0:
                     flags |= 1
+                    e += f
             if j + 1 < nv:
                 dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
-                if _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)[1] != 0.0:
+                f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
+                if slope != 0.0:
                     flags |= 2
+                    e += f
             edges[i, j] = flags
+        rows[i] = e
+    total = 0.0
+    for i in range(nu):
+        total += rows[i]
     hot = np.zeros((nu, nv), np.bool_)
     for i in prange(nu):
         for j in range(nv):
             hot[i, j] = edges[i, j] != 0 or (i > 0 and edges[i - 1, j] & 1 != 0) \
                 or (j > 0 and edges[i, j - 1] & 2 != 0)
-    return hot
+    return hot, total
 
 
 _outside_nodes_sized = by_size(_outside_nodes, PARALLEL_CELLS)
 
 
 def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | None = None
-             ) -> tuple[np.ndarray | None, int]:
-    """Interior nodes within ``margin`` grid lines of an edge outside the band; their count. With
-    ``at_most``: where the interior nodes at such an edge (all of them near one) are already more,
-    ``(None, their count)``, without the margin's nodes."""
+             ) -> tuple[np.ndarray | None, int, float]:
+    """Interior nodes within ``margin`` grid lines of an edge outside the band; their count; the
+    grid's energy in the band (:func:`_grid_energy`'s, from the same pass). With ``at_most``: where
+    the interior nodes at such an edge (all of them near one) are already more, ``(None, their
+    count, energy)``, without the margin's nodes."""
     from .foldfree_kernels import dilate, true_count
 
     nu, nv = X.shape[:2]
-    hot = _outside_nodes_sized(nu * nv)(X, lo, hi)
+    hot, energy = _outside_nodes_sized(nu * nv)(X, lo, hi)
     if at_most is not None:
         ring = int(hot[0].sum() + hot[-1].sum() + hot[1:-1, 0].sum() + hot[1:-1, -1].sum())
         inner = true_count(hot) - ring
         if inner > at_most:
-            return None, inner
-    return dilate(hot, margin, margin, nu, nv)
+            return None, inner, energy
+    return (*dilate(hot, margin, margin, nu, nv), energy)
 
 
 def _band_limits(band: float, mean_log: float) -> tuple[float, float]:
@@ -518,19 +531,22 @@ def _band_limits(band: float, mean_log: float) -> tuple[float, float]:
 
 
 def _even_band(X: np.ndarray, band: float, floor: float, max_sweeps: int, active: np.ndarray,
-               count: int, moved_at: np.ndarray, mean_log: float = 0.0) -> dict[str, Any]:
+               count: int, moved_at: np.ndarray, mean_log: float = 0.0, energy: float | None = None
+               ) -> dict[str, Any]:
     """One stage of :func:`even_edges`: sweeps over the ``count`` ``active`` nodes with the energy
     of ``band``, in order (over-relaxed) or, for :data:`~clothgrid.foldfree.PARALLEL_NODES` nodes
     or more, in colours, until a stop rule holds; ``{band, active, sweeps, moved}``. ``moved_at``:
     the grid's shape, int32 or int64, the stage's record of each node's last move (filled here: one
-    array serves every stage)."""
+    array serves every stage). ``energy``: the grid's in the band where the caller has it
+    (:func:`_outside`'s), else measured here."""
     from .foldfree import PARALLEL_NODES, node_parts
     from .grid_kernels import mask_places
 
     lo, hi = _band_limits(band, mean_log)
     mean_length = math.exp(mean_log)       # the geometric mean edge in X's units
     out = {"band": band, "active": int(count), "sweeps": 0, "moved": 0}
-    energy = _grid_energy(X, lo, hi)
+    if energy is None:
+        energy = _grid_energy(X, lo, hi)
     ordered = count < PARALLEL_NODES
     if ordered:
         # the list of the active nodes: a sweep of a few thousand no longer scans the grid, and the
@@ -598,23 +614,24 @@ def _stage_energy(X, lo, hi, nodes, active):
 
 
 def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int, wide_ran: bool,
-               mean_log: float = 0.0) -> tuple[float, np.ndarray, int] | None:
-    """The last stage's band and active set: ``band``, or the narrowest of ``wider`` whose active
-    set is below :data:`~clothgrid.foldfree.PARALLEL_NODES`; where all are that large, the widest
-    of them, or none after a wide stage (whose result then stands). None also for no active node."""
+               mean_log: float = 0.0) -> tuple[float, np.ndarray, int, float] | None:
+    """The last stage's band, active set, its count and the grid's energy in that band: ``band``, or
+    the narrowest of ``wider`` whose active set is below :data:`~clothgrid.foldfree.PARALLEL_NODES`;
+    where all are that large, the widest of them, or none after a wide stage (whose result then
+    stands). None also for no active node."""
     from .foldfree import PARALLEL_NODES
 
     bands = (band, *wider)
     for k, b in enumerate(bands):
         # (a band whose nodes at outlying edges alone are too many is passed over without its margin)
-        active, count = _outside(X, *_band_limits(b, mean_log), margin,
-                                 None if k == len(bands) - 1 else PARALLEL_NODES)
+        active, count, energy = _outside(X, *_band_limits(b, mean_log), margin,
+                                         None if k == len(bands) - 1 else PARALLEL_NODES)
         if count < PARALLEL_NODES:
             break
     else:
         if wide_ran:
             return None
-    return (b, active, int(count)) if count else None
+    return (b, active, int(count), energy) if count else None
 
 
 @one_blas_thread()     # Numba's threads do the work (clothgrid.blas_threads)
@@ -763,17 +780,17 @@ def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = 
     # the sweeps asked for are very many
     moved_at = np.empty(X.shape[:2], np.int32 if max_sweeps * PARALLEL_NODES < 2**31 else np.int64)
 
-    def stage(b: float, active: np.ndarray, count: int) -> None:
+    def stage(b: float, active: np.ndarray, count: int, energy: float) -> None:
         nodes = mask_places(active)
         saved.append((nodes, X[nodes[:, 0], nodes[:, 1]]))       # a copy (fancy indexing)
         if touched is not None:
             touched.append(nodes)
-        stages.append(_even_band(X, b, floor, max_sweeps, active, count, moved_at, mean_log))
+        stages.append(_even_band(X, b, floor, max_sweeps, active, count, moved_at, mean_log, energy))
 
     if wide:
-        active, count = _outside(X, *_band_limits(wide_band, mean_log), margin)
+        active, count, energy = _outside(X, *_band_limits(wide_band, mean_log), margin)
         if count:
-            stage(wide_band, active, int(count))
+            stage(wide_band, active, int(count), energy)
     wider = tuple(f for f in FINAL_BANDS if f > band and not (wide and f >= wide_band))
     last = _last_band(X, band, wider, margin, bool(stages), mean_log)
     if last is not None:
