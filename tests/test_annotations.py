@@ -49,7 +49,10 @@ def test_real_svg_pieces_and_annotations(name):
     pieces_want, skipped_want = REAL_SVG[name]
     got = read_pieces(_shared(name))
     assert [p.name for p in got] == pieces_want
-    assert {s.name: s.kind for s in got.skipped} == skipped_want
+    # the files' notches, buttons and logos are <use> clones: drawn, and marked by their names
+    drawn = {s.name: s.kind for s in got.skipped if "use" in s.meta}
+    assert {s.name: s.kind for s in got.skipped if "use" not in s.meta} == skipped_want
+    assert set(drawn.values()) <= {"mark", "button", "notch", "text", "drill hole", "small", "inside"}
     assert [f.name for f in got.failed] == REAL_SVG_FAILED.get(name, [])
     for s in got.skipped:
         if s.kind == SA:
@@ -61,7 +64,7 @@ def test_real_svg_cut_line_swaps_the_pairs():
     path = _shared("fs_cathrin_layout.svg")
     got = read_pieces(path, line="cut")
     assert [p.name for p in got] == ["3", "10", "17", "24", "31", "39", "46"]
-    assert {s.name: s.kind for s in got.skipped} == {
+    assert {s.name: s.kind for s in got.skipped if "use" not in s.meta} == {
         n: "sew line" for n in ["2", "9", "16", "23", "30", "38", "45"]}
     assert all(p.meta["line"] == "cut" for p in got)
     sew = {p.name: p for p in read_pieces(path)}
@@ -180,6 +183,27 @@ def test_svg_only_annotations_is_an_error(tmp_path, capsys):
     with pytest.raises(InputError, match="every closed outline was taken for an annotation"):
         read_pieces(path)
     assert [p.name for p in read_pieces(path, include=["a"])] == ["a"]
+
+
+def test_a_path_named_as_a_line_is_not_taken_for_its_layers_annotation(tmp_path):
+    """TauMeta's pattern files put every piece in a layer labelled 'Label-pattern', each piece's
+    seam line and cutting line named by their ids ('A.seamline', 'A.cuttingline'), beside small
+    reference circles: the lines are a piece (its sew line, the cutting line its seam allowance),
+    not text because of the layer's word 'label'; the circles stay annotations."""
+    ink = 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"'
+    path = tmp_path / "taumeta.svg"
+    path.write_text(
+        f'<svg xmlns="http://www.w3.org/2000/svg" {ink} width="400mm" height="400mm" viewBox="0 0 400 400">'
+        '<g inkscape:label="Label-pattern" id="pattern" inkscape:groupmode="layer">'
+        '<g id="document.dress.Bodice Front.pattern">'
+        '<path id="A.seamline" d="M 10 10 L 210 10 L 210 310 L 10 310 L 10 10"/>'
+        '<path id="A.cuttingline" d="M 0 0 L 220 0 L 220 320 L 0 320 Z"/>'
+        '<circle id="A.FNC" cx="50" cy="50" r="1"/><circle id="A.FWC" cx="60" cy="50" r="1"/>'
+        '</g></g></svg>')
+    pieces = read_pieces(path)
+    assert [p.name for p in pieces] == ["A.seamline"]
+    assert pieces[0].meta["line"] == "sew"
+    assert [p.name for p in read_pieces(path, line="cut")] == ["A.cuttingline"]
 
 
 # --------------------------------------------------------------------------- synthetic AAMA DXF

@@ -219,6 +219,28 @@ def test_svg_sheared_arc_and_cubic(tmp_path):
     assert err.max() <= ACC * piece.size, err.max()
 
 
+def test_svg_use_draws_what_it_names(tmp_path):
+    """An outline drawn only through <use> (an online editor's export: the path in <defs>): each
+    <use> draws it, moved by its transform and then its x, y, as in SVG; a <use> of a <symbol>
+    draws the symbol's shapes; a <use> of its own group (a cycle) and of a missing id draw nothing."""
+    xl = 'xmlns:xlink="http://www.w3.org/1999/xlink"'
+    path = tmp_path / "use.svg"
+    path.write_text(
+        f'<svg xmlns="http://www.w3.org/2000/svg" {xl} width="300mm" height="100mm" viewBox="0 0 300 100">'
+        '<defs><path id="p" d="M 0 0 L 40 0 L 40 30 L 0 30 Z"/></defs>'
+        '<symbol id="s"><rect x="0" y="0" width="20" height="20"/></symbol>'
+        '<use xlink:href="#p" x="10" y="10"/>'
+        '<use href="#p" transform="translate(100 0)" x="5" y="50"/>'
+        '<use xlink:href="#s" x="200" y="10"/>'
+        '<g id="loop"><use xlink:href="#loop"/></g><use xlink:href="#nowhere"/></svg>')
+    pieces = read_pieces(path)
+    assert len(pieces) == 3
+    boxes = sorted((p.outline.min(axis=0).round(9).tolist(), p.outline.max(axis=0).round(9).tolist())
+                   for p in pieces)
+    # user units are mm; y runs up from the page's bottom edge (100 mm)
+    assert boxes == [([10.0, 60.0], [50.0, 90.0]), ([105.0, 20.0], [145.0, 50.0]), ([200.0, 70.0], [220.0, 90.0])]
+
+
 def test_svg_load_single_boundary(tmp_path, svg_file):
     path = tmp_path / "one.svg"
     path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" '

@@ -903,12 +903,34 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
         print(f"{f.name}: FAILED ({'cannot be read' if f.stage == 'read' else 'no corners'}): {f.reason}")
     if skipped:
         print("skipped (not gridded; grid one with --include NAME):")
-        for e in skipped:
-            size = (f" ({e['size_mm'][0]:.3g} x {e['size_mm'][1]:.3g} mm)" if "size_mm" in e else "")
-            print(f"  {e['name']}: {e['reason']}{size}")
+        _print_skipped(skipped)
     sys.stdout.flush()
     _say_failed(source, failed)
     return code
+
+
+#: ``clothgrid pieces`` lists this many skipped outlines of one reason by name, and counts the rest
+#: (a FreeSewing logo is 100-odd glyph outlines; ``--json`` lists every one)
+LISTED_PER_REASON = 3
+
+
+def _print_skipped(skipped: list[dict]) -> None:
+    """The skipped outlines, one line each, except that a reason shared by more than
+    :data:`LISTED_PER_REASON` of them names that many and counts the others in one line."""
+    by_reason: dict[str, list[dict]] = {}
+    for e in skipped:
+        by_reason.setdefault(e["reason"], []).append(e)
+    for e in skipped:
+        same = by_reason[e["reason"]]
+        k = next(n for n, x in enumerate(same) if x is e)
+        if k < LISTED_PER_REASON or len(same) == LISTED_PER_REASON + 1:
+            size = (f" ({e['size_mm'][0]:.3g} x {e['size_mm'][1]:.3g} mm)" if "size_mm" in e else "")
+            print(f"  {e['name']}: {e['reason']}{size}")
+        elif k == LISTED_PER_REASON:
+            rest = same[k:]
+            sizes = [max(x["size_mm"]) for x in rest if "size_mm" in x]
+            span = f" (up to {max(sizes):.3g} mm)" if sizes else ""
+            print(f"  ... and {len(rest)} more: {e['reason']}{span}; --json lists them")
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:

@@ -63,7 +63,7 @@ _ANNOTATION_WORDS = {
 }
 _PIECE_WORDS = {"fabric", "lining", "interfacing", "canvas", "contrast", "various", "piece",
                 "pieces", "panel", "panels", "pattern"}
-_CUT_WORDS = {"sa", "cut", "cutline", "cutting", "allowance", "seamallowance"}
+_CUT_WORDS = {"sa", "cut", "cutline", "cutting", "cuttingline", "allowance", "seamallowance"}
 _SEW_WORDS = {"sew", "sewline", "seam", "seamline", "stitch", "stitchline"}
 _TEXT_ID = re.compile(r"^(text|flowroot|tspan)[-_]?\d*$", re.IGNORECASE)
 
@@ -73,12 +73,16 @@ def _words(text: str | None) -> list[str]:
 
 
 def structure_hint(own: Iterable[str | None], around: Iterable[str | None] = (),
-                   text: bool = False) -> dict[str, Any]:
+                   text: bool = False, named: Iterable[str | None] = ()) -> dict[str, Any]:
     """What the file's structure says about an outline.
 
     ``own``: the outline's own class names / layer name; ``around``: those of
     its groups (ids, labels, classes); ``text``: a text cue (an ``aria-label``
-    or font attributes on the outline or a group, an Inkscape ``text123`` id).
+    or font attributes on the outline or a group, an Inkscape ``text123`` id);
+    ``named``: the outline's own id and label, which count only where they
+    name its line (a cut or sew line): then the groups' annotation words do not
+    make it an annotation (a TauMeta file's layer ``Label-pattern`` holds every
+    piece's ``A.seamline`` and ``A.cuttingline``).
     Returns ``{"hint": "piece" | "cut" | "sew" | None, "annotation": kind or
     None, "why": the word that decided}``.
     """
@@ -88,11 +92,19 @@ def structure_hint(own: Iterable[str | None], around: Iterable[str | None] = (),
     if text:
         out.update(annotation="text", why="text")
         return out
-    for words, where in ((own_w, "own"), (around_w, "group")):
-        for w in words:
-            if w in _ANNOTATION_WORDS:
-                out.update(annotation=_ANNOTATION_WORDS[w], why=w)
+    for w in own_w:
+        if w in _ANNOTATION_WORDS:
+            out.update(annotation=_ANNOTATION_WORDS[w], why=w)
+            return out
+    for w in (w for t in named for w in _words(t)):
+        for words, hint in ((_CUT_WORDS, "cut"), (_SEW_WORDS, "sew")):
+            if w in words:
+                out.update(hint=hint, why=w)
                 return out
+    for w in around_w:
+        if w in _ANNOTATION_WORDS:
+            out.update(annotation=_ANNOTATION_WORDS[w], why=w)
+            return out
     for w in own_w + around_w:
         if w in _CUT_WORDS:
             out.update(hint="cut", why=w)

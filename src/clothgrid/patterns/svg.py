@@ -49,6 +49,7 @@ __all__ = ["read_svg"]
 
 _SVG_NS = "http://www.w3.org/2000/svg"
 _INKSCAPE_LABEL = "{http://www.inkscape.org/namespaces/inkscape}label"
+_XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
 _FONT = re.compile(r"font-(family|size)\s*:", re.IGNORECASE)
 _SKIP = {"defs", "symbol", "clipPath", "mask", "marker", "pattern", "metadata", "title", "desc",
          "style", "script", "linearGradient", "radialGradient", "filter", "text", "foreignObject",
@@ -428,14 +429,33 @@ def read_svg(path: str | Path, *, units: str | None = None,
     if count > MAX_ENTITIES:
         raise InputError(f"{where}: {count:,} elements, more than the limit of {MAX_ENTITIES:,}")
 
+    ids = {k: e for e in root.iter() if (k := e.get("id"))}
+    using: set[int] = set()             # the elements a <use> is drawing (a <use> of its own group: a cycle)
+    drawn_uses = 0
+
     def visit(el: ET.Element, m: np.ndarray, around: tuple[str, ...] = (), text: bool = False,
-              group: str = "") -> None:
-        nonlocal open_paths, counter
+              group: str = "", use: str | None = None, ref: bool = False) -> None:
+        nonlocal open_paths, counter, drawn_uses
         tag = _local(el.tag)
-        if tag in _SKIP or _hidden(el):
+        if (tag in _SKIP and not (ref and tag == "symbol")) or _hidden(el):
             return
         m = m @ _transform(el, where)
         text = text or _text_cue(el)
+        if tag == "use":        # draws the element it names (in <defs>, or anywhere), moved by x, y
+            name = (el.get("href") or el.get(_XLINK_HREF) or "").strip().removeprefix("#")
+            target = ids.get(name)
+            if target is None or id(target) in using:
+                return
+            drawn_uses += 1
+            if drawn_uses > MAX_ENTITIES:
+                raise InputError(f"{where}: <use> elements draw more than {MAX_ENTITIES:,} elements")
+            shift = np.array([[1.0, 0.0, _attr(el, "x", where, 0.0)], [0.0, 1.0, _attr(el, "y", where, 0.0)],
+                              [0.0, 0.0, 1.0]])
+            own = tuple(t for t in (el.get(_INKSCAPE_LABEL), el.get("id"), el.get("class")) if t)
+            using.add(id(target))
+            visit(target, m @ shift, around + own, text, group, use or name, ref=True)
+            using.discard(id(target))
+            return
         if tag in _SHAPES:
             counter += 1
             base = _name(el, f"piece{counter}")
@@ -489,12 +509,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 unmade.append((piece_failure(unique(base), exc, where, labels=(label,)),
                                {"element": tag, "id": el.get("id")}))
                 return
-            hint = structure_hint([el.get("class")], around, text)
+            hint = structure_hint([el.get("class")], around, text, (el.get("id"), el.get(_INKSCAPE_LABEL)))
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
                 meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
                         "group": group or None, "structure": hint, "look": _look(el),
-                        "part": group or None}
+                        "part": group or None, **({"use": use} if use else {})}
                 make = piece_from_points if isinstance(prims, np.ndarray) else piece_from_primitives
                 try:
                     pieces.append(make(
@@ -512,7 +532,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 key = el.get(_INKSCAPE_LABEL) or el.get("id")
                 group = f"{group}/{key}" if key else f"{group}/g"
         for child in el:
-            visit(child, m, around, text, group)
+            visit(child, m, around, text, group, use)
 
     visit(root, view)
     for name, prims, meta, members in _joined(opened):
