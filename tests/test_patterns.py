@@ -241,6 +241,36 @@ def test_svg_use_draws_what_it_names(tmp_path):
     assert boxes == [([10.0, 60.0], [50.0, 90.0]), ([105.0, 20.0], [145.0, 50.0]), ([200.0, 70.0], [220.0, 90.0])]
 
 
+def test_marked_annotations_are_made_only_when_included(tmp_path, monkeypatch):
+    """An outline the file's structure marks as an annotation (a FreeSewing logo's glyphs, drawn
+    through <use>) is skipped without being sampled: its size from its control points; named in
+    --include it is made then, as it would have been (a glyph that cannot be made says why)."""
+    from clothgrid.patterns import piece as piece_mod
+
+    path = tmp_path / "logo.svg"
+    path.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="100mm" viewBox="0 0 300 100">'
+        '<defs><g id="logo"><path id="ring" d="M 0 10 C 0 -3 20 -3 20 10 C 20 23 0 23 0 10 Z"/>'
+        '<path id="flat" d="M 0 0 L 5 0 Z"/></g></defs>'
+        '<path id="body" d="M 100 10 L 200 10 L 200 90 L 100 90 Z"/>'
+        '<use href="#logo" x="20" y="30"/></svg>')
+    made = []
+    real = piece_mod.piece_from_primitives
+    monkeypatch.setattr("clothgrid.patterns.svg.piece_from_primitives",
+                        lambda name, *a, **k: made.append(name) or real(name, *a, **k))
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["body"] and made == ["body"]
+    ring = next(s for s in got.skipped if s.name == "ring")
+    assert ring.kind == "mark" and ring.piece is None and ring.meta["use"] == "logo"
+    assert ring.as_dict()["size_mm"] == pytest.approx([20.0, 26.0])      # the control points' box
+    inc = read_pieces(path, include=["ring"])
+    assert [p.name for p in inc] == ["body", "ring"] and made[-1] == "ring"
+    r = inc[1]
+    assert r.extent[0] == pytest.approx(20.0, rel=1e-6) and r.extent[1] == pytest.approx(19.5, rel=1e-3)
+    with pytest.raises(InputError, match="outline 'flat' cannot be gridded"):
+        read_pieces(path, include=["flat"])
+
+
 def test_svg_load_single_boundary(tmp_path, svg_file):
     path = tmp_path / "one.svg"
     path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" '

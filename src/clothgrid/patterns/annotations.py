@@ -220,7 +220,7 @@ def _fmt_pct(x: float) -> str:
 
 
 def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]] = (), *,
-             line: str = "sew") -> Pieces:
+             line: str = "sew", marked: Sequence[Skipped] = ()) -> Pieces:
     """Sort closed outlines into pieces and skipped annotations.
 
     Parameters
@@ -239,6 +239,9 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
         the others would be pieces: they are the answer's ``failed``.
     line : "sew" or "cut"
         Of an outline and the seam-allowance outline around it, which to grid.
+    marked : sequence of Skipped
+        Outlines the reader skipped as the file's structure marks them
+        (:func:`marked_annotation`: not sampled); listed after the outlines made.
 
     Returns
     -------
@@ -500,13 +503,28 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             k += 1
         else:
             failed.append(f)
-    return Pieces(out, failed, [s for _, s in sorted(skipped, key=lambda t: t[0])])
+    skipped.sort(key=lambda t: t[0])
+    made = [s for k, s in skipped if k < len(items)]              # then the marked, then the unmade
+    return Pieces(out, failed, made + list(marked) + [s for k, s in skipped if k >= len(items)])
+
+
+def marked_annotation(name: str, hint: dict[str, Any], meta: dict[str, Any], box: Any, make: Any) -> Skipped:
+    """The :class:`Skipped` entry of an outline whose structure ``hint`` (:func:`structure_hint`)
+    marks it as an annotation, which :func:`classify` would skip whatever its shape: made only
+    if included by name (``make``), its size from ``box`` (:func:`~.piece.outline_box`: its points'
+    bounding box, None if it has none). Hundreds of logo and button glyphs drawn through SVG
+    ``<use>`` took 2 s to sample and check."""
+    kept = {k: v for k, v in meta.items() if k not in ("structure", "look", "part", "box")}
+    size = None if box is None else (box[1][0] - box[0][0], box[1][1] - box[0][1])
+    return Skipped(name, hint["annotation"], f"{hint['annotation']} (the file marks it {hint.get('why')!r})",
+                   None, None, kept, make, size)
 
 
 def classified(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]], where: str,
-               none: str | None = None, *, line: str = "sew") -> Pieces:
-    """A reader's answer: :func:`classify` the outlines made and not made; when none could be
-    made, the error of :func:`~.piece.pattern_pieces` (``none`` when there was nothing at all)."""
-    if not pieces:
+               none: str | None = None, *, line: str = "sew", marked: Sequence[Skipped] = ()) -> Pieces:
+    """A reader's answer: :func:`classify` the outlines made and not made (and those ``marked``);
+    when none was made or marked, the error of :func:`~.piece.pattern_pieces` (``none`` when there
+    was nothing at all)."""
+    if not pieces and not marked:
         return pattern_pieces([], [f for f, _ in unmade], where, none)   # raises
-    return classify(pieces, unmade, line=line)
+    return classify(pieces, unmade, line=line, marked=marked)

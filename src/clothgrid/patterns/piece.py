@@ -145,9 +145,18 @@ class Skipped:
         One line for people.
     piece : Piece or None
         The outline as a piece (None for a degenerate one: fewer than 3 distinct
-        points or no area, which cannot be gridded).
+        points or no area, which cannot be gridded; None also for an outline the
+        file's structure marks as an annotation, which a reader need not sample:
+        then ``make`` makes it, for :meth:`Pieces.including`).
     of : str or None
         The piece it belongs to (is drawn on, or is the other line of).
+    meta : dict
+        The reader's facts (element, id, group, ...).
+    make : callable or None
+        Makes the piece where ``piece`` is None and the outline can be made (it may
+        raise :class:`~clothgrid.errors.InputError`).
+    size : (float, float) or None
+        Width and height of its points' bounding box in mm, where ``piece`` is None.
     """
 
     name: str
@@ -156,6 +165,12 @@ class Skipped:
     piece: Piece | None = None
     of: str | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    make: Any = field(default=None, repr=False)
+    size: tuple[float, float] | None = None
+
+    def made(self) -> Piece | None:
+        """The outline as a piece (``piece``, else made by ``make``), or None where it cannot be one."""
+        return self.piece if self.piece is not None or self.make is None else self.make()
 
     def as_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {"name": self.name, "kind": self.kind, "reason": self.reason,
@@ -163,6 +178,8 @@ class Skipped:
         if self.piece is not None:
             w, h = self.piece.extent
             d.update(size_mm=[w, h], area_mm2=self.piece.area)
+        elif self.size is not None:
+            d.update(size_mm=list(self.size))
         d["meta"] = {k: v for k, v in self.meta.items() if v is not None}
         return d
 
@@ -209,12 +226,16 @@ class Pieces(list):
         added: list[Piece] = []
         for s in self.skipped:
             if s.name in wanted:
-                if s.piece is None:
+                try:
+                    piece = s.made()
+                except InputError as exc:
+                    raise InputError(f"{where}outline {s.name!r} cannot be gridded: {exc}") from None
+                if piece is None:
                     raise InputError(f"{where}outline {s.name!r} cannot be gridded: {s.reason}")
-                s.piece.meta["included"] = f"skipped as {s.kind}, included by name"
-                s.piece.meta.setdefault("line", {"seam allowance": "cut", "sew line": "sew"}
-                                        .get(s.kind, "outline"))
-                added.append(s.piece)
+                piece.meta["included"] = f"skipped as {s.kind}, included by name"
+                piece.meta.setdefault("line", {"seam allowance": "cut", "sew line": "sew"}
+                                      .get(s.kind, "outline"))
+                added.append(piece)
         return Pieces(list(self) + added, self.failed,
                       [s for s in self.skipped if s.name not in wanted])
 

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Bezier", "EllipseArc", "Primitive", "sample_bezier", "sample_beziers", "sample_ellipse_arc",
+__all__ = ["Bezier", "EllipseArc", "Primitive", "control_box", "sample_bezier", "sample_beziers", "sample_ellipse_arc",
            "sample_loop", "bspline_to_beziers", "loop_extent", "DEFAULT_REL_TOL"]
 
 #: default chord tolerance, relative to the piece's size (bounding-box diagonal)
@@ -236,6 +236,28 @@ def loop_extent(prims: list[Primitive], n: int = 17) -> float:
            else p.points(np.linspace(p.t0, p.t1, n)) for p in prims]
     allp = np.concatenate(pts)
     return float(np.linalg.norm(allp.max(axis=0) - allp.min(axis=0)))
+
+
+def control_box(prims: Sequence[Primitive]) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """A box around a chain of primitives without sampling it: the control points of its Bezier
+    curves (which hold a curve with positive weights), and the box around each elliptic arc's whole
+    ellipse; None where there is no finite point."""
+    pts = []
+    for p in prims:
+        if isinstance(p, Bezier):
+            pts.append(np.asarray(p.ctrl, dtype=np.float64)[:, :2])
+        else:
+            reach = np.hypot(np.asarray(p.a, dtype=np.float64)[:2], np.asarray(p.b, dtype=np.float64)[:2])
+            c = np.asarray(p.center, dtype=np.float64)[:2]
+            pts.append(np.array([c - reach, c + reach]))
+    if not pts:
+        return None
+    allp = np.concatenate(pts)
+    allp = allp[np.isfinite(allp).all(axis=1)]
+    if not len(allp):
+        return None
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    return (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))
 
 
 def sample_loop(prims: list[Primitive], tol: float) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from functools import partial
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -39,10 +40,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
-from .annotations import classified, structure_hint
-from .piece import (Piece, PieceFailure, Pieces, outline_box, piece_failure, piece_from_points,
+from .annotations import classified, marked_annotation, structure_hint
+from .piece import (Piece, PieceFailure, Pieces, Skipped, outline_box, piece_failure, piece_from_points,
                     piece_from_primitives)
-from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive
+from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
 from ..units import UNITS, unit_to_mm
 
 __all__ = ["read_svg"]
@@ -414,6 +415,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     open_paths = 0
     counter = 0
     opened: list[_Open] = []                         # open subpaths (and lines drawn closed)
+    marked: list[Skipped] = []                       # outlines the structure marks as annotations
     drawn: dict[int, _Open] = {}                     # lines drawn closed, by their subpath
 
     def unique(name: str) -> str:
@@ -516,6 +518,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
                         "group": group or None, "structure": hint, "look": _look(el),
                         "part": group or None, **({"use": use} if use else {})}
                 make = piece_from_points if isinstance(prims, np.ndarray) else piece_from_primitives
+                if hint.get("annotation"):      # skipped whatever its shape: made only if included
+                    box = outline_box(prims) if isinstance(prims, np.ndarray) else control_box(prims)
+                    marked.append(marked_annotation(name, hint, meta, box, partial(
+                        make, name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
+                        notes=(f"units: {how}",), meta=dict(meta))))
+                    continue
                 try:
                     pieces.append(make(
                         name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
@@ -551,7 +559,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
     return classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
-                      line=line)
+                      line=line, marked=marked)
 
 
 @dataclass
