@@ -271,6 +271,83 @@ def test_marked_annotations_are_made_only_when_included(tmp_path, monkeypatch):
         read_pieces(path, include=["flat"])
 
 
+def _line(a, b):
+    from clothgrid.patterns.sampling import Bezier
+
+    return [Bezier(np.array([a, b], dtype=np.float64))]
+
+
+def test_outer_loops_trace_the_boundary_around_forked_chains(rng):
+    """chains.outer_loops: chains that fork (a panel's edges and a waist line across it) give the
+    boundary around them, in order, whatever the chains' order and direction, with ends up to the
+    tolerance apart; a line that only touches the outline is left out, the waist line is inner;
+    two panels sharing an edge give the boundary of both; a drawing whose boundary would run along
+    a chain twice (two squares joined by a bridge) gives none; chains with no fork give none."""
+    from clothgrid.geometry import signed_area
+    from clothgrid.patterns.chains import outer_loops
+    from clothgrid.patterns.sampling import Bezier
+
+    def shuffle(chains):
+        order = rng.permutation(len(chains))
+        out = []
+        for k in order:
+            c = chains[k]
+            if rng.random() < 0.5:
+                c = [Bezier(p.ctrl[::-1].copy()) for p in reversed(c)]
+            out.append(c)
+        return out, order
+
+    def jitter(p):
+        return np.asarray(p, dtype=float) + rng.uniform(-3e-4, 3e-4, 2)
+
+    sq = [(0, 0), (10, 0), (10, 20), (0, 20)]
+    edges = [_line(jitter(sq[k]), jitter(sq[(k + 1) % 4])) for k in range(4)]
+    waist = _line((10, 8), (0, 8))           # ends on the side edges: split them at y = 8
+    right = [_line(sq[1], (10, 8)), _line((10, 8), sq[2])]
+    left = [_line(sq[3], (0, 8)), _line((0, 8), sq[0])]
+    grain = _line((5, 0), (5, -4))           # touches the bottom edge's middle only: not a node
+    hook = _line((10, 20), (14, 25))         # one end at a corner, the other free
+    chains = [edges[0], *right, edges[2], *left, waist, grain, hook]
+    for _ in range(5):
+        got_chains, order = shuffle(chains)
+        (prims, used, inner), = outer_loops(got_chains, 1e-3)
+        assert sorted(order[used]) == [0, 1, 2, 3, 4, 5] and list(order[inner]) == [6]
+        pts = np.array([p.start for p in prims])
+        assert abs(abs(signed_area(pts)) - 200.0) < 0.05
+        assert all(np.linalg.norm(a.end - b.start) <= 2e-3 for a, b in zip(prims, prims[1:] + prims[:1]))
+    # two panels side by side sharing their middle edge
+    two = [_line((0, 0), (10, 0)), _line((10, 0), (20, 0)), _line((20, 0), (20, 5)), _line((20, 5), (10, 5)),
+           _line((10, 5), (0, 5)), _line((0, 5), (0, 0)), _line((10, 0), (10, 5))]
+    (prims, used, inner), = outer_loops(two, 1e-6)
+    assert sorted(used) == [0, 1, 2, 3, 4, 5] and inner == [6]
+    assert abs(abs(signed_area(np.array([p.start for p in prims]))) - 100.0) < 1e-9
+    # two squares joined by a bridge: the boundary would run along the bridge twice
+    a = [_line((0, 0), (1, 0)), _line((1, 0), (1, 1)), _line((1, 1), (0, 1)), _line((0, 1), (0, 0))]
+    b = [_line((5, 0), (6, 0)), _line((6, 0), (6, 1)), _line((6, 1), (5, 1)), _line((5, 1), (5, 0))]
+    assert outer_loops(a + b + [_line((1, 0), (5, 0))], 1e-6) == []
+    assert outer_loops(a, 1e-6) == []                  # no fork: chain_loops' case
+
+
+def test_svg_panel_drawn_as_edges_with_a_waist_line(tmp_path):
+    """An Inkscape corset panel drawn as six open edge paths (ends a micrometre apart) and a waist
+    line across it: one piece, its boundary, the waist line named as an inner line."""
+    path = tmp_path / "corset.svg"
+    path.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="200mm" viewBox="0 0 100 200"><g id="A">'
+        '<path id="A_WAIST" d="M 1.301 100.478 L 74.953 93.722"/>'
+        '<path id="A_TOP" d="M 3.038 4.145 L 78.142 3.935"/>'
+        '<path id="AB_UP" d="M 78.142 3.935 L 74.953 93.722"/>'
+        '<path id="AB_DOWN" d="M 74.953 93.722 L 73.187 187.774"/>'
+        '<path id="A_BOTTOM" d="M 0.161 198.066 C 24.559 198.225 59.578 190.786 73.187 187.774"/>'
+        '<path id="AA_DOWN" d="M 0.161 198.066 L 1.301 100.474"/>'
+        '<path id="AA_UP" d="M 3.038 4.145 L 1.301 100.477"/></g></svg>')
+    (piece,) = read_pieces(path)
+    assert piece.name == "A" and piece.meta["inner_lines"] == ["A_WAIST"]
+    assert sorted(piece.meta["joined"]) == sorted(["A_TOP", "AB_UP", "AB_DOWN", "A_BOTTOM", "AA_DOWN", "AA_UP"])
+    assert any("around 1 inner line ('A_WAIST')" in n for n in piece.notes)
+    assert piece.extent[1] == pytest.approx(198.225 - 3.935, abs=0.5)
+
+
 def test_svg_load_single_boundary(tmp_path, svg_file):
     path = tmp_path / "one.svg"
     path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" '

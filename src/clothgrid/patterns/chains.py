@@ -15,7 +15,7 @@ import numpy as np
 
 from .sampling import Bezier, EllipseArc, Primitive
 
-__all__ = ["chain_loops", "reverse"]
+__all__ = ["chain_loops", "outer_loops", "reverse"]
 
 
 def reverse(p: Primitive) -> Primitive:
@@ -106,3 +106,140 @@ def chain_loops(pieces: list[list[Primitive]], tol: float, members: list[list[in
             if members is not None:
                 members.append([index[k] for k in mem])
     return loops, left_open
+
+
+def _at(p: Primitive, s: float) -> np.ndarray:
+    """The point of ``p`` a fraction ``s`` of its parameter range along."""
+    if isinstance(p, Bezier):
+        return p.points(np.array([s]))[0]
+    return p.points(np.array([p.t0 + s * (p.t1 - p.t0)]))[0]
+
+
+#: how far along a chain's first (last) primitive :func:`outer_loops` looks for the direction in
+#: which it leaves (enters) a fork: a short secant, so that curves leaving a point apart are told
+#: apart by where they go, not by a distant bend
+_LEAVE = 0.05
+#: points a primitive adds to the polygon whose area picks the outer face
+_AREA_POINTS = 8
+
+
+def outer_loops(pieces: list[list[Primitive]], tol: float
+                ) -> list[tuple[list[Primitive], list[int], list[int]]]:
+    """The outlines around chains that meet end to end but fork: where three or more chain ends
+    meet at a point (a waist line drawn across a panel drawn as separate edges), a closed chain
+    through the point is ambiguous, but the boundary of what the chains enclose is not.
+
+    Ends within ``tol`` are one node. Chains with an end no other chain meets are left out,
+    repeatedly (lines that only touch the outline). In each connected set of the rest that has a
+    node where more than two chain ends meet, the faces of the drawing are traced (at each node
+    the chains in the order of the directions they leave it in) and the one of largest area, the
+    outer boundary, is returned: ``(its primitives in order, the chains it runs along, the chains
+    of that set inside it)``. Sets without a fork are :func:`chain_loops`'; so are self-crossing
+    drawings, for which no face is trustworthy: a set whose outer boundary runs along a chain
+    twice is left out.
+    """
+    n = len(pieces)
+    if n < 3 or not tol > 0:
+        return []
+    ends = np.array([[p[0].start, p[-1].end] for p in pieces], dtype=np.float64).reshape(-1, 2)
+    # nodes: ends within tol, joined (union-find over the hashed cells around each end)
+    parent = list(range(2 * n))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    cells: dict[tuple[int, int], list[int]] = {}
+    keys = np.floor(ends / tol).astype(np.int64)
+    for e in range(2 * n):
+        cx, cy = int(keys[e, 0]), int(keys[e, 1])
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                for f in cells.get((cx + dx, cy + dy), ()):
+                    if np.hypot(*(ends[e] - ends[f])) <= tol:
+                        parent[find(e)] = find(f)
+        cells.setdefault((cx, cy), []).append(e)
+    node = [find(e) for e in range(2 * n)]
+    alive = [node[2 * k] != node[2 * k + 1] for k in range(n)]       # a chain from a point to itself: a loop
+    # chains with a free end are left out, again and again
+    while True:
+        degree: dict[int, int] = {}
+        for k in range(n):
+            if alive[k]:
+                for v in (node[2 * k], node[2 * k + 1]):
+                    degree[v] = degree.get(v, 0) + 1
+        free = [k for k in range(n) if alive[k] and (degree[node[2 * k]] < 2 or degree[node[2 * k + 1]] < 2)]
+        if not free:
+            break
+        for k in free:
+            alive[k] = False
+    # connected sets of the chains left
+    comp = {v: v for v in degree}
+
+    def root(v: int) -> int:
+        while comp[v] != v:
+            comp[v] = comp[comp[v]]
+            v = comp[v]
+        return v
+
+    for k in range(n):
+        if alive[k]:
+            comp[root(node[2 * k])] = root(node[2 * k + 1])
+    sets: dict[int, list[int]] = {}
+    for k in range(n):
+        if alive[k]:
+            sets.setdefault(root(node[2 * k]), []).append(k)
+    out = []
+    for members in sets.values():
+        if not any(degree[node[2 * k + s]] > 2 for k in members for s in (0, 1)):
+            continue                                  # no fork: chain_loops' case
+        # half-edges (k, forward): leaving node[2k] forwards, or node[2k+1] backwards
+        around: dict[int, list[tuple[float, int, bool]]] = {}
+        for k in members:
+            for forward in (True, False):
+                v = node[2 * k] if forward else node[2 * k + 1]
+                p = pieces[k][0] if forward else pieces[k][-1]
+                here = p.start if forward else p.end
+                there = _at(p, _LEAVE if forward else 1.0 - _LEAVE)
+                around.setdefault(v, []).append((math.atan2(there[1] - here[1], there[0] - here[0]), k, forward))
+        for v in around:
+            around[v].sort()
+        faces = []
+        seen: set[tuple[int, bool]] = set()
+        for k in members:
+            for forward in (True, False):
+                if (k, forward) in seen:
+                    continue
+                face = []
+                h = (k, forward)
+                while h not in seen and len(face) <= 2 * len(members):
+                    seen.add(h)
+                    face.append(h)
+                    kk, fw = h
+                    v = node[2 * kk + 1] if fw else node[2 * kk]          # where it arrives
+                    ring = around[v]
+                    back = next(i for i, (_, k2, f2) in enumerate(ring) if k2 == kk and f2 != fw)
+                    _, k3, f3 = ring[(back - 1) % len(ring)]        # the next one clockwise
+                    h = (k3, f3)
+                faces.append(face)
+        best, best_area = None, 0.0
+        for face in faces:
+            pts = []
+            for k, fw in face:
+                chain = pieces[k] if fw else [reverse(p) for p in reversed(pieces[k])]
+                for p in chain:
+                    pts.extend(_at(p, s) for s in np.linspace(0.0, 1.0, _AREA_POINTS, endpoint=False))
+            xy = np.array(pts)
+            area = 0.5 * float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
+            if abs(area) > abs(best_area):
+                best, best_area = face, area
+        if best is None or len({k for k, _ in best}) != len(best):
+            continue                                  # along a chain twice: not a simple outline
+        prims: list[Primitive] = []
+        for k, fw in best:
+            prims += list(pieces[k]) if fw else [reverse(p) for p in reversed(pieces[k])]
+        used = [k for k, _ in best]
+        out.append((prims, used, sorted(set(members) - set(used))))
+    return out

@@ -543,13 +543,15 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group, use)
 
     visit(root, view)
-    for name, prims, meta, members in _joined(opened):
+    for name, prims, meta, members, inner in _joined(opened):
         name = unique(name)
+        around = (f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ("
+                  + ", ".join(repr(m) for m in inner) + ")") if inner else ""
         try:
             pieces.append(piece_from_primitives(
                 name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
                 notes=(f"units: {how}", f"joined from {len(members)} open paths ("
-                       + ", ".join(repr(m) for m in members) + ") that meet end to end"), meta=meta))
+                       + ", ".join(repr(m) for m in members) + f") that meet end to end{around}"), meta=meta))
         except InputError as exc:
             unmade.append((piece_failure(name, exc, where), meta))
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
@@ -591,13 +593,16 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
     A pattern program may draw a piece as several open paths (FreeSewing draws a
     cap brim as its two curves and the two short lines between them). Within
     one group (``<g>``) and of one ``class``, subpaths whose ends meet
-    (within ``1e-6`` of their extent) are chained
+    (within ``1e-6`` of their extent, or :data:`JOIN_MM`) are chained
     (:func:`~clothgrid.patterns.chains.chain_loops`); a chain that closes is an
     outline, named after its group (else its first path), unless it passes a
-    point where more than two path ends meet (a fork). The subpaths used are marked ``joined``. Returns ``(name,
-    primitives, meta, member names)`` per outline.
+    point where more than two path ends meet (a fork). Where paths fork (a panel
+    drawn as its edges and a waist line across it), the outline is the boundary
+    around them (:func:`~clothgrid.patterns.chains.outer_loops`), and the paths
+    inside it are inner lines. The subpaths used are marked ``joined``. Returns
+    ``(name, primitives, meta, member names, inner line names)`` per outline.
     """
-    from .chains import chain_loops
+    from .chains import chain_loops, outer_loops
 
     groups: dict[tuple[str, str], list[_Open]] = {}
     for o in opened:
@@ -608,8 +613,8 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
             continue
         ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
         extent = float(np.hypot(*np.ptp(ends.reshape(-1, 2), axis=0)))
-        tol = 1e-6 * extent
-        if not tol > 0:
+        tol = max(1e-6 * extent, JOIN_MM)
+        if not extent > 0:
             continue
         # a point where more than two path ends meet is a fork: which way an outline goes
         # there is a guess, so no outline is joined through one
@@ -632,6 +637,26 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
             meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
                     "group": group or None, "structure": hint, "look": _look(first.el),
                     "part": group or None, "joined": [paths[k].base for k in mem]}
-            out.append((name, prims, meta, [paths[k].base for k in mem]))
+            out.append((name, prims, meta, [paths[k].base for k in mem], []))
+        rest = [k for k, o in enumerate(paths) if not o.joined]
+        for prims, mem, inner in outer_loops([paths[k].prims for k in rest], tol):
+            mem, inner = [rest[k] for k in mem], [rest[k] for k in inner]
+            for k in mem + inner:
+                paths[k].joined = True
+            first = paths[mem[0]]
+            hint = structure_hint([c for c in (paths[k].el.get("class") for k in mem) if c][:1], first.around,
+                                  any(paths[k].text for k in mem))
+            key = group.rsplit("/", 1)[-1] if group else ""
+            name = key if key and key != "g" else first.base
+            meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
+                    "group": group or None, "structure": hint, "look": _look(first.el),
+                    "part": group or None, "joined": [paths[k].base for k in mem],
+                    "inner_lines": [paths[k].base for k in inner]}
+            out.append((name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner]))
     return out
+
+
+#: Open SVG paths whose ends are this close (in mm) meet, whatever the drawing's size: a hand-drawn
+#: corset panel's edges (Inkscape) end up to a micrometre apart.
+JOIN_MM = 0.01
 
