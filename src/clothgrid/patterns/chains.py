@@ -119,8 +119,6 @@ def _at(p: Primitive, s: float) -> np.ndarray:
 #: which it leaves (enters) a fork: a short secant, so that curves leaving a point apart are told
 #: apart by where they go, not by a distant bend
 _LEAVE = 0.05
-#: points a primitive adds to the polygon whose area picks the outer face
-_AREA_POINTS = 8
 
 
 def outer_loops(pieces: list[list[Primitive]], tol: float
@@ -204,8 +202,11 @@ def outer_loops(pieces: list[list[Primitive]], tol: float
                 here = p.start if forward else p.end
                 there = _at(p, _LEAVE if forward else 1.0 - _LEAVE)
                 around.setdefault(v, []).append((math.atan2(there[1] - here[1], there[0] - here[0]), k, forward))
+        place: dict[tuple[int, bool], int] = {}
         for v in around:
             around[v].sort()
+            for i, (_, k2, f2) in enumerate(around[v]):
+                place[(k2, f2)] = i
         faces = []
         seen: set[tuple[int, bool]] = set()
         for k in members:
@@ -220,17 +221,15 @@ def outer_loops(pieces: list[list[Primitive]], tol: float
                     kk, fw = h
                     v = node[2 * kk + 1] if fw else node[2 * kk]          # where it arrives
                     ring = around[v]
-                    back = next(i for i, (_, k2, f2) in enumerate(ring) if k2 == kk and f2 != fw)
+                    back = place[(kk, not fw)]
                     _, k3, f3 = ring[(back - 1) % len(ring)]        # the next one clockwise
                     h = (k3, f3)
                 faces.append(face)
         best, best_area = None, 0.0
         for face in faces:
-            pts = []
+            pts = []            # the primitives' ends (curves by their chords: enough to pick the largest)
             for k, fw in face:
-                chain = pieces[k] if fw else [reverse(p) for p in reversed(pieces[k])]
-                for p in chain:
-                    pts.extend(_at(p, s) for s in np.linspace(0.0, 1.0, _AREA_POINTS, endpoint=False))
+                pts.extend(p.start for p in pieces[k]) if fw else pts.extend(p.end for p in reversed(pieces[k]))
             xy = np.array(pts)
             area = 0.5 * float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
             if abs(area) > abs(best_area):

@@ -545,13 +545,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
     visit(root, view)
     for name, prims, meta, members, inner in _joined(opened):
         name = unique(name)
-        around = (f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ("
-                  + ", ".join(repr(m) for m in inner) + ")") if inner else ""
+        around = f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ({_names(inner)})" if inner else ""
         try:
             pieces.append(piece_from_primitives(
                 name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                notes=(f"units: {how}", f"joined from {len(members)} open paths ("
-                       + ", ".join(repr(m) for m in members) + f") that meet end to end{around}"), meta=meta))
+                notes=(f"units: {how}", f"joined from {len(members)} open paths ({_names(members)}) that meet "
+                       f"end to end{around}"), meta=meta))
         except InputError as exc:
             unmade.append((piece_failure(name, exc, where), meta))
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
@@ -654,6 +653,12 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
                     "inner_lines": [paths[k].base for k in inner]}
             out.append((name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner]))
     return out
+
+
+def _names(names: list[str], most: int = 10) -> str:
+    """``names`` quoted, at most ``most`` of them and a count of the rest."""
+    shown = ", ".join(repr(m) for m in names[:most])
+    return shown + (f", and {len(names) - most} more" if len(names) > most else "")
 
 
 #: Open SVG paths whose ends are this close (in mm) meet, whatever the drawing's size: a hand-drawn
