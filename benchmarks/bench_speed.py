@@ -293,7 +293,8 @@ def main() -> None:
                         1 if n > 512 and fun == "foldfree" else args.repeat)
             ff = g.info.get("foldfree") or g.info.get("relax") or {}
             row(f"generate, uniform weights, functional {fun} ({g.info.get('folded_before')} -> {g.info.get('folded')} folded, "
-                f"{ff.get('moved', 0)} nodes moved, {ff.get('sweeps', 0)} sweeps)", t, f"{t / t_len:.1f}x length")
+                f"{ff.get('moved', 0)} nodes moved, {ff.get('sweeps', 0)} sweeps)", t,
+                f"{t / t_len:.2f}x length; the step itself {(t - t_len) / t_len:.2f}x")
         if not args.no_cli:
             for extra, what in (([], "default (functional auto)"), (["--functional", "length"], "functional length")):
                 sec = cli_time(args.piece, n, args.repeat if n <= 512 or extra else 1, extra)

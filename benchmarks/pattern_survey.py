@@ -113,6 +113,10 @@ def main(argv=None) -> int:
             print(f"generate alone, best of {a.vs_length}: {opts.functional} {g.sum():.3f} s against length "
                   f"{n.sum():.3f} s ({g.sum() / n.sum():.2f}x); per piece median {np.median(ratio):.2f}x, "
                   f"{int(np.sum(ratio <= 2))} of {len(ok)} pieces at most 2x")
+            step = (g - n) / n          # the step after the length solve, against that solve
+            print(f"the step alone (generate less its length run) against the length run: summed "
+                  f"{(g - n).sum() / n.sum():.2f}x, per piece median {np.median(step):.2f}x, "
+                  f"{int(np.sum(step <= 2))} of {len(ok)} pieces at most 2x")
         worst = sorted(ok, key=lambda r: r["min_angle"])[:10]
         for r in worst:
             print(f"  {r['file']}:{r['piece']} {r['method']} folded {r['folded']} angle {r['min_angle']:.1f} spread {r['spread']:.1f}")
