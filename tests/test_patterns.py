@@ -522,6 +522,16 @@ def test_aama_dxf_names_in_utf8_or_a_code_page_and_their_output_files(capsys, tm
     (tmp_path / "cp1252.dxf").write_bytes(raw.replace(b"FRONT", "FÄR".encode("cp1252")))
     assert [p.name for p in read_pieces(tmp_path / "utf8.dxf")] == ["前片", "后片"]
     assert [p.name for p in read_pieces(tmp_path / "cp1252.dxf")] == ["FÄR", "BACK"]
+    # GBK (GB2312 characters), as Chinese pattern CAD systems write it, with or without a header
+    # naming ANSI_1252; single-byte text whose accented letters stand between ASCII ones is not GBK
+    gbk = raw.replace(b"FRONT", "前片".encode("gbk")).replace(b"BACK", "后片(袖)".encode("gbk"))
+    assert b"$DWGCODEPAGE" in gbk
+    (tmp_path / "gbk.dxf").write_bytes(gbk)
+    assert [p.name for p in read_pieces(tmp_path / "gbk.dxf")] == ["前片", "后片(袖)"]
+    (tmp_path / "cp1252b.dxf").write_bytes(raw.replace(b"FRONT", "Épaule é".encode("cp1252")))
+    assert [p.name for p in read_pieces(tmp_path / "cp1252b.dxf")] == ["Épaule é", "BACK"]
+    (tmp_path / "big5.dxf").write_bytes(gbk.replace(b"ANSI_1252", b"ANSI_950"))   # a code page named: ezdxf's
+    assert [p.name for p in read_pieces(tmp_path / "big5.dxf")][0] == "前片".encode("gbk").decode("cp950")
     out = tmp_path / "out"
     code, _, err = run(capsys, "generate", tmp_path / "utf8.dxf", "-o", out / "{piece}.npz", "--nodes", "5", "-q")
     assert code == 0, err

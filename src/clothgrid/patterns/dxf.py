@@ -588,6 +588,45 @@ def utf8_text(path: str | Path) -> bool:
     return True
 
 
+_HIGH_RUN = re.compile(rb"[\x80-\xff]+")
+_GB2312_PAIRS = re.compile(rb"(?:[\xa1-\xf7][\xa1-\xfe])+")
+_CODEPAGE = re.compile(rb"\$DWGCODEPAGE[ \t]*\r?\n[ \t]*3[ \t]*\r?\n[ \t]*([^\r\n]*)")
+
+
+def gb2312_text(path: str | Path) -> bool:
+    """Whether an ASCII DXF file that is not UTF-8 (:func:`utf8_text`) has non-ASCII text that is
+    GB2312 throughout (every run of bytes above 0x7F a run of two-byte characters, both bytes in
+    0xA1-0xFE, at least one a Chinese character), and names no code page but ANSI_1252 (ezdxf's
+    default for a file that names none): Chinese pattern CAD systems write their piece names in
+    GBK. Single-byte text hardly passes: an accented letter between ASCII ones is a run of one."""
+    chinese, carry = False, b""
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            data = carry + chunk
+            cut = len(data)
+            while cut > 0 and data[cut - 1] >= 0x80:      # a run that may go on in the next chunk
+                cut -= 1
+            data, carry = data[:cut], data[cut:]
+            page = _CODEPAGE.search(data)
+            if page and page.group(1).strip().upper() not in (b"ANSI_1252", b""):
+                return False
+            for run in _HIGH_RUN.findall(data):
+                if not _GB2312_PAIRS.fullmatch(run):
+                    return False
+                chinese = chinese or max(run[0::2]) >= 0xB0
+    if carry and not _GB2312_PAIRS.fullmatch(carry):
+        return False
+    return chinese or bool(carry and max(carry[0::2]) >= 0xB0)
+
+
+def text_encoding(path: str | Path) -> str | None:
+    """The encoding to read an ASCII DXF file's text in where ezdxf's own choice would garble it:
+    ``"utf-8"`` (:func:`utf8_text`), ``"gbk"`` (:func:`gb2312_text`), else None (ezdxf's)."""
+    if utf8_text(path):
+        return "utf-8"
+    return "gbk" if gb2312_text(path) else None
+
+
 def _damage(exc: Exception) -> str:
     """What a DXF error from ezdxf's reader most likely means, for the message: an entity written
     without the subclass markers (``100`` group codes) that DXF R13 and later require, as hand-made
@@ -643,7 +682,7 @@ def read_dxf(path: str | Path, *, units: str | None = None,
                          "table entries), the limit for a DXF file")
     try:
         # (records None: a binary DXF, whose text ezdxf decodes itself)
-        doc = ezdxf.readfile(str(path), encoding="utf-8" if records is not None and utf8_text(path) else None)
+        doc = ezdxf.readfile(str(path), encoding=None if records is None else text_encoding(path))
     except DXFError as exc:
         raise InputError(f"{path}: not a valid DXF file ({_damage(exc)}): {exc}") from None
     except UnicodeDecodeError as exc:
