@@ -198,6 +198,25 @@ def test_known_seam_orientation(tmp_path):
     assert g.mesh_report()["oriented"]
 
 
+def test_garment_warns_of_a_panel_size_that_suggests_other_units(tmp_path, capsys):
+    """A spec whose largest panel is under 100 mm in its own units (here 4 cm: a spec written in
+    millimetres that says centimetres would read so) gets one warning line, also in info, and goes
+    on; none with --units, none for panels of a plausible size."""
+    panels = {"A": _square("A", 0, [0, 0, 0], size=4.0), "B": _square("B", 0, [4, 0, 0], size=4.0)}
+    path = _write(tmp_path, panels, [[{"panel": "A", "edge": 1}, {"panel": "B", "edge": 3}]])
+    g = garment(path, edge_length="1cm")
+    (line,) = g.info["warnings"]
+    assert "largest panel is 40 mm across" in line and "--units" in line
+    assert garment(path, edge_length="1cm", units="cm").info["warnings"] == []
+    out = tmp_path / "g.npz"
+    assert main(["garment", str(path), "-o", str(out), "--edge-length", "1cm", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("clothgrid: warning: the largest panel is 40 mm across") == 1 and out.exists()
+    big = {"A": _square("A", 0, [0, 0, 0], size=30.0), "B": _square("B", 0, [30, 0, 0], size=30.0)}
+    path = _write(tmp_path, big, [[{"panel": "A", "edge": 1}, {"panel": "B", "edge": 3}]], "big.json")
+    assert garment(path, edge_length="5cm").info["warnings"] == []
+
+
 def test_placement_is_garmentcode_rotation(rng):
     from scipy.spatial.transform import Rotation
 

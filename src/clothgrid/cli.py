@@ -444,6 +444,8 @@ def _cmd_garment(args: argparse.Namespace) -> int:
         for w in written:
             w.unlink(missing_ok=True)
         raise
+    for line in g.info["warnings"]:
+        _say(f"warning: {line}")
     s = g.info["seconds"]
     print(f"{args.input}: {len(g.panel_names)} panels, {len(g.spec.stitches)} stitches, "
           f"{len(g.points)} nodes, {len(g.quads)} quads, {len(g.stitches)} stitched node pairs")

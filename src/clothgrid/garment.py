@@ -753,11 +753,23 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
             "mm_per_spec_unit": gs.mm_per_unit, "counts": count_info, "panels": per_panel,
             "seconds": {"corners": t_corners, "milp": count_info["seconds"], "gridding": t_grid,
                         "total": time.perf_counter() - t_start},
-            "notes": notes}
+            "notes": notes, "warnings": _units_doubt(gs, units)}
     return Garment(gs, np.concatenate(pts3), np.concatenate(rest), np.concatenate(panel_idx), names, shapes,
                    np.asarray(offsets), np.concatenate(quads), np.concatenate(face_panel),
                    np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64),
                    np.concatenate(sid) if sid else np.zeros(0, np.int64), edge_nodes, edge_fracs, grids, info)
+
+
+def _units_doubt(gs: GarmentSpec, units: str | None) -> list[str]:
+    """A line where the largest panel's size (mm) suggests the spec was read in the wrong units
+    (:func:`clothgrid.pipeline.size_warning`), unless ``units`` were given; else none."""
+    if units is not None or not gs.panels:
+        return []
+    from .units import size_warning
+
+    size = max(float(np.ptp(p.vertices, axis=0).max()) for p in gs.panels.values())
+    doubt = size_warning(size, gs.units, "panel")
+    return [doubt] if doubt else []
 
 
 def twisted_seams(stitches: Sequence[Any], pairs: Sequence[np.ndarray], panel: np.ndarray,

@@ -53,7 +53,7 @@ from .grid import Grid
 from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
                        nodes_for_edge_length, piece_boundary, piece_info)
 from .patterns.piece import PieceFailure, Pieces, piece_failure
-from .units import parse_length
+from .units import parse_length, size_warning
 from .quality import Quality, quality, sim_figures, targets_met
 from .readers import read_input, read_pieces
 
@@ -176,11 +176,6 @@ class Jobs(list):
         self.warnings: list[str] = list(warnings)
 
 
-#: A pattern file whose largest piece is smaller or larger than this (mm, in the units the file
-#: states) is most likely read in the wrong units: a CLO export that says "UNITS: METRIC" with
-#: coordinates in centimetres reads as pieces of 15-73 mm; millimetres read as inches make a
-#: 600 mm piece 15 m.
-PLAUSIBLE_PIECE_MM = (100.0, 10_000.0)
 
 
 def units_warning(pieces: Sequence[Piece], units: str | None) -> str | None:
@@ -189,12 +184,7 @@ def units_warning(pieces: Sequence[Piece], units: str | None) -> str | None:
     if units is not None or not pieces:
         return None
     size = max(float((p.outline.max(axis=0) - p.outline.min(axis=0)).max()) for p in pieces)
-    lo, hi = PLAUSIBLE_PIECE_MM
-    if lo <= size <= hi:
-        return None
-    why = f"a garment piece is rarely under {lo:g} mm" if size < lo else "that is large for a garment piece"
-    return (f"the largest piece is {size:.3g} mm across, read in the file's units ({pieces[0].units}): "
-            f"{why}; if the file is in other units, give them with --units (mm, cm, in, ...)")
+    return size_warning(size, pieces[0].units)
 
 
 @dataclass

@@ -12,7 +12,8 @@ import re
 
 from .errors import InputError
 
-__all__ = ["UNITS", "LENGTH_UNITS", "unit_to_mm", "length_scale", "parse_length", "format_length"]
+__all__ = ["UNITS", "LENGTH_UNITS", "unit_to_mm", "length_scale", "parse_length", "format_length",
+           "PLAUSIBLE_PIECE_MM", "size_warning"]
 
 #: unit name -> millimetres (CSS: 96 px and 72 pt per inch)
 UNITS: dict[str, float] = {
@@ -139,3 +140,21 @@ def length_scale(unit: str) -> float:
     if key and _unit_name(key) is not None:
         return unit_to_mm(key) / 1000.0
     raise InputError(f"unknown length unit {unit!r}: use one of {', '.join(LENGTH_UNITS)}")
+
+
+#: A pattern file whose largest piece is smaller or larger than this (mm, in the units the file
+#: states) is most likely read in the wrong units: a CLO export that says "UNITS: METRIC" with
+#: coordinates in centimetres reads as pieces of 15-73 mm; millimetres read as inches make a
+#: 600 mm piece 15 m.
+PLAUSIBLE_PIECE_MM = (100.0, 10_000.0)
+
+
+def size_warning(size: float, read_in: str, what: str = "piece") -> str | None:
+    """A line for the user where the largest ``what`` of a file, ``size`` mm across when read in the
+    file's own units ``read_in``, is outside :data:`PLAUSIBLE_PIECE_MM`; None where it is plausible."""
+    lo, hi = PLAUSIBLE_PIECE_MM
+    if lo <= size <= hi:
+        return None
+    why = f"a garment {what} is rarely under {lo:g} mm" if size < lo else f"that is large for a garment {what}"
+    return (f"the largest {what} is {size:.3g} mm across, read in the file's units ({read_in}): "
+            f"{why}; if the file is in other units, give them with --units (mm, cm, in, ...)")
