@@ -357,6 +357,20 @@ def test_self_intersecting_outlines_are_failures_in_pieces_and_generate(capsys, 
     assert sorted(p.name for p in out.iterdir()) == ["back.npz"]
 
 
+def test_open_paths_reaching_infinity_join_nothing(capsys, tmp_path, out):
+    """Open paths of a group are joined within a tolerance from their extent: two that reach an
+    infinite coordinate (1e999) made it infinite, every end met every other, and the panel drawn
+    as its edges (with a diagonal: a fork) was lost. They now join nothing and fail on their own
+    (not skipped as 'small': an outline reaching infinity is no glyph); the panel is a piece."""
+    svg = _svg(tmp_path, '<g id="p"><path d="M 0 0 L 100 0"/><path d="M 100 0 L 100 100"/>'
+                         '<path d="M 100 100 L 0 100"/><path d="M 0 100 L 0 0"/><path d="M 0 0 L 100 100"/>'
+                         '<path id="far1" d="M 0 0 L 1e999 50"/><path id="far2" d="M 100 100 L 1e999 50"/></g>')
+    code, err = _run(capsys, _gen(svg, out, "--nodes", "9", name="{piece}.npz"))
+    assert code == 4 and "Traceback" not in err, err
+    assert "piece 'far1': a non-finite coordinate" in err and "piece 'far2'" in err
+    assert sorted(p.name for p in out.iterdir()) == ["p.npz"]
+
+
 @pytest.mark.parametrize("d", ["Z", " h 50 a 10 10 0 0 1 10 10 v 40 h -60 z", "L 10 10 L 0 10 z"])
 def test_path_data_without_a_moveto_is_a_failed_piece(capsys, tmp_path, out, d):
     """Found by tests/test_fuzz.py: path data must begin with a moveto; svgpathtools made segments

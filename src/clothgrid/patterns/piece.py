@@ -244,7 +244,7 @@ def outline_box(prims: Any) -> tuple[tuple[float, float], tuple[float, float]] |
     """The bounding box ``((x0, y0), (x1, y1))`` of an outline that could not be made into a piece
     (its primitives' end points, or an ``(n, 2)`` point array), for
     :func:`~clothgrid.patterns.annotations.classify` to tell a tiny glyph from a broken piece; None
-    where there is no finite point."""
+    where there is no point or a point is not finite (an outline reaching infinity is no glyph)."""
     try:
         if isinstance(prims, np.ndarray):
             pts = np.asarray(prims, dtype=np.float64).reshape(-1, prims.shape[-1])[:, :2]
@@ -253,8 +253,7 @@ def outline_box(prims: Any) -> tuple[tuple[float, float], tuple[float, float]] |
                            + [np.asarray(q.end, dtype=np.float64)[:2] for q in prims])
     except (TypeError, ValueError, AttributeError, IndexError):
         return None
-    pts = pts[np.isfinite(pts).all(axis=1)] if pts.size else pts
-    if not len(pts):
+    if not len(pts) or not np.isfinite(pts).all():
         return None
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     return (float(lo[0]), float(lo[1])), (float(hi[0]), float(hi[1]))

@@ -608,12 +608,14 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
         groups.setdefault((o.group, o.el.get("class") or ""), []).append(o)
     out = []
     for (group, _), paths in groups.items():
+        # (a path with a non-finite end joins nothing: it would make the tolerance infinite)
+        paths = [o for o in paths if np.isfinite(o.prims[0].start).all() and np.isfinite(o.prims[-1].end).all()]
         if len(paths) < 2:
             continue
         ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
         extent = float(np.hypot(*np.ptp(ends.reshape(-1, 2), axis=0)))
         tol = max(1e-6 * extent, JOIN_MM)
-        if not extent > 0:
+        if not np.isfinite(extent) or not extent > 0:
             continue
         # a point where more than two path ends meet is a fork: which way an outline goes
         # there is a guess, so no outline is joined through one
