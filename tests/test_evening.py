@@ -553,6 +553,27 @@ def test_the_nodes_near_outlying_edges_are_the_ones_a_direct_loop_finds():
                 assert np.array_equal(got, want) and n == count
 
 
+def test_outlying_edges_of_several_bands_in_one_pass_are_each_bands_own():
+    """_outside_bands finds the outlying edges of nested bands in one pass (each edge's logarithm
+    once): each band's active set, count and energy are _outside's of that band alone, bit for bit,
+    with and without a bound on the nodes at outlying edges, on fresh random grids."""
+    import clothgrid.evening as ev
+
+    rng = np.random.default_rng()
+    for _ in range(10):
+        nu, nv = (int(k) for k in rng.integers(3, 40, 2))
+        u, v = np.meshgrid(np.arange(nu, dtype=float), np.arange(nv, dtype=float), indexing="ij")
+        X = np.ascontiguousarray(np.stack([u, v], -1) + rng.normal(scale=rng.uniform(0.05, 0.4), size=(nu, nv, 2)))
+        mean = float(rng.normal(scale=0.1))
+        limits = [ev._band_limits(b, mean) for b in (1.4, 1.7, 2.0)]
+        most = [int(rng.integers(0, nu * nv)), None, int(rng.integers(0, nu * nv))]
+        got = ev._outside_bands(X, limits, 2, most)
+        for (lo, hi), m, (active, count, energy) in zip(limits, most, got):
+            a2, c2, e2 = ev._outside(X, lo, hi, 2, m)
+            assert count == c2 and energy == e2 == ev._grid_energy(X, lo, hi)
+            assert (active is None and a2 is None) or np.array_equal(active, a2)
+
+
 def test_evening_sweeps_in_parts_give_the_ordered_sweeps_bits():
     """_sweep_parts (whole components on the threads, each node numbered by its place in the list)
     makes _sweep's steps and skips: over 12 sweeps the same grid bit for bit, the same largest

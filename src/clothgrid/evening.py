@@ -463,43 +463,64 @@ def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at)
     return row_big.max(), row_moved.sum()
 
 
+@njit(cache=True, inline="always")
+def _edge_bands(d2, los, his, lo2s, hi2s, bit, flags, energy):
+    """One edge of squared length ``d2`` (``1e-300`` added) against each band ``k`` (limits ``los[k],
+    his[k]``, inside-range ``lo2s[k], hi2s[k]``, bands nested, the narrowest first): where it is
+    outside, bit ``bit`` of band ``k`` set in ``flags`` (two bits a band) and its term added to
+    ``energy[k]`` (:func:`_outlying`'s, its logarithm taken once); the flags."""
+    if lo2s[0] < d2 < hi2s[0]:
+        return flags                # inside the narrowest band: inside every band
+    t = 0.5 * math.log(d2)
+    for k in range(los.shape[0]):
+        if lo2s[k] < d2 < hi2s[k]:
+            continue
+        f, slope = _term(t, los[k], his[k])
+        if slope != 0.0:
+            flags |= bit << (2 * k)
+            energy[k] += f
+    return flags
+
+
 @njit(cache=True, parallel=True)
-def _outside_nodes(X, lo, hi):
-    """The nodes at an edge outside the band, rows in parallel: first, per node, whether its u-edge
-    to ``(i + 1, j)`` (bit 1) and its v-edge to ``(i, j + 1)`` (bit 2) are (each edge looked at
-    once), then whether one of those or the one from ``(i - 1, j)`` or ``(i, j - 1)`` is; and the
-    grid's energy (:func:`_energy`'s, bit for bit: the same terms summed in the same order)."""
+def _outside_nodes(X, los, his):
+    """The nodes at an edge outside each band ``k`` (limits ``los[k] <= his[k]``, nested, the
+    narrowest first; at most 8), rows in parallel: first, per node, whether its u-edge to ``(i + 1,
+    j)`` and its v-edge to ``(i, j + 1)`` are outside (two bits a band; each edge looked at once,
+    its logarithm once), then whether one of those or the one from ``(i - 1, j)`` or ``(i, j - 1)``
+    is. Returns ``(K, nu, nv)`` bool and each band's energy (:func:`_energy`'s, bit for bit: the same
+    terms summed in the same order)."""
     nu, nv = X.shape[0], X.shape[1]
-    lo2, hi2 = _inside_band(lo, hi)
-    edges = np.zeros((nu, nv), np.uint8)
-    rows = np.zeros(nu)
+    K = los.shape[0]
+    lo2s, hi2s = np.empty(K), np.empty(K)
+    for k in range(K):
+        lo2s[k], hi2s[k] = _inside_band(los[k], his[k])
+    edges = np.zeros((nu, nv), np.uint16)
+    rows = np.zeros((nu, K))
     for r in prange(nu):
         i = np.int64(r)
-        e = 0.0
+        e = np.zeros(K)
         for j in range(nv):
             flags = 0
             if i + 1 < nu:
                 dx, dy = X[i, j, 0] - X[i + 1, j, 0], X[i, j, 1] - X[i + 1, j, 1]
-                f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-                if slope != 0.0:
-                    flags |= 1
-                    e += f
+                flags = _edge_bands(dx * dx + dy * dy + 1e-300, los, his, lo2s, hi2s, 1, flags, e)
             if j + 1 < nv:
                 dx, dy = X[i, j, 0] - X[i, j + 1, 0], X[i, j, 1] - X[i, j + 1, 1]
-                f, slope = _outlying(dx * dx + dy * dy + 1e-300, lo, hi, lo2, hi2)
-                if slope != 0.0:
-                    flags |= 2
-                    e += f
+                flags = _edge_bands(dx * dx + dy * dy + 1e-300, los, his, lo2s, hi2s, 2, flags, e)
             edges[i, j] = flags
         rows[i] = e
-    total = 0.0
+    total = np.zeros(K)
     for i in range(nu):
-        total += rows[i]
-    hot = np.zeros((nu, nv), np.bool_)
+        for k in range(K):
+            total[k] += rows[i, k]
+    hot = np.zeros((K, nu, nv), np.bool_)
     for i in prange(nu):
         for j in range(nv):
-            hot[i, j] = edges[i, j] != 0 or (i > 0 and edges[i - 1, j] & 1 != 0) \
-                or (j > 0 and edges[i, j - 1] & 2 != 0)
+            for k in range(K):
+                u, v = 1 << (2 * k), 2 << (2 * k)
+                hot[k, i, j] = edges[i, j] & (u | v) != 0 or (i > 0 and edges[i - 1, j] & u != 0) \
+                    or (j > 0 and edges[i, j - 1] & v != 0)
     return hot, total
 
 
@@ -512,16 +533,32 @@ def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | No
     grid's energy in the band (:func:`_grid_energy`'s, from the same pass). With ``at_most``: where
     the interior nodes at such an edge (all of them near one) are already more, ``(None, their
     count, energy)``, without the margin's nodes."""
+    return _outside_bands(X, [(lo, hi)], margin, [at_most])[0]
+
+
+def _outside_bands(X: np.ndarray, limits: list[tuple[float, float]], margin: int,
+                   at_most: list[int | None], stop: int | None = None) -> list[tuple[np.ndarray | None, int, float]]:
+    """:func:`_outside` of each band of ``limits`` (nested, the narrowest first) with its ``at_most``,
+    the outlying edges of every band found in one pass over the grid; the bands after the first
+    whose count is below ``stop`` are not dilated (their answers left out)."""
     from .foldfree_kernels import dilate, true_count
 
     nu, nv = X.shape[:2]
-    hot, energy = _outside_nodes_sized(nu * nv)(X, lo, hi)
-    if at_most is not None:
-        ring = int(hot[0].sum() + hot[-1].sum() + hot[1:-1, 0].sum() + hot[1:-1, -1].sum())
-        inner = true_count(hot) - ring
-        if inner > at_most:
-            return None, inner, energy
-    return (*dilate(hot, margin, margin, nu, nv), energy)
+    hots, energies = _outside_nodes_sized(nu * nv)(X, np.array([lo for lo, _ in limits]),
+                                                   np.array([hi for _, hi in limits]))
+    out = []
+    for hot, energy, most in zip(hots, energies, at_most):
+        energy = float(energy)
+        if most is not None:
+            ring = int(hot[0].sum() + hot[-1].sum() + hot[1:-1, 0].sum() + hot[1:-1, -1].sum())
+            inner = true_count(hot) - ring
+            if inner > most:
+                out.append((None, inner, energy))
+                continue
+        out.append((*dilate(hot, margin, margin, nu, nv), energy))
+        if stop is not None and out[-1][1] < stop:
+            break
+    return out
 
 
 def _band_limits(band: float, mean_log: float) -> tuple[float, float]:
@@ -622,10 +659,11 @@ def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int
     from .foldfree import PARALLEL_NODES
 
     bands = (band, *wider)
-    for k, b in enumerate(bands):
-        # (a band whose nodes at outlying edges alone are too many is passed over without its margin)
-        active, count, energy = _outside(X, *_band_limits(b, mean_log), margin,
-                                         None if k == len(bands) - 1 else PARALLEL_NODES)
+    # every band's outlying edges in one pass; a band whose nodes at outlying edges alone are too
+    # many is passed over without its margin
+    found = _outside_bands(X, [_band_limits(b, mean_log) for b in bands], margin,
+                           [PARALLEL_NODES] * (len(bands) - 1) + [None], stop=PARALLEL_NODES)
+    for b, (active, count, energy) in zip(bands, found):
         if count < PARALLEL_NODES:
             break
     else:
