@@ -277,6 +277,32 @@ def test_edge_stats_are_the_lengths_extremes_and_log_sum(monkeypatch, parallel, 
     assert edge_stats(X)[0] == 0.0 and edge_stats(X)[2] == -np.inf
 
 
+@pytest.mark.parametrize("parallel", [False, True])
+def test_edge_extremes_measure_again_only_where_nodes_moved(rng, monkeypatch, parallel):
+    """edge_stats' record of each block's extremes, measured again only at the nodes moved since
+    (edge_extremes): the same extremes as measuring the whole grid, bit for bit, on fresh grids whose
+    moved nodes set new extremes, undo old ones, and sit at block edges and the grid's last row and
+    column; the same figures as edge_stats' without a record."""
+    import clothgrid.foldfree_kernels as fk
+    from clothgrid.evening import EDGE_BLOCK, edge_blocks, edge_extremes, edge_stats
+
+    monkeypatch.setattr(fk, "PARALLEL_CELLS", 0 if parallel else 10**12)
+    for shape in [(3, 5), (40, 2 * EDGE_BLOCK + 1), (2 * EDGE_BLOCK, 70)]:
+        X = np.ascontiguousarray(rng.normal(size=shape + (2,)).cumsum(axis=0))
+        record = edge_blocks(X)
+        assert edge_stats(X, record) == edge_stats(X)
+        for _ in range(4):
+            k = int(rng.integers(1, 8))
+            nodes = np.stack([rng.integers(0, shape[0], k), rng.integers(0, shape[1], k)], -1)
+            nodes[0] = (shape[0] - 1, min(EDGE_BLOCK, shape[1] - 1))
+            X[nodes[:, 0], nodes[:, 1]] += rng.normal(scale=rng.choice([1e-3, 1.0, 30.0]), size=(k, 2))
+            a, c = int(rng.integers(1, shape[0])), int(rng.integers(0, shape[1]))
+            X[a, c] = X[a - 1, c] + 1e-9           # the shortest edge: the one from (a - 1, c)
+            nodes = np.vstack([nodes, [[a, c]]])
+            half = k // 2
+            assert edge_extremes(X, record, [nodes[:half], nodes[half:]]) == edge_stats(X)[:2]
+
+
 def test_moving_sines_match_one_corner_at_a_time(rng):
     """The evening's corner sines of an interior node, taken side by side in 16 lanes, are exactly the
     corners its move changes (those of its four cells that are its own or beside it: not the one

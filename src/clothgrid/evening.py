@@ -787,7 +787,8 @@ def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = 
 
     t0 = time.perf_counter()
     _check_bands(band, wide_band)
-    shortest2, longest2, log_sum = edge_stats(X)
+    record = edge_blocks(X)
+    shortest2, longest2, log_sum = edge_stats(X, record)
     shortest = math.sqrt(shortest2)
     spread = math.sqrt(longest2) / shortest if shortest > 0 else float("inf")
     info: dict[str, Any] = {"spread_before": spread, "spread_after": spread, "moved": 0, "sweeps": 0,
@@ -842,7 +843,7 @@ def even_in_plane(X: np.ndarray, *, floor_deg: float = FLOOR_DEG, band: float = 
     if info["moved"] == 0:                 # as it was, bit for bit
         info["seconds"] = time.perf_counter() - t0
         return info
-    shortest2, longest2, _ = edge_stats(X)
+    shortest2, longest2 = edge_extremes(X, record, [nodes for nodes, _ in saved])  # where the stages moved
     # the lengths' max / min (sqrt is monotone); a zero-length edge (no move makes one: its corners'
     # sines are -1, below any floor) would be an infinite spread
     after = math.sqrt(longest2) / math.sqrt(shortest2) if shortest2 > 0.0 else math.inf
@@ -879,33 +880,103 @@ def _edge_stat(d2, lo, hi, p, e, s):
     return lo, hi, p, e, s
 
 
+#: Nodes of a row in a block of :func:`_edge_stats`' record of the edges' extremes (a node holds its
+#: edges to ``(i + 1, j)`` and ``(i, j + 1)``): the evening measures again only the blocks at the
+#: nodes it moved (:func:`edge_extremes`).
+EDGE_BLOCK = 64
+
+
 @njit(cache=True, parallel=True)
-def _edge_stats(X):
+def _edge_stats(X, blocks):
     """The smallest and largest squared edge length ``d0 * d0 + d1 * d1`` of a ``(nu, nv, 2)`` grid
     (their square roots are the lengths' minimum and maximum, bit for bit) and the sum of every
     edge's ``log(d2)`` (twice the log of the geometric mean length times the edge count: a running
     product a row, one logarithm each, within a few 1e-13 of the sum of the logarithms a row),
-    without an array of lengths, rows in parallel. A zero-length edge makes the sum -inf."""
+    without an array of lengths, rows in parallel. A zero-length edge makes the sum -inf. Each
+    block's extremes go into ``blocks`` (``(nu, blocks, 2)``, :data:`EDGE_BLOCK` nodes of a row a
+    block; a ``(0, 0, 2)`` array: none)."""
     nu, nv = X.shape[0], X.shape[1]
     rows = np.empty((nu, 3))
+    nb = -(-nv // EDGE_BLOCK)
+    keep = blocks.shape[0] > 0
     for r in prange(nu):
         i = np.int64(r)
         lo, hi, p, e, s = np.inf, 0.0, 1.0, 0, 0.0
-        for j in range(nv):
-            if i + 1 < nu:
-                d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
-                lo, hi, p, e, s = _edge_stat(d0 * d0 + d1 * d1, lo, hi, p, e, s)
-            if j + 1 < nv:
-                d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
-                lo, hi, p, e, s = _edge_stat(d0 * d0 + d1 * d1, lo, hi, p, e, s)
+        for b in range(nb):
+            b_lo, b_hi = lo, hi
+            lo, hi = np.inf, 0.0
+            for j in range(b * EDGE_BLOCK, min((b + 1) * EDGE_BLOCK, nv)):
+                if i + 1 < nu:
+                    d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+                    lo, hi, p, e, s = _edge_stat(d0 * d0 + d1 * d1, lo, hi, p, e, s)
+                if j + 1 < nv:
+                    d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+                    lo, hi, p, e, s = _edge_stat(d0 * d0 + d1 * d1, lo, hi, p, e, s)
+            if keep:
+                blocks[i, b, 0], blocks[i, b, 1] = lo, hi
+            lo, hi = min(lo, b_lo), max(hi, b_hi)
         rows[i, 0], rows[i, 1] = lo, hi
         rows[i, 2] = s + (math.log(p) + e * math.log(2.0) if p > 0.0 else -np.inf)
     return rows[:, 0].min(), rows[:, 1].max(), rows[:, 2].sum()
 
 
+@njit(cache=True, parallel=True)
+def _edge_extremes(X, blocks, todo):
+    """:func:`_edge_stats`' blocks marked in ``todo`` (``(nu, blocks)``) measured again; the smallest
+    and largest squared edge length of all blocks."""
+    nu, nv = X.shape[0], X.shape[1]
+    nb = blocks.shape[1]
+    for r in prange(nu):
+        i = np.int64(r)
+        for b in range(nb):
+            if not todo[i, b]:
+                continue
+            lo, hi = np.inf, 0.0
+            for j in range(b * EDGE_BLOCK, min((b + 1) * EDGE_BLOCK, nv)):
+                if i + 1 < nu:
+                    d0, d1 = X[i + 1, j, 0] - X[i, j, 0], X[i + 1, j, 1] - X[i, j, 1]
+                    d2 = d0 * d0 + d1 * d1
+                    lo, hi = min(lo, d2), max(hi, d2)
+                if j + 1 < nv:
+                    d0, d1 = X[i, j + 1, 0] - X[i, j, 0], X[i, j + 1, 1] - X[i, j, 1]
+                    d2 = d0 * d0 + d1 * d1
+                    lo, hi = min(lo, d2), max(hi, d2)
+            blocks[i, b, 0], blocks[i, b, 1] = lo, hi
+    lo, hi = np.inf, 0.0
+    for i in range(nu):
+        for b in range(nb):
+            lo, hi = min(lo, blocks[i, b, 0]), max(hi, blocks[i, b, 1])
+    return lo, hi
+
+
 _edge_stats_sized = by_size(_edge_stats, PARALLEL_CELLS)
 
 
-def edge_stats(X: np.ndarray) -> tuple[float, float, float]:
-    """:func:`_edge_stats`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`)."""
-    return _edge_stats_sized(X.shape[0] * X.shape[1])(X)
+_edge_extremes_sized = by_size(_edge_extremes, PARALLEL_CELLS)
+
+
+def edge_stats(X: np.ndarray, blocks: np.ndarray | None = None) -> tuple[float, float, float]:
+    """:func:`_edge_stats`, rows in parallel on a large grid (:data:`PARALLEL_CELLS`); each block's
+    extremes into ``blocks`` where given (:func:`edge_blocks`)."""
+    return _edge_stats_sized(X.shape[0] * X.shape[1])(X, _NO_BLOCKS if blocks is None else blocks)
+
+
+_NO_BLOCKS = np.zeros((0, 0, 2))
+
+
+def edge_blocks(X: np.ndarray) -> np.ndarray:
+    """An empty record of :func:`edge_stats`' blocks for the grid ``X``."""
+    return np.empty((X.shape[0], -(-X.shape[1] // EDGE_BLOCK), 2))
+
+
+def edge_extremes(X: np.ndarray, blocks: np.ndarray, moved: list[np.ndarray]) -> tuple[float, float]:
+    """The smallest and largest squared edge length of ``X``, whose :func:`edge_stats` filled
+    ``blocks`` when only the ``(K, 2)`` nodes of ``moved`` were elsewhere: the blocks of the edges at
+    those nodes measured again (the same extremes as :func:`edge_stats`, bit for bit)."""
+    todo = np.zeros(blocks.shape[:2], bool)
+    for nodes in moved:
+        i, j = nodes[:, 0], nodes[:, 1]
+        todo[i, j // EDGE_BLOCK] = True                        # its own edges
+        todo[i, np.maximum(j - 1, 0) // EDGE_BLOCK] = True     # the edge from (i, j - 1)
+        todo[np.maximum(i - 1, 0), j // EDGE_BLOCK] = True     # the edge from (i - 1, j)
+    return _edge_extremes_sized(X.shape[0] * X.shape[1])(X, blocks, todo)
