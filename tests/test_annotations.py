@@ -60,6 +60,19 @@ def test_real_svg_pieces_and_annotations(name):
             assert next(p for p in got if p.name == s.of).meta["line"] == "sew"
 
 
+@pytest.mark.parametrize("name", ["fs_bruce_draft-sample.svg", "fs_cathrin_layout.svg", "fs_florent_layout.svg",
+                                  "fs_wahid_layout.svg"])
+def test_freesewing_scale_box_measures_what_it_says(name):
+    """FreeSewing's layouts carry a scale box whose white inside 'should measure 10 by 5 cm' and
+    black outside '4 by 2 inch'. Their first (PHP) core wrote 90 px an inch (millimetres scaled by
+    3.54330709 px), so read at CSS's 96 the box measured 93.75 x 46.9 mm; read as the program wrote it,
+    it measures what it says."""
+    got = read_pieces(_shared(name))
+    boxes = sorted(sorted(s.as_dict()["size_mm"]) for s in got.skipped if "scalebox" in s.reason)
+    assert boxes == [pytest.approx([50.0, 100.0], rel=1e-6), pytest.approx([50.8, 101.6], rel=1e-6)]
+    assert any("90 px an inch" in n for n in got[0].notes)
+
+
 def test_real_svg_cut_line_swaps_the_pairs():
     path = _shared("fs_cathrin_layout.svg")
     got = read_pieces(path, line="cut")

@@ -219,6 +219,30 @@ def test_svg_sheared_arc_and_cubic(tmp_path):
     assert err.max() <= ACC * piece.size, err.max()
 
 
+@pytest.mark.parametrize("head, root, per_inch", [
+    ("<!-- Generator: Adobe Illustrator 27.1.0, SVG Export Plug-In . SVG Version: 6.00 Build 0) -->", "", 72),
+    ("", 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" inkscape:version="0.48.4 r9939"', 90),
+    ("", 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" inkscape:version="0.91 r13725"', 90),
+    ("", 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" inkscape:version="0.92.4 (5da689c313, 2019-01-14)"', 96),
+    ("", 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape" inkscape:version="1.4.3 (1:1.4.3)"', 96),
+    ("", 'class="freesewing"', 90),
+    ("", "", 96),
+])
+@pytest.mark.parametrize("size", ['width="300" height="200"', 'width="300px" height="200px" viewBox="0 0 300 200"',
+                                  "", 'width="300mm" height="200mm" viewBox="0 0 300 200"'])
+def test_svg_px_per_inch_is_the_writing_programs(tmp_path, head, root, per_inch, size):
+    """A px is 1/96 in in CSS, but Adobe Illustrator writes 72 px an inch, Inkscape up to 0.91 and
+    FreeSewing's first core 90: a 96 px square is 1 inch at 96 and more at fewer px an inch,
+    whether the px come from the <svg> width and height or from user units with none; a file whose
+    width and height are in mm with a viewBox does not depend on it."""
+    path = tmp_path / "px.svg"
+    path.write_text(f'<?xml version="1.0"?>\n{head}\n<svg xmlns="http://www.w3.org/2000/svg" {root} {size}>'
+                    '<rect id="sq" x="10" y="10" width="96" height="96"/></svg>')
+    (piece,) = read_pieces(path)
+    want = 96.0 if "mm" in size else 96 * 25.4 / per_inch
+    assert piece.extent == pytest.approx((want, want), rel=1e-12)
+
+
 def test_svg_use_draws_what_it_names(tmp_path):
     """An outline drawn only through <use> (an online editor's export: the path in <defs>): each
     <use> draws it, moved by its transform and then its x, y, as in SVG; a <use> of a <symbol>
@@ -943,8 +967,9 @@ def test_real_file_pieces_drawn_as_open_paths_are_joined(capsys, tmp_path):
     assert by["side"].meta["joined"] == ["14", "15"]
     assert sorted(by["brimPlastic"].meta["joined"]) == ["53", "54", "55", "56"]
     assert any("joined from 4 open paths" in n for n in by["brimPlastic"].notes)
-    # the brim is a ring sector between its two curves: 181 x 126 mm
-    assert by["brimPlastic"].extent == pytest.approx((181.5, 126.2), abs=0.1)
+    # the brim is a ring sector between its two curves: 194 x 135 mm (FreeSewing's first core drew
+    # 90 px an inch: at 96 it was 181.5 x 126.2)
+    assert by["brimPlastic"].extent == pytest.approx((181.5 * 96 / 90, 126.2 * 96 / 90), abs=0.1)
     code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--edge-length", "20mm", "-q")
     assert code == 0, err
     assert sorted(p.stem for p in tmp_path.glob("*.npz")) == sorted(by)

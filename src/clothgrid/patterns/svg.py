@@ -104,8 +104,36 @@ def _numbers(text: str, what: str, where: str) -> list[float]:
     return [float(x) for x in nums]
 
 
-def _viewport(root: ET.Element, where: str, units: str | None) -> tuple[np.ndarray, str, str]:
-    """The 3x3 map from user units to mm with y up; the file's unit and how it was found."""
+_INKSCAPE_VERSION = "{http://www.inkscape.org/namespaces/inkscape}version"
+
+
+def _px_per_inch(root: ET.Element, head: bytes) -> tuple[float, str]:
+    """How many px make an inch in the file (``head``: its first bytes), from the program that wrote
+    it: CSS says 96, and Inkscape 0.92 and later, browsers and most programs keep to it; Inkscape up to
+    0.91 (and Sodipodi) used 90, as did FreeSewing's first (PHP) core, whose layouts scale
+    millimetres by 3.54330709 px (their scale box, 10 by 5 cm inside, measures 9.375 by 4.6875 cm
+    at 96); Adobe Illustrator uses 72 (1 px = 1 pt). Returns the count and why (empty for 96)."""
+    if b"Adobe Illustrator" in head:
+        return 72.0, "Adobe Illustrator wrote it: 72 px an inch"
+    version = root.get(_INKSCAPE_VERSION)
+    if version:
+        m = re.match(r"\s*(\d+)\.(\d+)", version)
+        if m and (int(m.group(1)), int(m.group(2))) < (0, 92):
+            return 90.0, f"Inkscape {version.split()[0]} wrote it: 90 px an inch"
+        return 96.0, ""
+    if "freesewing" in (root.get("class") or "").split() or b"xmlns:freesewing" in head:
+        return 90.0, "FreeSewing's first core wrote it: 90 px an inch"
+    if b"sodipodi:version" in head or b"Sodipodi" in head:
+        return 90.0, "Sodipodi wrote it: 90 px an inch"
+    return 96.0, ""
+
+
+def _viewport(root: ET.Element, where: str, units: str | None, head: bytes = b""
+              ) -> tuple[np.ndarray, str, str]:
+    """The 3x3 map from user units to mm with y up; the file's unit and how it was found. A px is
+    1/96 in, or what the program that wrote the file used (:func:`_px_per_inch`)."""
+    per_inch, why = _px_per_inch(root, head)
+    px_mm = 25.4 / per_inch
     width = _css_length(root.get("width"), "width", where)
     height = _css_length(root.get("height"), "height", where)
     vb_text = root.get("viewBox")
@@ -123,19 +151,22 @@ def _viewport(root: ET.Element, where: str, units: str | None) -> tuple[np.ndarr
             height = (width[0] * vb[3] / vb[2], width[1])
     if width is None or height is None:
         unit = units or "px"
-        s = unit_to_mm(unit, what="--units")
+        s = px_mm if units is None else unit_to_mm(unit, what="--units")
         how = (f"user units taken as {unit} (given)" if units else
-               "user units taken as px, 1/96 in (the SVG gives no absolute width and height)")
+               f"user units taken as px, 1/{per_inch:g} in (the SVG gives no absolute width and height"
+               + (f"; {why})" if why else ")"))
         m = np.diag([s, -s, 1.0])
         if vb is not None:
             m[1, 2] = s * (vb[1] + vb[3])
         return m, unit, how
-    w_mm = width[0] * UNITS[width[1]]
-    h_mm = height[0] * UNITS[height[1]]
+    w_mm = width[0] * (px_mm if width[1] == "px" else UNITS[width[1]])
+    h_mm = height[0] * (px_mm if height[1] == "px" else UNITS[height[1]])
     unit = width[1] if width[1] == height[1] else "mm"
     how = f"from the <svg> width and height ({root.get('width')} x {root.get('height')})"
+    if why and (vb is None or "px" in (width[1], height[1])):
+        how += f"; {why}"
     if vb is None:
-        s = UNITS["px"]                        # no viewBox: a user unit is a px
+        s = px_mm                              # no viewBox: a user unit is a px
         return np.array([[s, 0, 0], [0, -s, h_mm], [0, 0, 1.0]]), unit, how
     sx, sy = w_mm / vb[2], h_mm / vb[3]
     tx = ty = 0.0
@@ -406,7 +437,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
     if _local(root.tag) != "svg":
         raise InputError(f"{where}: not an SVG file (the root element is <{_local(root.tag)}>, "
                          "not <svg>)")
-    view, unit, how = _viewport(root, where, units)
+    with open(path, "rb") as f:
+        head = f.read(8192)                  # the comments and root of the file: who wrote it
+    view, unit, how = _viewport(root, where, units, head)
     from svgpathtools import parse_path
 
     pieces: list[Piece] = []
