@@ -217,6 +217,39 @@ def test_garment_warns_of_a_panel_size_that_suggests_other_units(tmp_path, capsy
     assert garment(path, edge_length="5cm").info["warnings"] == []
 
 
+def test_unfold_looks_further_while_the_smallest_angle_is_below_target(monkeypatch):
+    """garment._unfold (a panel that folds with its first corners) stopped at the first corner set
+    that left no fold, however small its angles (a real circle skirt's back: 1.6 degrees, where a
+    later set gave 6.3). It now goes on while the panel's smallest angle is under 10 degrees and stops
+    at the first set at or above it: here the second of three, the third never gridded."""
+    from types import SimpleNamespace
+
+    import clothgrid.garment as G
+
+    sines = {"a": (0, 0.05), "b": (0, 0.30), "c": (0, 0.50)}       # folded cells, smallest sine
+    alts = [[("a", 0.0)], [("b", 0.0)], [("c", 0.0)]]
+    gridded = []
+
+    def grid(lay, counts, opts, cache):
+        key = lay.corners[0][0]
+        gridded.append(key)
+        folded, sine = sines.get(key, (3, -0.5))
+        return {"quality": SimpleNamespace(folded=folded, min_scaled_jacobian=sine)}
+
+    monkeypatch.setattr(G, "_alternatives", lambda lay: alts)
+    monkeypatch.setattr(G, "_count_problem", lambda *a: "problem")
+    monkeypatch.setattr(G, "solve_counts", lambda prob: ("counts", {}))
+    monkeypatch.setattr(G, "_grid_panel", grid)
+    monkeypatch.setattr(G, "_corner_names", lambda lay: "a, b")
+    lay = SimpleNamespace(corners=[("first", 0.0)], corner_method="scored")
+    made = {"P": grid(lay, None, None, None)}
+    said = []
+    G._unfold(None, {"P": lay}, 10.0, None, "counts0", {}, "problem0", made, {}, {}, said.append)
+    assert lay.corners == [("b", 0.0)] and lay.corner_method == "unfold"
+    assert "c" not in gridded and gridded.count("b") >= 1
+    assert said and "3 folded cells -> 0" in said[0]
+
+
 def test_placement_is_garmentcode_rotation(rng):
     from scipy.spatial.transform import Rotation
 

@@ -41,6 +41,7 @@ from .garment_counts import CountConflict, CountProblem, solve_counts
 from .garment_seams import edge_polyline, mesh_report, ordered_pairs, points_at, propagate_splits, weld
 from .geometry import signed_area
 from .patterns.garmentcode import GarmentSpec, SpecPanel, read_garment_spec
+from .quality import TARGET_MIN_ANGLE_DEG
 from .units import parse_length
 
 __all__ = ["Garment", "garment", "euler_xyz_to_R", "split_quads", "flat_corners", "SEAM", "GARMENT_SPRING_KINDS", "write_garment"]
@@ -390,6 +391,9 @@ MAX_ALTERNATIVES = 12
 
 #: ... chosen among this many corner sets by a transfinite grid's score (no relaxation) first.
 PRE_RANKED = 3 * MAX_ALTERNATIVES
+#: :func:`_unfold` stops at the first corner set that leaves no fold and a panel's smallest corner
+#: sine at least this (the sine of :data:`~clothgrid.quality.TARGET_MIN_ANGLE_DEG`, 10 degrees)
+UNFOLD_GOOD_SINE = math.sin(math.radians(TARGET_MIN_ANGLE_DEG))
 
 
 def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
@@ -564,7 +568,10 @@ def _unfold(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, c
             cost = _cost(m2)
             if cost < best[0]:
                 best = (cost, list(alt), c2, i2, p2, m2, "unfold")
-                if cost[0] == 0:
+                # no fold left: enough where the panel's smallest angle meets the target, else the
+                # other sets are looked at too (a high-low circle skirt's first unfolded set left
+                # 1.6 degrees, a later one 6.3)
+                if cost[0] == 0 and float(m2[name]["quality"].min_scaled_jacobian) >= UNFOLD_GOOD_SINE:
                     break
         cost, corners, counts, count_info, prob, made, method = best
         lay.corners, lay.corner_method = corners, method
