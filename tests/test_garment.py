@@ -250,6 +250,53 @@ def test_unfold_looks_further_while_the_smallest_angle_is_below_target(monkeypat
     assert said and "3 folded cells -> 0" in said[0]
 
 
+def test_dart_tips_and_their_blunting(tmp_path):
+    """garment._dart_tips finds the vertex the two legs of a dart (a stitch of two edges of one
+    panel) share; garment._blunted moves a needle-sharp one half way to the middle of its two
+    neighbouring boundary nodes, never farther than half the outline's median spacing, and leaves a
+    blunt one (or any other node) where it is."""
+    from types import SimpleNamespace
+
+    import clothgrid.garment as G
+
+    # a 10 cm square with a V dart 0.6 cm wide and 9 cm deep cut into its top: vertices 3 and 5
+    # the mouth, 4 the tip
+    v = [[0, 0], [10, 0], [10, 10], [5.3, 10], [5, 1], [4.7, 10], [0, 10]]
+    e = [[k, (k + 1) % 7] for k in range(7)]
+    panels = {"P": {"vertices": v, "edges": [{"endpoints": p} for p in e], "translation": [0, 0, 0],
+                    "rotation": [0, 0, 0]}}
+    path = _write(tmp_path, panels, [[{"panel": "P", "edge": 3}, {"panel": "P", "edge": 4}]])
+    gs = read_garment_spec(path)
+    assert G._dart_tips(gs, "P") == [4]
+    p = gs.panels["P"]
+    tip = p.vertices[4]                                  # mm: (50, 10)
+    # the loop: the tip between its leg neighbours 1 cm up each leg, the other nodes 5 cm apart
+    legs = [tip + (p.vertices[3] - tip) / 9.0, tip + (p.vertices[5] - tip) / 9.0]
+    X = np.array([[0, 0], [50, 0], [100, 0], [100, 50], [100, 100], [53, 100], legs[0], tip, legs[1], [47, 100],
+                  [0, 100], [0, 50]], dtype=float)
+    k = 7
+    polys = [(np.array([p.vertices[a], p.vertices[b]]), None) for a, b in e]
+    lay = SimpleNamespace(dart_tips=[4], spec=p, polys=polys)
+    Y, moved = G._blunted(X, lay, len(X))
+    spacing = float(np.median(np.hypot(*(np.roll(X, -1, axis=0) - X).T)))
+    want = 0.5 * (0.5 * (legs[0] + legs[1]) - tip)
+    if np.hypot(*want) > 0.5 * spacing:
+        want *= 0.5 * spacing / np.hypot(*want)
+    np.testing.assert_allclose(Y[k], tip + want)
+    assert moved == [(4, pytest.approx(float(np.hypot(*want))))] and want[1] > 0      # up into the dart
+    assert np.array_equal(np.delete(Y, k, axis=0), np.delete(X, k, axis=0))
+    # legs of one long interval each: the move is capped at half the median spacing
+    far = np.delete(X, [6, 8], axis=0)
+    k = 6
+    Y, moved = G._blunted(far, lay, len(far))
+    spacing = float(np.median(np.hypot(*(np.roll(far, -1, axis=0) - far).T)))
+    assert moved[0][1] == pytest.approx(0.5 * spacing)
+    # a blunt tip (a wide V) is not moved
+    wide = X.copy()
+    wide[6], wide[8] = tip + [20, 20], tip + [-20, 20]
+    assert G._blunted(wide, lay, len(wide))[1] == []
+
+
 def test_placement_is_garmentcode_rotation(rng):
     from scipy.spatial.transform import Rotation
 

@@ -120,6 +120,7 @@ class _Layout:
     sequence: list[tuple[int, int, bool]] = field(default_factory=list)  # ccw from corner 0: (edge, j, forward)
     sides: list[list[int]] = field(default_factory=list)             # 4 lists of positions in sequence
     alternatives: list[list[tuple[int, float]]] | None = None        # other corner sets, best first
+    dart_tips: list[int] = field(default_factory=list)               # vertices two sewn legs share
 
 
 @dataclass(eq=False)
@@ -498,12 +499,27 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
     side_n = [sum(int(counts[lay.seg[lay.sequence[i][:2]]]) for i in s) for s in lay.sides]
     nu, nv = side_n[0] + 1, side_n[1] + 1
     assert side_n[2] == nu - 1 and side_n[3] == nv - 1 and L == 2 * (nu + nv) - 4
-    bottom = X[0:nu]
-    right = X[nu - 1:nu + nv - 1]
-    top = X[nu + nv - 2:2 * nu + nv - 2][::-1]
-    left = np.vstack([X[2 * nu + nv - 3:], X[:1]])[::-1]
-    b = Boundary.from_sides(bottom, right, top, left, name=lay.spec.name)
-    grid = generate(b, None, **opts)
+
+    def gridded(X: np.ndarray) -> Any:
+        bottom = X[0:nu]
+        right = X[nu - 1:nu + nv - 1]
+        top = X[nu + nv - 2:2 * nu + nv - 2][::-1]
+        left = np.vstack([X[2 * nu + nv - 3:], X[:1]])[::-1]
+        return generate(Boundary.from_sides(bottom, right, top, left, name=lay.spec.name), None, **opts)
+
+    grid = gridded(X)
+    q = quality(grid)
+    tips: list[tuple[int, float]] = []
+    if q.folded and lay.dart_tips:
+        # a needle-sharp dart tip: its two cells share the outline's reflex angle there, and the
+        # line inward from it must keep to a cone as narrow as the dart; the tip moved toward its
+        # neighbours (the dart shortened by about half a node spacing) leaves the cells room
+        Y, moved = _blunted(X, lay, L)
+        if moved:
+            g2 = gridded(Y)
+            q2 = quality(g2)
+            if (q2.folded, -q2.min_scaled_jacobian) < (q.folded, -q.min_scaled_jacobian):
+                grid, q, X, tips = g2, q2, Y, moved
     p = np.arange(L)
     gi = np.where(p < nu - 1, p, np.where(p < nu + nv - 2, nu - 1,
                   np.where(p < 2 * nu + nv - 3, nu - 1 - (p - (nu + nv - 2)), 0)))
@@ -529,9 +545,60 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
         edge_nodes[e] = np.concatenate(nodes)
         edge_fracs[e] = np.concatenate(fracs)
     out = {"grid": grid, "shape": (nu, nv), "edge_nodes": edge_nodes, "edge_fracs": edge_fracs,
-           "drift": drift, "quality": quality(grid), "key": key}
+           "drift": drift, "quality": q, "key": key, "dart_tips_moved": tips}
     cache[key] = out
     return out
+
+
+#: A dart tip is blunted (:func:`_blunted`) where its two boundary edges meet at less than this
+#: angle, ...
+DART_TIP_DEG = 20.0
+#: ... moved this fraction of the way to the middle of its two neighbouring boundary nodes ...
+DART_TIP_SHIFT = 0.5
+#: ... and never farther than this many of the panel outline's typical (median) node spacings (a
+#: dart leg of a few long intervals would otherwise lose centimetres). On GarmentCode-Nesting's
+#: rand_033UAN6C0K (pants backs, darts 2.8 cm wide and 18-21 cm deep, one interval a leg at 10 mm)
+#: the folded cells at a tip go 2 -> 1 a back; uncapped, the dart shortened by 6 cm, none.
+DART_TIP_MOST = 0.5
+
+
+def _dart_tips(gs: GarmentSpec, name: str) -> list[int]:
+    """The vertices of panel ``name`` where the two edges of one of its darts (a stitch of two of its
+    own edges) meet: the end of one that is the start of the other, or both ends or both starts."""
+    edges = gs.panels[name].edges
+    tips = []
+    for st in gs.stitches:
+        if st.a[0] == name and st.b[0] == name:
+            a, b = edges[st.a[1]], edges[st.b[1]]
+            shared = {a.start, a.end} & {b.start, b.end}
+            if len(shared) == 1:
+                tips.append(shared.pop())
+    return sorted(set(tips))
+
+
+def _blunted(X: np.ndarray, lay: "_Layout", L: int) -> tuple[np.ndarray, list[tuple[int, float]]]:
+    """The boundary loop ``X`` with each of the panel's dart tips (``lay.dart_tips``: the vertex the
+    two legs of a dart share) that is needle-sharp (:data:`DART_TIP_DEG`) moved
+    :data:`DART_TIP_SHIFT` of the way to the middle of its neighbours; the tips moved, with how far
+    (mm). The tip is a node of both legs, sewn to each other, so the seam still matches node for node."""
+    Y = X.copy()
+    moved = []
+    spacing = float(np.median(np.hypot(*(np.roll(X, -1, axis=0) - X).T)))    # the loop's typical interval
+    for v in lay.dart_tips:
+        e, end = next((k, ed.end == v) for k, ed in enumerate(lay.spec.edges) if v in (ed.start, ed.end))
+        at = lay.polys[e][0][-1 if end else 0]
+        k = int(np.argmin(np.hypot(*(X - at).T)))
+        p, a, c = X[k], X[k - 1], X[(k + 1) % L]
+        u, w = a - p, c - p
+        cos = float(u @ w) / (float(np.hypot(*u)) * float(np.hypot(*w)) or 1.0)
+        if cos > math.cos(math.radians(DART_TIP_DEG)):
+            step = DART_TIP_SHIFT * (0.5 * (a + c) - p)
+            reach = float(np.hypot(*step))
+            if reach > DART_TIP_MOST * spacing:     # a leg of few long intervals: at most this far
+                step *= DART_TIP_MOST * spacing / reach
+            Y[k] = p + step
+            moved.append((int(v), float(np.hypot(*step))))
+    return Y, moved
 
 
 def _cost(made: dict[str, dict[str, Any]]) -> tuple[int, float]:
@@ -684,7 +751,7 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         loop_pts = np.concatenate([(polys[e][0][::-1] if rev else polys[e][0])[:-1] for e, rev in p.loop])
         flipped = signed_area(loop_pts) < 0
         ccw = [(e, not rev) for e, rev in reversed(p.loop)] if flipped else list(p.loop)
-        lay = _Layout(p, polys, ccw, flipped)
+        lay = _Layout(p, polys, ccw, flipped, dart_tips=_dart_tips(gs, name))
         try:
             _choose_corners(lay, given.get(name))
         except InputError as exc:
@@ -744,7 +811,8 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
                           "functional": grid.info.get("functional"), "folded": int(qual.folded),
                           "flat_corners": flat_corners(grid.points),
                           "min_angle_deg": figs.get("min_angle_deg"), "edge_spread": figs.get("edge_spread"),
-                          "boundary_drift": m["drift"], "seconds": grid.info.get("seconds")})
+                          "boundary_drift": m["drift"], "seconds": grid.info.get("seconds"),
+                          "dart_tips_moved_mm": {v: d for v, d in m["dart_tips_moved"]}})
         say(f"{name}: {nu} x {nv} nodes, corners {lay.corner_method}, {qual.folded} folded")
     pairs, sid = [], []
     for st in gs.stitches:
