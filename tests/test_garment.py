@@ -244,10 +244,32 @@ def test_unfold_looks_further_while_the_smallest_angle_is_below_target(monkeypat
     lay = SimpleNamespace(corners=[("first", 0.0)], corner_method="scored")
     made = {"P": grid(lay, None, None, None)}
     said = []
-    G._unfold(None, {"P": lay}, 10.0, None, "counts0", {}, "problem0", made, {}, {}, said.append)
+    G._unfold(None, {"P": lay}, 10.0, None, "counts0", {}, CountProblem(), made, {}, {}, said.append)
     assert lay.corners == [("b", 0.0)] and lay.corner_method == "unfold"
     assert "c" not in gridded and gridded.count("b") >= 1
     assert said and "3 folded cells -> 0" in said[0]
+
+
+def test_counts_with_the_shrink_penalty_spread_the_cuts():
+    """The node-count program with CountProblem.shrink charges t / n - f below t / f. Two dart legs
+    (targets 20) and a waist piece (target 4) on one grid side whose sum must be 12:
+    the relative deviations alone cost 1.6 for every split of the legs' 8 intervals (any one may get
+    1); with the penalty (f = 4: at least 5 a leg for free) the legs get 5 each and the waist 2
+    (cost 2.0, against 3.6 for 4, 4, 4). A problem with nothing to cut gets its targets either way."""
+    prob = CountProblem(shrink=4.0)
+    a, b, w, side = (prob.add_segment(t) for t in (20.0, 20.0, 4.0, 12.0))
+    prob.groups.append(("sides", [([a, b, w], [side])]))
+    prob.fixed[side] = 12
+    counts, info = solve_counts(prob)
+    assert (counts[a], counts[b], counts[w]) == (5, 5, 2) and info["shrink"] == 4.0
+    assert info["objective"] == pytest.approx(2.0)
+    prob.shrink = None
+    counts, info = solve_counts(prob)
+    assert counts[a] + counts[b] + counts[w] == 12 and counts[w] == 4 and info["objective"] == pytest.approx(1.6)
+    for shrink in (None, 4.0):
+        free = CountProblem(shrink=shrink)
+        k = free.add_segment(7.0)
+        assert solve_counts(free)[0][k] == 7
 
 
 def test_dart_tips_and_their_blunting(tmp_path):
@@ -579,12 +601,18 @@ def test_a_count_conflict_of_automatic_corners_is_loosened_by_other_corners():
 
 
 @needs_shared
-def test_a_panel_that_folds_gets_other_corners():
-    """gcn_rand_RMOGWZ2A7X at 1 cm: the front torso panels' best corners by coarse grid fold 6
-    cells each after the fold-free step; their next best sets (one integer program for the whole
-    garment each) grid them unfolded, and the two mirror-image panels end with mirror-image grids."""
+def test_a_panel_that_folds_gets_other_corners(monkeypatch):
+    """gcn_rand_RMOGWZ2A7X at 1 cm, with the relative deviations' counts alone: the front torso
+    panels' best corners by coarse grid fold 6 cells each after the fold-free step; their next best
+    sets (one integer program for the whole garment each) grid them unfolded, and the two
+    mirror-image panels end with mirror-image grids. (With both count objectives, the default, the
+    penalised one's counts grid them unfolded with their first corners.)"""
+    import clothgrid.garment as G
     from clothgrid.garment import garment
 
+    both = garment(SHARED / "gcn_rand_RMOGWZ2A7X_specification.json", edge_length="1cm")
+    assert sum(p["folded"] for p in both.info["panels"]) == 0
+    monkeypatch.setattr(G, "COUNT_SHRINKS", (None,))
     lines = []
     g = garment(SHARED / "gcn_rand_RMOGWZ2A7X_specification.json", edge_length="1cm", progress=lines.append)
     panels = {p["name"]: p for p in g.info["panels"]}
