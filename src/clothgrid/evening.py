@@ -483,19 +483,18 @@ def _edge_bands(d2, los, his, lo2s, hi2s, bit, flags, energy):
 
 
 @njit(cache=True, parallel=True)
-def _outside_nodes(X, los, his):
-    """The nodes at an edge outside each band ``k`` (limits ``los[k] <= his[k]``, nested, the
-    narrowest first; at most 8), rows in parallel: first, per node, whether its u-edge to ``(i + 1,
-    j)`` and its v-edge to ``(i, j + 1)`` are outside (two bits a band; each edge looked at once,
-    its logarithm once), then whether one of those or the one from ``(i - 1, j)`` or ``(i, j - 1)``
-    is. Returns ``(K, nu, nv)`` bool and each band's energy (:func:`_energy`'s, bit for bit: the same
-    terms summed in the same order)."""
+def _outside_edges(X, los, his):
+    """Which edges lie outside each band ``k`` (limits ``los[k] <= his[k]``, nested, the narrowest
+    first; at most 4), rows in parallel: per node, whether its u-edge to ``(i + 1, j)`` (bit ``2k``)
+    and its v-edge to ``(i, j + 1)`` (bit ``2k + 1``) are (each edge looked at once, its logarithm
+    once); and each band's energy (:func:`_energy`'s, bit for bit: the same terms summed in the same
+    order). :func:`_hot_nodes` makes one band's nodes of them."""
     nu, nv = X.shape[0], X.shape[1]
     K = los.shape[0]
     lo2s, hi2s = np.empty(K), np.empty(K)
     for k in range(K):
         lo2s[k], hi2s[k] = _inside_band(los[k], his[k])
-    edges = np.zeros((nu, nv), np.uint16)
+    edges = np.zeros((nu, nv), np.uint8)
     rows = np.zeros((nu, K))
     for r in prange(nu):
         i = np.int64(r)
@@ -514,17 +513,35 @@ def _outside_nodes(X, los, his):
     for i in range(nu):
         for k in range(K):
             total[k] += rows[i, k]
-    hot = np.zeros((K, nu, nv), np.bool_)
+    return edges, total
+
+
+@njit(cache=True, parallel=True)
+def _hot_nodes(edges, k):
+    """Band ``k``'s nodes at an outlying edge (:func:`_outside_edges`' flags): its own u- or v-edge,
+    or the one from ``(i - 1, j)`` or ``(i, j - 1)``; and how many of them are interior nodes."""
+    nu, nv = edges.shape[0], edges.shape[1]
+    u, v = np.uint8(1 << (2 * k)), np.uint8(2 << (2 * k))
+    hot = np.zeros((nu, nv), np.bool_)
+    inner = np.zeros(nu, np.int64)
     for i in prange(nu):
+        n = 0
         for j in range(nv):
-            for k in range(K):
-                u, v = 1 << (2 * k), 2 << (2 * k)
-                hot[k, i, j] = edges[i, j] & (u | v) != 0 or (i > 0 and edges[i - 1, j] & u != 0) \
-                    or (j > 0 and edges[i, j - 1] & v != 0)
-    return hot, total
+            h = edges[i, j] & (u | v) != 0 or (i > 0 and edges[i - 1, j] & u != 0) \
+                or (j > 0 and edges[i, j - 1] & v != 0)
+            hot[i, j] = h
+            if h and 0 < i < nu - 1 and 0 < j < nv - 1:
+                n += 1
+        inner[i] = n
+    return hot, inner.sum()
 
 
-_outside_nodes_sized = by_size(_outside_nodes, PARALLEL_CELLS)
+_outside_edges_sized = by_size(_outside_edges, PARALLEL_CELLS)
+#: :func:`_last_band` finds its bands' outlying edges in one pass on grids of at most this many
+#: nodes, a band at a time on larger ones (a byte of flags a node less at the step's peak: 16 MB at
+#: 4096^2)
+ONE_PASS_MAX_NODES = 1 << 22
+_hot_nodes_sized = by_size(_hot_nodes, PARALLEL_CELLS)
 
 
 def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | None = None
@@ -538,23 +555,27 @@ def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | No
 
 def _outside_bands(X: np.ndarray, limits: list[tuple[float, float]], margin: int,
                    at_most: list[int | None], stop: int | None = None) -> list[tuple[np.ndarray | None, int, float]]:
-    """:func:`_outside` of each band of ``limits`` (nested, the narrowest first) with its ``at_most``,
-    the outlying edges of every band found in one pass over the grid; the bands after the first
-    whose count is below ``stop`` are not dilated (their answers left out)."""
-    from .foldfree_kernels import dilate, true_count
+    """:func:`_outside` of each band of ``limits`` (nested, the narrowest first, at most 4) with its
+    ``at_most``, the outlying edges of every band found in one pass over the grid (one byte of flags
+    a node; a band's nodes made when it is looked at); the bands after the first whose count is
+    below ``stop`` are not looked at (their answers left out)."""
+    from .foldfree_kernels import dilate
 
     nu, nv = X.shape[:2]
-    hots, energies = _outside_nodes_sized(nu * nv)(X, np.array([lo for lo, _ in limits]),
-                                                   np.array([hi for _, hi in limits]))
+    if len(limits) > 4:
+        raise ValueError("at most 4 bands in one pass")
+    edges, energies = _outside_edges_sized(nu * nv)(X, np.array([lo for lo, _ in limits]),
+                                                    np.array([hi for _, hi in limits]))
+    hot_nodes = _hot_nodes_sized(nu * nv)
     out = []
-    for hot, energy, most in zip(hots, energies, at_most):
+    for k, (energy, most) in enumerate(zip(energies, at_most)):
         energy = float(energy)
-        if most is not None:
-            ring = int(hot[0].sum() + hot[-1].sum() + hot[1:-1, 0].sum() + hot[1:-1, -1].sum())
-            inner = true_count(hot) - ring
-            if inner > most:
-                out.append((None, inner, energy))
-                continue
+        hot, inner = hot_nodes(edges, k)
+        if k == len(limits) - 1:
+            edges = None                # (its pages free before the dilation: the peak at 4096^2)
+        if most is not None and inner > most:
+            out.append((None, int(inner), energy))
+            continue
         out.append((*dilate(hot, margin, margin, nu, nv), energy))
         if stop is not None and out[-1][1] < stop:
             break
@@ -659,10 +680,19 @@ def _last_band(X: np.ndarray, band: float, wider: tuple[float, ...], margin: int
     from .foldfree import PARALLEL_NODES
 
     bands = (band, *wider)
-    # every band's outlying edges in one pass; a band whose nodes at outlying edges alone are too
-    # many is passed over without its margin
-    found = _outside_bands(X, [_band_limits(b, mean_log) for b in bands], margin,
-                           [PARALLEL_NODES] * (len(bands) - 1) + [None], stop=PARALLEL_NODES)
+    # every band's outlying edges in one pass (a band at a time on a grid of more than
+    # ONE_PASS_MAX_NODES: its flags would be held beside a band's nodes and their dilation); a band
+    # whose nodes at outlying edges alone are too many is passed over without its margin
+    limits = [_band_limits(b, mean_log) for b in bands]
+    most = [PARALLEL_NODES] * (len(bands) - 1) + [None]
+    if X.shape[0] * X.shape[1] <= ONE_PASS_MAX_NODES:
+        found = _outside_bands(X, limits, margin, most, stop=PARALLEL_NODES)
+    else:
+        found = []
+        for lim, m in zip(limits, most):
+            found += _outside_bands(X, [lim], margin, [m])
+            if found[-1][1] < PARALLEL_NODES:
+                break
     for b, (active, count, energy) in zip(bands, found):
         if count < PARALLEL_NODES:
             break

@@ -194,7 +194,7 @@ def quality_record(grid: Grid, *, normal=None, orientation: float | None = None
     if basis is not None and (nu - 1) * (nv - 1) > KERNEL_CELLS:     # one pass, no temporaries
         from .quality_kernels import new_blocks
 
-        record = CellRecord(np.ascontiguousarray(basis), *new_blocks(nu, nv))
+        record = CellRecord(np.ascontiguousarray(basis), new_blocks(nu, nv))
         return record.measure(R), record
     cells, parts = _measure_blocks(R, basis, local, n is None)
     return _from_parts(cells, parts), None
@@ -206,21 +206,28 @@ class CellRecord:
     and only some nodes moved is measured again only in the blocks of cells at those nodes
     (:meth:`remeasure`): the same :class:`Quality`, bit for bit, as measuring it whole."""
 
-    def __init__(self, basis: np.ndarray, folded: np.ndarray, blocks: np.ndarray):
-        self.basis, self.folded, self.blocks = basis, folded, blocks
+    def __init__(self, basis: np.ndarray, blocks: np.ndarray):
+        self.basis, self.blocks = basis, blocks
+        self.folded_cells = np.zeros((0, 2), np.int64)
 
     def measure(self, points: np.ndarray, todo: np.ndarray | None = None) -> Quality:
         """Measure the blocks marked in ``todo`` (every block by default) of ``points`` into the
-        record; the whole grid's :class:`Quality`."""
+        record; the whole grid's :class:`Quality`. (The folded cells are kept as a list: a cell mask
+        of the whole grid lives only while it is measured.)"""
         from .grid_kernels import mask_places
         from .quality_kernels import block_figures, planar_blocks
 
+        mu, mv = points.shape[0] - 1, points.shape[1] - 1
+        folded = np.zeros((mu, mv), np.bool_)
         if todo is None:
             todo = np.ones(self.blocks.shape[:2], bool)
+        else:
+            folded[self.folded_cells[:, 0], self.folded_cells[:, 1]] = True     # those not measured again
         planar_blocks(np.ascontiguousarray(points, dtype=np.float64), self.basis, STRAIGHT_CORNER_SINE,
-                      self.folded, self.blocks, todo)
+                      folded, self.blocks, todo)
+        self.folded_cells = mask_places(folded)
         figures = (float(f) for f in block_figures(self.blocks))
-        return _from_parts(mask_places(self.folded), [(None, *figures)])
+        return _from_parts(self.folded_cells, [(None, *figures)])
 
     def remeasure(self, points: np.ndarray, nodes: np.ndarray) -> Quality:
         """The :class:`Quality` of ``points``, the grid measured last with only ``nodes`` (``(K,
@@ -228,7 +235,7 @@ class CellRecord:
         measured again; the record is then ``points``'."""
         from .quality_kernels import BLOCK
 
-        mu, mv = self.folded.shape
+        mu, mv = points.shape[0] - 1, points.shape[1] - 1
         todo = np.zeros(self.blocks.shape[:2], bool)
         i, j = np.asarray(nodes[:, 0]), np.asarray(nodes[:, 1])
         for di in (-1, 0):            # a node's four cells; its edges are held by the same blocks

@@ -210,16 +210,16 @@ def _grid_corner_cell(i, j, mu, mv, bx, by, tx, ty, lx, ly, rx, ry, straight):
 _SCRATCH_ROWS = 17
 #: Cells of a row in a block of :func:`planar_blocks`' figures (a grid whose nodes mostly stay put
 #: is measured again block by block: :class:`clothgrid.quality.CellRecord`).
-BLOCK = 64
+BLOCK = 128
 #: :func:`planar_blocks`' figures of a block: smallest sine, largest aspect, largest |cosine|, a
 #: degenerate cell (1.0), longest and shortest u-edge, longest and shortest v-edge
 _FIGURES = 8
 
 
 def new_blocks(nu, nv):
-    """``(nu-1, nv-1)`` bool folded mask and ``(nu-1, blocks, 8)`` figures for :func:`planar_blocks`."""
+    """``(nu-1, blocks, 8)`` figures for :func:`planar_blocks`."""
     mu, mv = nu - 1, nv - 1
-    return np.zeros((mu, mv), np.bool_), np.empty((mu, -(-mv // BLOCK), _FIGURES))
+    return np.empty((mu, -(-mv // BLOCK), _FIGURES))
 
 
 @njit(cache=True)
