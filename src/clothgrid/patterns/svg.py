@@ -660,34 +660,31 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
         for prims, mem in zip(loops, members):
             if len(mem) < 2 or fork[mem].any():
                 continue
-            first = paths[mem[0]]
-            for k in mem:
-                paths[k].joined = True
-            classes = [paths[k].el.get("class") for k in mem]
-            hint = structure_hint([c for c in classes if c][:1], first.around,
-                                  any(paths[k].text for k in mem))
-            key = group.rsplit("/", 1)[-1] if group else ""
-            name = key if key and key != "g" else first.base
-            meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
-                    "group": group or None, "structure": hint, "look": _look(first.el),
-                    "part": group or None, "joined": [paths[k].base for k in mem]}
-            out.append((name, prims, meta, [paths[k].base for k in mem], []))
+            out.append(_joined_outline(group, paths, prims, mem, []))
         rest = [k for k, o in enumerate(paths) if not o.joined]
         for prims, mem, inner in outer_loops([paths[k].prims for k in rest], tol):
-            mem, inner = [rest[k] for k in mem], [rest[k] for k in inner]
-            for k in mem + inner:
-                paths[k].joined = True
-            first = paths[mem[0]]
-            hint = structure_hint([c for c in (paths[k].el.get("class") for k in mem) if c][:1], first.around,
-                                  any(paths[k].text for k in mem))
-            key = group.rsplit("/", 1)[-1] if group else ""
-            name = key if key and key != "g" else first.base
-            meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
-                    "group": group or None, "structure": hint, "look": _look(first.el),
-                    "part": group or None, "joined": [paths[k].base for k in mem],
-                    "inner_lines": [paths[k].base for k in inner]}
-            out.append((name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner]))
+            out.append(_joined_outline(group, paths, prims, [rest[k] for k in mem], [rest[k] for k in inner]))
     return out
+
+
+def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], mem: list[int],
+                    inner: list[int]) -> tuple[str, list[Primitive], dict, list[str], list[str]]:
+    """:func:`_joined`'s answer for an outline of ``prims`` joined from ``paths[mem]`` (around the
+    inner lines ``paths[inner]``), which are marked ``joined``: named after its group (else its
+    first path), its class the first path's, its structure from the paths' classes and groups."""
+    for k in mem + inner:
+        paths[k].joined = True
+    first = paths[mem[0]]
+    classes = [paths[k].el.get("class") for k in mem]
+    hint = structure_hint([c for c in classes if c][:1], first.around, any(paths[k].text for k in mem))
+    key = group.rsplit("/", 1)[-1] if group else ""
+    name = key if key and key != "g" else first.base
+    meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
+            "group": group or None, "structure": hint, "look": _look(first.el),
+            "part": group or None, "joined": [paths[k].base for k in mem]}
+    if inner:
+        meta["inner_lines"] = [paths[k].base for k in inner]
+    return name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner]
 
 
 def _names(names: list[str], most: int = 10) -> str:
