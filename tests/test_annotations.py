@@ -219,6 +219,25 @@ def test_a_path_named_as_a_line_is_not_taken_for_its_layers_annotation(tmp_path)
     assert [p.name for p in read_pieces(path, line="cut")] == ["A.cuttingline"]
 
 
+def test_qt_svg_groups_carry_the_painters_font_on_seam_lines_too(tmp_path):
+    """Qt's SVG writer (Seamly2D's and Valentina's piece exports) puts the painter's font on every
+    group: a real Seamly2D trouser export had every outline taken for text. A font on an unfilled
+    group is no text cue; the labels' glyphs, filled, still are."""
+    path = tmp_path / "seamly.svg"
+    font = 'font-family="Arial" font-size="10.6667" font-style="normal" font-weight="400"'
+    path.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" baseProfile="tiny" version="1.2" width="300mm" height="300mm" '
+        'viewBox="0 0 300 300"><g fill="none" id="Dos" stroke="black">'
+        f'<g fill="none" {font} transform="matrix(1,0,0,1,10,10)"><path d="M0,0 L200,0 L200,250 L0,250 L0,0" fill-rule="evenodd"/></g>'
+        f'<g fill="none" {font} transform="matrix(1,0,0,1,10,10)"><path d="M-10,-10 L210,-10 L210,260 L-10,260 L-10,-10"/></g>'
+        f'<g fill="#000000" {font} transform="matrix(1,0,0,1,50,50)"><path d="M0,0 L4,0 L4,6 L0,6 Z"/>'
+        '<path d="M6,0 L10,0 L10,6 L6,6 Z"/><path d="M12,0 L16,0 L16,6 L12,6 Z"/></g></g></svg>')
+    got = read_pieces(path)
+    assert [p.extent for p in got] == [pytest.approx((200.0, 250.0))] and got[0].meta["line"] == "sew"
+    kinds = sorted(s.kind for s in got.skipped)
+    assert kinds == [SA, "text", "text", "text"]
+
+
 # --------------------------------------------------------------------------- synthetic AAMA DXF
 
 

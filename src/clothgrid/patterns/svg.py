@@ -346,12 +346,20 @@ def _name(el: ET.Element, fallback: str) -> str:
     return (el.get(_INKSCAPE_LABEL) or el.get("id") or fallback).strip() or fallback
 
 
+_NO_FILL = re.compile(r"(^|;)\s*fill\s*:\s*none\s*(;|$)")
+
+
 def _text_cue(el: ET.Element) -> bool:
-    """Does the element look like text (converted to paths)?"""
-    if el.get("aria-label") is not None or el.get("font-family") or el.get("font-size"):
+    """Does the element look like text (converted to paths)? An ``aria-label``, an Inkscape
+    ``text123`` id, or font attributes (or a font in its style) on an element that is not drawn
+    unfilled: Qt's SVG writer (Seamly2D's and Valentina's exports) puts the painter's font on every
+    group, the seam lines' (``fill="none"``) as well as the labels' glyphs (filled)."""
+    if el.get("aria-label") is not None:
         return True
-    if _FONT.search(el.get("style", "") or ""):
-        return True
+    style = el.get("style", "") or ""
+    if el.get("font-family") or el.get("font-size") or _FONT.search(style):
+        if not ((el.get("fill") or "").strip() == "none" or _NO_FILL.search(style)):
+            return True
     from .annotations import _TEXT_ID
 
     return bool(_TEXT_ID.match(el.get("id") or ""))
