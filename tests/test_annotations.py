@@ -236,6 +236,11 @@ def test_qt_svg_groups_carry_the_painters_font_on_seam_lines_too(tmp_path):
     assert [p.extent for p in got] == [pytest.approx((200.0, 250.0))] and got[0].meta["line"] == "sew"
     kinds = sorted(s.kind for s in got.skipped)
     assert kinds == [SA, "text", "text", "text"]
+    # the lines have no id: the piece is named after its group (not a made-up one like g12 or layer1)
+    assert got[0].name == "Dos" and {s.name for s in got.skipped if s.kind == SA} == {"Dos-2"}
+    from clothgrid.patterns.svg import _group_name
+
+    assert _group_name("/layer1/g12/Devant/g3") == "Devant" and _group_name("/Layer_1/g7") is None
 
 
 # --------------------------------------------------------------------------- synthetic AAMA DXF

@@ -346,6 +346,21 @@ def _name(el: ET.Element, fallback: str) -> str:
     return (el.get(_INKSCAPE_LABEL) or el.get("id") or fallback).strip() or fallback
 
 
+#: A group key a drawing program made up (Inkscape's ``g123`` and ``layer1``, Illustrator's
+#: ``Layer_1``), which names no piece.
+_MADE_UP = re.compile(r"^(g|layer|layer_|group|svg|path)?\d*$", re.IGNORECASE)
+
+
+def _group_name(group: str) -> str | None:
+    """The nearest of a group path's (``/a/b/c``) keys that is not made up (:data:`_MADE_UP`): the
+    name of an outline that has none of its own (Seamly2D's export puts a piece's lines in a group
+    with the piece's name, ``Dos``, and no id on the lines)."""
+    for key in reversed(group.split("/")):
+        if key.strip() and not _MADE_UP.match(key.strip()):
+            return key.strip()
+    return None
+
+
 _NO_FILL = re.compile(r"(^|;)\s*fill\s*:\s*none\s*(;|$)")
 
 
@@ -501,7 +516,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
             return
         if tag in _SHAPES:
             counter += 1
-            base = _name(el, f"piece{counter}")
+            base = _name(el, _group_name(group) or f"piece{counter}")
             label = f"<{tag}> {base!r}"
             loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
             try:
