@@ -243,6 +243,24 @@ def test_qt_svg_groups_carry_the_painters_font_on_seam_lines_too(tmp_path):
     assert _group_name("/layer1/g12/Devant/g3") == "Devant" and _group_name("/Layer_1/g7") is None
 
 
+def test_a_piece_cut_on_the_fold_pairs_with_its_cut_line():
+    """A piece cut on the fold has no seam allowance along the fold: its cut line runs on its seam
+    line there (a real Seamly2D export's back and front). The cut line is still its seam-allowance
+    outline (the points on the shared edge count as inside), not a second piece."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "fold.svg"
+        fold = " ".join(f"L 300 {y}" for y in range(20, 300, 10))                   # the fold, x = 300
+        path.write_text(
+            '<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="400mm" viewBox="0 0 400 400">'
+            f'<g id="Dos"><path d="M 100 10 L 300 10 {fold} L 300 300 L 100 300 Z"/>'   # sew line
+            '<path d="M 90 0 L 300 0 L 300 310 L 90 310 Z"/></g></svg>')             # cut line, 10 mm SA
+        got = read_pieces(path)
+        assert [p.name for p in got] == ["Dos"] and got[0].meta["line"] == "sew"
+        assert [(s.name, s.kind) for s in got.skipped] == [("Dos-2", SA)]
+
+
 # --------------------------------------------------------------------------- synthetic AAMA DXF
 
 
