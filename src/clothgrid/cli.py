@@ -922,9 +922,10 @@ def _print_skipped(skipped: list[dict]) -> None:
     by_reason: dict[str, list[dict]] = {}
     for e in skipped:
         by_reason.setdefault(e["reason"], []).append(e)
+    listed: dict[str, int] = {}
     for e in skipped:
         same = by_reason[e["reason"]]
-        k = next(n for n, x in enumerate(same) if x is e)
+        k = listed[e["reason"]] = listed.get(e["reason"], -1) + 1      # e's place among them
         if k < LISTED_PER_REASON or len(same) == LISTED_PER_REASON + 1:
             size = (f" ({e['size_mm'][0]:.3g} x {e['size_mm'][1]:.3g} mm)" if "size_mm" in e else "")
             print(f"  {e['name']}: {e['reason']}{size}")

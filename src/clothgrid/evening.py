@@ -537,11 +537,11 @@ def _hot_nodes(edges, k):
 
 
 _outside_edges_sized = by_size(_outside_edges, PARALLEL_CELLS)
+_hot_nodes_sized = by_size(_hot_nodes, PARALLEL_CELLS)
 #: :func:`_last_band` finds its bands' outlying edges in one pass on grids of at most this many
 #: nodes, a band at a time on larger ones (a byte of flags a node less at the step's peak: 16 MB at
 #: 4096^2)
 ONE_PASS_MAX_NODES = 1 << 22
-_hot_nodes_sized = by_size(_hot_nodes, PARALLEL_CELLS)
 
 
 def _outside(X: np.ndarray, lo: float, hi: float, margin: int, at_most: int | None = None

@@ -899,7 +899,7 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
 
 def _units_doubt(gs: GarmentSpec, units: str | None) -> list[str]:
     """A line where the largest panel's size (mm) suggests the spec was read in the wrong units
-    (:func:`clothgrid.pipeline.size_warning`), unless ``units`` were given; else none."""
+    (:func:`clothgrid.units.size_warning`), unless ``units`` were given; else none."""
     if units is not None or not gs.panels:
         return []
     from .units import size_warning

@@ -176,11 +176,10 @@ class Jobs(list):
         self.warnings: list[str] = list(warnings)
 
 
-
-
 def units_warning(pieces: Sequence[Piece], units: str | None) -> str | None:
-    """A line for the user where the largest of ``pieces`` (mm) is outside :data:`PLAUSIBLE_PIECE_MM`
-    and the units were the file's own (``units`` None), naming the units it was read in; else None."""
+    """A line for the user where the largest of ``pieces`` (mm) is outside
+    :data:`~clothgrid.units.PLAUSIBLE_PIECE_MM` (:func:`~clothgrid.units.size_warning`) and the
+    units were the file's own (``units`` None), naming the units it was read in; else None."""
     if units is not None or not pieces:
         return None
     size = max(float((p.outline.max(axis=0) - p.outline.min(axis=0)).max()) for p in pieces)

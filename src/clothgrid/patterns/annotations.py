@@ -466,7 +466,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     skipped: list[tuple[int, Skipped]] = []
     for i, it in enumerate(items):
         p = it.piece
-        meta = {k: v for k, v in p.meta.items() if k not in ("structure", "look", "part")}
+        meta = _public_meta(p.meta)
         if it.kind is not None:
             skipped.append((i, Skipped(p.name, it.kind, it.reason or it.kind, p, it.of, meta)))
             continue
@@ -496,7 +496,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     failed: list[PieceFailure] = []
     for f, meta in unmade:
         h = meta.get("structure") or {}
-        kept = {kk: v for kk, v in meta.items() if kk not in ("structure", "look", "part", "box")}
+        kept = _public_meta(meta)
         box = meta.get("box")
         side = max(box[1][0] - box[0][0], box[1][1] - box[0][1]) if box else None
         frac = side * side / largest if side is not None and largest > 0 else None
@@ -519,13 +519,19 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     return Pieces(out, failed, made + list(marked) + [s for k, s in skipped if k >= len(items)])
 
 
+def _public_meta(meta: dict[str, Any]) -> dict[str, Any]:
+    """A reader's ``meta`` without what only :func:`classify` reads (the structure's hint, how the
+    outline is drawn, its part, the box of an outline that could not be made)."""
+    return {k: v for k, v in meta.items() if k not in ("structure", "look", "part", "box")}
+
+
 def marked_annotation(name: str, hint: dict[str, Any], meta: dict[str, Any], box: Any, make: Any) -> Skipped:
     """The :class:`Skipped` entry of an outline whose structure ``hint`` (:func:`structure_hint`)
     marks it as an annotation, which :func:`classify` would skip whatever its shape: made only
     if included by name (``make``), its size from ``box`` (:func:`~.piece.outline_box`: its points'
     bounding box, None if it has none). Hundreds of logo and button glyphs drawn through SVG
     ``<use>`` took 2 s to sample and check."""
-    kept = {k: v for k, v in meta.items() if k not in ("structure", "look", "part", "box")}
+    kept = _public_meta(meta)
     size = None if box is None else (box[1][0] - box[0][0], box[1][1] - box[0][1])
     return Skipped(name, hint["annotation"], f"{hint['annotation']} (the file marks it {hint.get('why')!r})",
                    None, None, kept, make, size)
