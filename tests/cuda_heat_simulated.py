@@ -24,8 +24,12 @@ def simulator():
     assert _sim.active(), "run with NUMBA_ENABLE_CUDASIM=1 (tests/test_heat_backends.py does)"
 
 
+CONTRAST = 1e4
+TOL = 64 * np.finfo(float).eps * CONTRAST
+
+
 def problem(rng, nu, nv):
-    k = np.where(rng.random((nu, nv)) < 0.4, 250.0, 0.025)
+    k = np.where(rng.random((nu, nv)) < 0.4, 250.0, 250.0 / CONTRAST)
     return HeatProblem(k, (0.01, 0.01 * nv / nu), left=30, right="h=10,T=20", bottom=25, source=1e4)
 
 
@@ -49,7 +53,10 @@ def test_every_operation_equals_the_cpus(rng):
         return out
 
     def same(a, b):
-        assert np.abs(a - b).max() <= 1e-13 * max(1.0, np.abs(a).max())
+        # the device sums in another order; the conductivities' contrast (1e4) makes the summed terms
+        # up to that much larger than their sum, so rounding differs by up to ~ eps * contrast, far
+        # below what a wrong index or coefficient gives
+        assert np.abs(a - b).max() <= TOL * max(1.0, np.abs(a).max())
 
     x, b = padded(rng.standard_normal(h.fine.shape)), padded(rng.standard_normal(h.fine.shape))
     xv, bv = up(x), up(b)
@@ -60,7 +67,7 @@ def test_every_operation_equals_the_cpus(rng):
     cpu.residual(b, x, r)
     dev.residual(bv, xv, rv)
     same(r, back(rv))
-    assert dev.dot(xv, bv) == pytest.approx(cpu.dot(x, b), rel=1e-12)
+    assert abs(dev.dot(xv, bv) - cpu.dot(x, b)) <= TOL * np.abs(x * b).sum()    # its terms cancel
     pv, zv = up(x), up(b)
     p2, z2 = x.copy(), b.copy()
     cpu.xpay(p2, z2, 0.7)
@@ -94,6 +101,7 @@ def test_every_operation_equals_the_cpus(rng):
         cpu.smooth(level, False)
         dev.smooth(level, False)
         same(cpu.x[level], np.asarray(dev.x[level].a))
+    dev.b[-1].a[...] = cpu.b[-1]         # the same right-hand side (the restrictions' rounding differs)
     cpu.coarse_solve()
     dev.coarse_solve()
     same(cpu.x[-1], np.asarray(dev.x[-1].a))
