@@ -374,7 +374,7 @@ def test_the_outline_caps_the_smallest_angle_a_relax_can_reach():
     gen = importlib.import_module("clothgrid.generate")
     u, v = np.meshgrid(np.linspace(0.0, 4.0, 5), np.linspace(0.0, 3.0, 4), indexing="ij")
     X = np.ascontiguousarray(np.stack([u, v], -1))
-    assert gen._outline_cap_deg(X) == pytest.approx(90.0)
+    assert gen.outline_cap_deg(X) == pytest.approx(90.0)
     for turn in (30.0, 100.0, 200.0, 352.0):       # the outline's inner angle at bottom node (2, 0)
         Y = X.copy()
         # keep (1, 0) and (3, 0) on the bottom side; move (2, 0) so that the angle there is `turn`
@@ -382,4 +382,62 @@ def test_the_outline_caps_the_smallest_angle_a_relax_can_reach():
         Y[2, 0] = (2.0, -h)
         inner_neighbours = 270.0 - turn / 2.0            # the outline's angle at (1, 0) and (3, 0) then
         want = min(min(t / 2.0, 180.0 - t / 2.0) for t in (turn, inner_neighbours))
-        assert gen._outline_cap_deg(Y) == pytest.approx(want, rel=1e-9)
+        assert gen.outline_cap_deg(Y) == pytest.approx(want, rel=1e-9)
+
+
+def _hexagon():
+    # a bodice-like piece: six convex corners, so four of them are chosen by score
+    return _poly("hex", [[0, 0], [300, 0], [320, 380], [220, 520], [60, 500], [-20, 360]])
+
+
+def test_an_automatic_choice_keeps_its_runners_up_each_with_its_own_message():
+    from clothgrid.patterns import choose_corners
+    choice = choose_corners(_hexagon())
+    assert choice.method == "scored" and 1 <= len(choice.alternatives) <= 3
+    sets = [tuple(sorted(choice.corners))] + [tuple(sorted(a.corners)) for a in choice.alternatives]
+    assert len(set(sets)) == len(sets)                   # distinct corner sets
+    for k, alt in enumerate(choice.alternatives):
+        left = sorted(set(range(6)) - set(alt.corners))
+        assert f"left out outline indices {left[0]}, {left[1]}" in alt.message
+        taken = choice.runner_up(k, "its grid's smallest angle was 5°")
+        assert taken.corners == alt.corners and taken.alternatives == ()
+        assert f"so took runner-up {k + 2}" in taken.message and "was 5°" in taken.message
+    assert choice.as_dict()["alternatives"] == [list(a.corners) for a in choice.alternatives]
+    # corners given or nearest to points have no runners-up
+    assert choose_corners(_hexagon(), corners=list(choice.corners)).alternatives == ()
+
+
+def test_runners_up_are_gridded_where_the_first_grid_misses_the_angle_target(monkeypatch):
+    from clothgrid import pipeline
+    piece = _hexagon()
+    choice = pipeline.choose_corners(piece)
+    own = [sim_figures(generate_piece(piece, corners=list(c.corners)).points, 10.0)["min_angle_deg"]
+           for c in (choice, *choice.alternatives)]
+    assert own[0] == max(own) and min(own) >= 10          # measured 54.8, 42.6, 41.0, 37.4 degrees
+    first = generate_piece(piece)
+    assert list(first.info["piece"]["corners"]["indices"]) == list(choice.corners)
+    f0 = sim_figures(first.points, 10.0)
+    assert f0["min_angle_deg"] == pytest.approx(own[0])
+    # the threshold above every angle: each runner-up gridded, none better, the first kept
+    monkeypatch.setattr(pipeline, "RUNNER_UP_BELOW_DEG", 90.0)
+    said: list[str] = []
+    grid = generate_piece(piece, progress=said.append)
+    assert sum("(runner-up" in s for s in said) == len(choice.alternatives)
+    assert list(grid.info["piece"]["corners"]["indices"]) == list(choice.corners)
+    monkeypatch.undo()
+    # a first grid said to be at 5 degrees: the first runner-up (good) is taken, and no other gridded
+    made = []
+
+    def make(b, n):
+        made.append(n)
+        return pipeline.generate(b, n, weights="uniform", functional="auto")    # generate_piece's defaults
+
+    poor = {**f0, "min_angle_deg": 5.0}
+    got = pipeline.runners_up(piece, choice, (first, quality(first), poor), 10.0, None, make)
+    assert got is not None and len(made) == 1
+    alt, boundary, nodes, (g, q, f) = got
+    assert alt.corners == choice.alternatives[0].corners and "smallest angle was 5°" in alt.message
+    assert q.folded == 0 and f["min_angle_deg"] == pytest.approx(own[1]) and g.shape == tuple(nodes)
+    # a good first grid is kept as it is, nothing else gridded
+    assert pipeline.runners_up(piece, choice, (first, quality(first), f0), 10.0, None,
+                               lambda b, n: pytest.fail("gridded a runner-up")) is None

@@ -347,7 +347,7 @@ WHOLE_RETRY_DEG = 15.0
 #: ... on grids of at most this many nodes (a whole relax costs seconds at 1024^2) ...
 WHOLE_RETRY_MAX_NODES = 1 << 15
 #: ... and only where the smallest angle is below this fraction of what the outline allows
-#: (:func:`_outline_cap_deg`): at a dart's tip the two cells share the outline's reflex angle, and
+#: (:func:`outline_cap_deg`): at a dart's tip the two cells share the outline's reflex angle, and
 #: no relax raises their smaller one (the survey's pants, skirt and torso backs retried for nothing:
 #: 3.88 -> 3.88 degrees, 0.4 s in all).
 WHOLE_RETRY_ROOM = 0.9
@@ -378,7 +378,7 @@ def _smallest_deg(X: np.ndarray) -> float:
     return math.degrees(math.asin(min(1.0, max(-1.0, smallest_cell_sine(X)))))
 
 
-def _outline_cap_deg(X: np.ndarray) -> float:
+def outline_cap_deg(X: np.ndarray) -> float:
     """An upper bound of any grid's smallest cell angle (degrees, as the sines measure it: an angle
     and 180 less it alike; grid-corner cells aside) on this outline: the two cells at a side's
     inner node share the outline's angle ``t`` there, so one of them has at most ``t / 2`` and, for
@@ -405,7 +405,7 @@ def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):
     from .foldfree import relax_in_plane
 
     local_deg = _smallest_deg(X)
-    if not local_deg < min(WHOLE_RETRY_DEG, WHOLE_RETRY_ROOM * _outline_cap_deg(X)):
+    if not local_deg < min(WHOLE_RETRY_DEG, WHOLE_RETRY_ROOM * outline_cap_deg(X)):
         return X, centre, basis, ff, moved, ev, touched
     t = time.perf_counter()
     X2, centre2, basis2, ff2, moved2 = relax_in_plane(R, dim=dim, whole=True, progress=say)

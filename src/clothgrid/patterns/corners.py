@@ -34,7 +34,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -88,6 +88,11 @@ class CornerChoice:
         How many candidates there were.
     inserted : tuple of int
         Indices (into ``outline``) of points added to the piece's outline.
+    alternatives : tuple of CornerChoice
+        Automatic choices (``"scored"``) only: the next best corner sets by
+        their coarse grids, best first (at most :data:`ALTERNATIVES`), to try
+        where the chosen set's grid misses the angle target
+        (:func:`clothgrid.pipeline.runners_up`).
     """
 
     outline: np.ndarray
@@ -96,6 +101,15 @@ class CornerChoice:
     message: str
     candidates: int = 0
     inserted: tuple[int, ...] = ()
+    alternatives: tuple["CornerChoice", ...] = ()
+
+    def runner_up(self, k: int, why: str) -> "CornerChoice":
+        """Alternative ``k``, its message saying why it was taken (``why``: what the first choice's
+        grid missed, one phrase)."""
+        alt = self.alternatives[k]
+        head, named = alt.message.rsplit(": bottom-left", 1)
+        return replace(alt, message=f"{head}; the first choice {_fmt_idx(self.corners)}: {why}, so took "
+                                    f"runner-up {k + 2} by its coarse grid: bottom-left{named}")
 
     @property
     def points(self) -> np.ndarray:
@@ -105,7 +119,8 @@ class CornerChoice:
     def as_dict(self) -> dict[str, Any]:
         return {"indices": list(self.corners), "points": self.points.tolist(),
                 "method": self.method, "message": self.message,
-                "candidates": self.candidates, "inserted": list(self.inserted)}
+                "candidates": self.candidates, "inserted": list(self.inserted),
+                "alternatives": [list(c.corners) for c in self.alternatives]}
 
 
 def _quality(turn: np.ndarray) -> np.ndarray:
@@ -284,11 +299,12 @@ def _closed_arc(outline: np.ndarray, darts: Sequence[tuple[int, int, int]]
 
 
 def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
-               outline: np.ndarray | None = None) -> list[int]:
-    """The 4 of ``idx`` (outline order) with the best score; ``q``, ``s`` per outline point.
+               outline: np.ndarray | None = None) -> list[list[int]]:
+    """Sets of 4 of ``idx`` (outline order), best score first; ``q``, ``s`` per outline point.
 
-    With ``outline``, the :data:`GRID_RANKED` best by the quick score are
-    ranked again by the quality of a coarse grid (:func:`grid_score`).
+    Without ``outline``, the best set alone. With it, the :data:`GRID_RANKED`
+    best by the quick score, ranked again by the quality of a coarse grid
+    (:func:`grid_score`; sets whose coarse grid cannot be made left out).
     """
     idx = sorted(idx)
     if len(idx) > MAX_SCORED:
@@ -306,7 +322,7 @@ def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
     balance = np.nan_to_num(r1 * r2)
     score = q[c].sum(axis=1) + balance
     if outline is None or len(c) == 1:
-        return [int(x) for x in c[int(np.argmax(score))]]
+        return [[int(x) for x in c[int(np.argmax(score))]]]
     top = np.argsort(-score, kind="stable")[:GRID_RANKED]
     return _rank_by_grid(outline, [list(c[k]) for k in top], q)
 
@@ -314,6 +330,8 @@ def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
 
 #: Corner sets scored by a coarse grid (the best by the quick score go on to it).
 GRID_RANKED = 10
+#: Runners-up an automatic choice keeps (:attr:`CornerChoice.alternatives`).
+ALTERNATIVES = 3
 #: Cells of the coarse grid that scores a corner set.
 COARSE_CELLS = 150
 
@@ -392,17 +410,18 @@ def grid_score(points: np.ndarray) -> float:
     return float(2.0 * sv.min() + sv.mean() - 0.25 * math.log10(spread))
 
 
-def _rank_by_grid(outline: np.ndarray, combos: list[list[int]], q: np.ndarray) -> list[int]:
-    """The corner set of ``combos`` whose coarse grid scores best (corner quality ``q`` breaks near-ties)."""
-    best, best_c = -np.inf, combos[0]
-    for c in combos:
+def _rank_by_grid(outline: np.ndarray, combos: list[list[int]], q: np.ndarray) -> list[list[int]]:
+    """The corner sets of ``combos``, best coarse grid first (corner quality ``q`` breaks near-ties;
+    ties keep ``combos``' order); ``combos[:1]`` where no coarse grid can be made."""
+    scored = []
+    for k, c in enumerate(combos):
         try:
             score = grid_score(coarse_grid(outline, c)) + 0.25 * float(np.mean(q[c]))
         except (InputError, ValueError, FloatingPointError):
             continue
-        if score > best:
-            best, best_c = score, c
-    return [int(i) for i in best_c]
+        scored.append((-score, k))
+    scored.sort()
+    return [[int(i) for i in combos[k]] for _, k in scored] or [[int(i) for i in combos[0]]]
 
 
 #: A side is split (:func:`_split`) within this central fraction of its length ...
@@ -640,15 +659,18 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
             "" if from_tps else f" (turns of {min_turn:g}° or more"
             + (f"; {len(tps)} turn points in the file)" if tps else ")"))
     dart_note = "".join("; " + n for n in notes)
+    others: list[list[int]] = []
+    scored = ""
     if pool is not None and len(pool) == 4:
         chosen = sorted(pool)
         method = "turn-points" if from_tps else "candidates"
         message = f"the {what} are the corners"
     elif pool is not None:
-        chosen, method = _best_four(pool, q, s, perimeter, outline), "scored"
-        left = [i for i in pool if i not in chosen]
-        message = (f"chose 4 of {what} by score (right-angled convex corners, opposite "
-                   f"sides of similar length); left out outline indices {_fmt_idx(left)}")
+        ranked = _best_four(pool, q, s, perimeter, outline)
+        chosen, method, others = ranked[0], "scored", ranked[1:1 + ALTERNATIVES]
+        scored = (f"chose 4 of {what} by score (right-angled convex corners, opposite "
+                  f"sides of similar length); left out outline indices ")
+        message = scored + _fmt_idx(i for i in pool if i not in chosen)
     if pool is not None:
         message += dart_note
     else:
@@ -673,5 +695,15 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
                         f"{_fmt_idx(inserted)})")
         message += "".join("; " + n for n in notes)
     ordered = _rotate_to_grain(outline, sorted(chosen), piece.grain_line)
-    message += (": " + ", ".join(f"{name} {i}" for name, i in zip(_NAMES, ordered)))
-    return CornerChoice(outline, tuple(ordered), method, message, len(cands), tuple(inserted))
+    message += _corners_named(ordered)
+    alternatives = []
+    for c in others:
+        alt = _rotate_to_grain(outline, sorted(c), piece.grain_line)
+        text = scored + _fmt_idx(i for i in pool if i not in c) + dart_note + _corners_named(alt)
+        alternatives.append(CornerChoice(outline, tuple(alt), "scored", text, len(cands)))
+    return CornerChoice(outline, tuple(ordered), method, message, len(cands), tuple(inserted),
+                        tuple(alternatives))
+
+
+def _corners_named(ordered: Sequence[int]) -> str:
+    return ": " + ", ".join(f"{name} {i}" for name, i in zip(_NAMES, ordered))
