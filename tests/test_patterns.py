@@ -1000,10 +1000,31 @@ def test_open_paths_joined_only_where_two_ends_meet(tmp_path):
     assert [p.name for p in read_pieces(path)] == ["s"]
 
 
-def test_open_paths_and_polylines_are_both_counted_in_the_error(tmp_path):
-    path = _svg(tmp_path, '<polyline points="0,0 50,0 50,50"/><path d="M 10 10 L 20 20"/>')
-    with pytest.raises(InputError, match=r"\(2 open paths were skipped"):
+def test_open_paths_polylines_and_lines_are_all_counted_in_the_error(tmp_path):
+    path = _svg(tmp_path, '<polyline points="0,0 50,0 50,50"/><path d="M 10 10 L 20 20"/>'
+                          '<line x1="60" y1="0" x2="90" y2="10"/>')
+    with pytest.raises(InputError, match=r"\(3 open paths were skipped"):
         read_pieces(path)
+
+
+def test_lines_and_open_polylines_meeting_end_to_end_are_an_outline(tmp_path):
+    """Illustrator and hand-drawn SVGs draw edges as ``<line>`` elements: four lines of a panel
+    (one of them transformed, two drawn backwards) are one piece; an open polyline and a line close
+    a triangle; a lone grain line and a zero-length line are left out."""
+    path = _svg(tmp_path, '<g id="panel"><line x1="0" y1="0" x2="100" y2="0"/>'
+                          '<line x1="100" y1="0" x2="100" y2="80"/>'
+                          '<line x1="0" y1="80" x2="100" y2="80"/>'
+                          '<line transform="translate(0,80)" x1="0" y1="0" x2="0" y2="-80"/></g>'
+                          '<g id="gusset"><polyline points="150,0 250,0 200,60"/>'
+                          '<line x1="200" y1="60" x2="150" y2="0"/></g>'
+                          '<line id="grain" x1="20" y1="20" x2="20" y2="60"/><line x1="5" y1="5" x2="5" y2="5"/>')
+    got = {p.name: p for p in read_pieces(path)}
+    assert sorted(got) == ["gusset", "panel"]
+    assert got["panel"].extent == pytest.approx((100.0, 80.0)) and got["panel"].area == pytest.approx(8000.0)
+    assert got["gusset"].area == pytest.approx(3000.0) and len(got["gusset"].outline) == 3
+    assert any("joined from 4 open paths" in n for n in got["panel"].notes)
+    bad = read_pieces(_svg(tmp_path, '<line x1="0" y1="0" x2="1em" y2="5"/><path d="M0,0 L90,0 L90,90 Z"/>'))
+    assert len(bad) == 1 and len(bad.failed) == 1 and "expected a number" in bad.failed[0].reason
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -1,12 +1,14 @@
 """Read pattern pieces from an SVG file: every closed (sub)path is a piece.
 
 Paths (``<path>``) and the basic shapes ``<rect>``, ``<circle>``, ``<ellipse>``,
-``<polygon>`` and closed ``<polyline>`` are read, with the ``transform`` of
+``<polygon>``, ``<polyline>`` and ``<line>`` are read, with the ``transform`` of
 every element and its groups; ``<defs>``, ``<symbol>``, ``<clipPath>``,
 ``<mask>``, ``<marker>``, ``<pattern>`` and elements with ``display="none"``
-are skipped, and ``<use>`` is not followed. A subpath is closed when it ends
-with ``Z`` or at its start point; open ones (grain lines, notches) are
-ignored. Path data is parsed by svgpathtools; lines, quadratic and cubic
+are skipped unless a ``<use>`` draws them. A subpath is closed when it ends
+with ``Z`` or at its start point. Open ones (open paths, polylines and lines)
+that meet end to end (within :data:`JOIN_MM`) are joined into the outline
+around them; the rest (grain lines, notches) are left out. Path data is
+parsed by svgpathtools; lines, quadratic and cubic
 Béziers and elliptical arcs are then sampled exactly (see
 :mod:`clothgrid.patterns.sampling`).
 
@@ -55,7 +57,7 @@ _FONT = re.compile(r"font-(family|size)\s*:", re.IGNORECASE)
 _SKIP = {"defs", "symbol", "clipPath", "mask", "marker", "pattern", "metadata", "title", "desc",
          "style", "script", "linearGradient", "radialGradient", "filter", "text", "foreignObject",
          "namedview"}
-_SHAPES = {"path", "rect", "circle", "ellipse", "polygon", "polyline"}
+_SHAPES = {"path", "rect", "circle", "ellipse", "polygon", "polyline", "line"}
 _PATH_CHARS = re.compile(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]*")
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _CSS_LENGTH = re.compile(r"\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%]*)\s*")
@@ -245,6 +247,21 @@ def _polygon_points(el: ET.Element, m: np.ndarray, where: str) -> tuple[np.ndarr
     finite = pts[np.isfinite(pts).all(axis=1)]
     size = float(np.hypot(*np.ptp(finite, axis=0))) if len(finite) else 0.0
     return pts, size > 0 and float(np.linalg.norm(pts[-1] - pts[0])) <= 1e-9 * size
+
+
+def _line_ends(el: ET.Element, m: np.ndarray, where: str) -> np.ndarray | None:
+    """The two ends of a ``<line>`` (transformed by ``m``), or None where they are one point."""
+    xy = np.array([[_attr(el, "x1", where, 0.0), _attr(el, "y1", where, 0.0)],
+                   [_attr(el, "x2", where, 0.0), _attr(el, "y2", where, 0.0)]])
+    if np.array_equal(xy[0], xy[1]):
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):
+        return xy @ m[:2, :2].T + m[:2, 2]
+
+
+def _straight_prims(pts: np.ndarray) -> list[Primitive]:
+    """The straight segments between consecutive points (an open polyline or a line)."""
+    return [Bezier(pts[k:k + 2].copy()) for k in range(len(pts) - 1)]
 
 
 def _rect_geometry(el: ET.Element, where: str) -> tuple[float, float, float, float, float, float] | None:
@@ -515,8 +532,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
             using.discard(id(target))
             return
         if tag in _SHAPES:
-            counter += 1
-            base = _name(el, _group_name(group) or f"piece{counter}")
+            if tag != "line":       # (lines, read since, leave the other shapes' fallback names as they were)
+                counter += 1
+            base = _name(el, _group_name(group) or (f"piece{counter}" if tag != "line" else "line"))
             label = f"<{tag}> {base!r}"
             loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
             try:
@@ -524,8 +542,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
                     poly = _polygon_points(el, m, f"{where}: {label}")
                     if poly is not None and poly[1]:
                         loops.append(poly[0])
-                    elif poly is not None:
-                        open_paths += 1
+                    elif poly is not None:           # open: joined with others end to end, if they meet
+                        opened.append(_Open(_straight_prims(poly[0]), base, el, around, text, group))
+                elif tag == "line":
+                    ends = _line_ends(el, m, f"{where}: {label}")
+                    if ends is not None:
+                        opened.append(_Open(_straight_prims(ends), base, el, around, text, group))
                 elif tag == "rect" and (quad := _rect_corners(el, m, f"{where}: {label}")) is not None:
                     loops.append(quad)
                 elif tag in ("circle", "ellipse"):
