@@ -441,3 +441,17 @@ def test_runners_up_are_gridded_where_the_first_grid_misses_the_angle_target(mon
     # a good first grid is kept as it is, nothing else gridded
     assert pipeline.runners_up(piece, choice, (first, quality(first), f0), 10.0, None,
                                lambda b, n: pytest.fail("gridded a runner-up")) is None
+
+
+@needs_shared
+def test_no_runners_up_where_a_darts_tip_sets_the_smallest_angle():
+    """A pants back with two deep darts: its grid's smallest angle (under 10 degrees) is at a dart's
+    tip, where the outline allows no more (generate.forced_by_outline): no runner-up is gridded."""
+    from clothgrid.generate import forced_by_outline
+    piece = select_pieces(PANTS, ["pant_b_l"])[0]
+    said: list[str] = []
+    grid = generate_piece(piece, progress=said.append)
+    assert sim_figures(grid.points, 10.0)["min_angle_deg"] < 10                 # measured 8.2
+    assert forced_by_outline(np.ascontiguousarray(grid.points[..., :2]))
+    assert not any("(runner-up" in s for s in said)
+    assert grid.info["piece"]["corners"]["alternatives"]                        # there were some

@@ -378,6 +378,13 @@ def _smallest_deg(X: np.ndarray) -> float:
     return math.degrees(math.asin(min(1.0, max(-1.0, smallest_cell_sine(X)))))
 
 
+def forced_by_outline(X: np.ndarray) -> bool:
+    """Whether the plane grid ``X``'s smallest cell angle (as the sines measure it, grid-corner cells
+    aside) is at least :data:`WHOLE_RETRY_ROOM` of what its outline allows (:func:`outline_cap_deg`):
+    no relax, and no other grid of that outline, raises it much."""
+    return _smallest_deg(X) >= WHOLE_RETRY_ROOM * outline_cap_deg(X)
+
+
 def outline_cap_deg(X: np.ndarray) -> float:
     """An upper bound of any grid's smallest cell angle (degrees, as the sines measure it: an angle
     and 180 less it alike; grid-corner cells aside) on this outline: the two cells at a side's

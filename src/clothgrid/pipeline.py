@@ -49,7 +49,7 @@ from . import writers
 from .blas_threads import one_blas_thread
 from .boundary import Boundary
 from .errors import InputError, NotConvergedError, PiecesError, SizeError
-from .generate import WHOLE_RETRY_ROOM, check_size, generate, outline_cap_deg, parse_nodes
+from .generate import check_size, forced_by_outline, generate, parse_nodes
 from .memory import KEPT_BYTES_PER_NODE
 from .grid import Grid
 from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
@@ -627,9 +627,9 @@ def runners_up(piece: Piece, choice: CornerChoice, first: tuple[Grid, Quality, d
                progress: Callable[[str], None] | None = None
                ) -> tuple[CornerChoice, Boundary, Any, tuple[Grid, Quality, dict[str, Any]]] | None:
     """Where ``first`` (the grid of ``choice``, its quality and :func:`sim_figures`) folds, or has a cell
-    angle under :data:`RUNNER_UP_BELOW_DEG` that its outline does not force (under
-    :data:`~clothgrid.generate.WHOLE_RETRY_ROOM` of :func:`~clothgrid.generate.outline_cap_deg`: a
-    dart's tip does), grid ``choice``'s runners-up in turn with ``make(boundary,
+    angle under :data:`RUNNER_UP_BELOW_DEG` that its outline does not force
+    (:func:`~clothgrid.generate.forced_by_outline`: a dart's tip does), grid ``choice``'s
+    runners-up in turn with ``make(boundary,
     nodes)`` (nodes from ``edge_length`` where given, else ``nodes``) until one meets both; return the
     best (choice, boundary, nodes, (grid, quality, figures)), or None where ``first`` is best or good.
 
@@ -649,10 +649,8 @@ def runners_up(piece: Piece, choice: CornerChoice, first: tuple[Grid, Quality, d
     if not choice.alternatives or good(first[1], first[2]):
         return None
     f0 = first[2]
-    if not first[1].folded:
-        cap = outline_cap_deg(np.ascontiguousarray(first[0].points[..., :2]))
-        if f0["min_angle_deg"] >= WHOLE_RETRY_ROOM * cap:
-            return None
+    if not first[1].folded and forced_by_outline(np.ascontiguousarray(first[0].points[..., :2])):
+        return None
     why = (f"its grid folded {first[1].folded} cells" if first[1].folded
            else f"its grid's smallest angle was {f0['min_angle_deg']:.3g}°")
     best: tuple[tuple[int, float], Any] = (key(first[1], f0), None)
