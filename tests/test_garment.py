@@ -671,3 +671,36 @@ def test_a_twisted_seam_is_named(capsys, tmp_path):
     fixed = garment(GC_DATA / "standing_lapel_fix_specification.json", edge_length="3cm")
     assert not [n for n in fixed.info["notes"] if n.startswith("twisted")]
     assert fixed.mesh_report()["nonmanifold_edges"] == 0
+
+
+@needs_shared
+def test_pants_backs_with_deep_darts_are_fold_free_at_5mm():
+    """gcn_rand_JIT6TDX7XB at 5 mm: each pants back is 196 x 195 nodes with two 20 cm darts whose
+    tips are nodes (their legs sewn node for node). The every-node untangling starts from the grid of
+    every other line, which passed the tips by (its boundary cut them off) and left 37 and 44 folded
+    cells; that grid now keeps the lines through sharp boundary nodes (foldfree._coarse_lines)."""
+    g = garment(SHARED / "gcn_rand_JIT6TDX7XB_specification.json", edge_length="5mm")
+    backs = [p for p in g.info["panels"] if p["name"].startswith("pant_b")]
+    assert len(backs) == 2 and all(p["folded"] == 0 for p in backs), backs
+
+
+def test_the_coarser_grid_keeps_the_lines_through_sharp_boundary_nodes():
+    from clothgrid.foldfree import KEEP_MOST, _coarse_lines, _every_other
+
+    nu, nv = 41, 30
+    u, v = np.meshgrid(np.linspace(0, 400, nu), np.linspace(0, 290, nv), indexing="ij")
+    X = np.stack([u, v], -1)
+    ic, jc = _coarse_lines(X)                      # a rectangle: every other line, no more
+    assert np.array_equal(ic, _every_other(nu)) and np.array_equal(jc, _every_other(nv))
+    # a V dart into the top side, its tip the node i = 15 (odd), 80 deep; one into the right side
+    # at j = 9
+    X[13:18, -1, 1] -= [0, 40, 80, 40, 0]
+    X[-1, 8:11, 0] -= [0, 60, 0]
+    ic, jc = _coarse_lines(X)
+    assert {14, 15, 16} <= set(ic.tolist()) and 9 in jc
+    assert set(_every_other(nu).tolist()) <= set(ic.tolist()) and len(ic) < nu and len(jc) < nv
+    # a noisy side: at most KEEP_MOST of its lines more
+    Y = np.stack([u, v], -1)
+    Y[1:-1:2, 0, 1] += 5.0                          # a zigzag bottom: every odd node sharp
+    ic, _ = _coarse_lines(Y)
+    assert len(ic) - len(_every_other(nu)) <= int(KEEP_MOST * nu)
