@@ -255,34 +255,41 @@ def _every_other(n: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, (n + 1) // 2)).astype(np.int64))
 
 
-#: The coarser grid of :func:`_relax_all` also keeps the grid lines through the boundary nodes where
-#: the outline turns by at least this much (degrees): a dart's tip (a turn of nearly 180) or mouth.
-#: Where every other line passed a tip by, the coarser grid's boundary cut it off, and its
-#: interpolation left the finer grid folded round it: a GarmentCode pants back at 5 mm (196 x 195
-#: nodes, two 20 cm darts whose tips are nodes, sewn leg to leg) kept 37-44 folded cells.
-KEEP_TURN_DEG = 60.0
-#: ... at most this fraction of a side's lines (the sharpest first), so that the coarser grid stays
+#: The coarser grid of :func:`_relax_all` also keeps the grid lines through the boundary nodes that
+#: its own boundary would miss by more than this fraction of the node's shorter boundary edge (the
+#: node against the straight line, in index space, between its coarser neighbours, as
+#: :func:`_prolong` interpolates it): a dart's tip or mouth (any turn of more than about 30
+#: degrees), or a node a short interval from the next (a seam's end near a dart's mouth). Where every
+#: other line passed such a node by, the coarser grid's boundary cut it off, and the mismatch,
+#: spread down its one line by the interpolation, folded the finer grid there: GarmentCode pants
+#: backs at 5 mm (about 196 x 200 nodes, two 20 cm darts whose tips are nodes, sewn leg to leg)
+#: kept 37-66 folded cells.
+KEEP_MISMATCH = 0.25
+#: ... at most this fraction of a side's lines (the worst first), so that the coarser grid stays
 #: coarser on a noisy outline.
 KEEP_MOST = 0.125
 
 
 def _coarse_lines(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The grid lines of :func:`_relax_all`'s coarser grid: every other line of ``X`` (both ends
-    included), and those through its sharp boundary nodes (:data:`KEEP_TURN_DEG`)."""
-    from .geometry import turn_angles
-
+    included), and those through boundary nodes the coarser boundary would miss
+    (:data:`KEEP_MISMATCH`)."""
     nu, nv = X.shape[:2]
-    ic, jc = _every_other(nu), _every_other(nv)
-    turn = np.abs(turn_angles(boundary_loop(X)[:, :2]))
-    p = np.flatnonzero(turn >= np.radians(KEEP_TURN_DEG))
-    p = p[np.argsort(-turn[p], kind="stable")]
-    r, t, l = nu - 1, nu + nv - 2, 2 * nu + nv - 3          # the loop's corners (boundary_loop's order)
-    keep_i = np.concatenate([p[(p > 0) & (p < r)], r - (p[(p > t) & (p < l)] - t)])
-    keep_j = np.concatenate([p[(p > r) & (p < t)] - r, nv - 1 - (p[p > l] - l)])
     out = []
-    for lines, keep, n in ((ic, keep_i, nu), (jc, keep_j, nv)):
-        new = [k for k in dict.fromkeys(int(k) for k in keep) if k not in set(lines.tolist())]
-        out.append(np.union1d(lines, new[:int(KEEP_MOST * n)]).astype(np.int64))
+    for n, sides in ((nu, (X[:, 0, :2], X[:, -1, :2])), (nv, (X[0, :, :2], X[-1, :, :2]))):
+        lines = _every_other(n)
+        worst = np.zeros(n)
+        k = np.arange(n)
+        for S in sides:
+            line = np.stack([np.interp(k, lines, S[lines, c]) for c in range(2)], -1)
+            edge = np.hypot(*np.diff(S, axis=0).T)
+            short = np.minimum(np.r_[np.inf, edge], np.r_[edge, np.inf])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.hypot(*(S - line).T) / short
+            worst = np.maximum(worst, np.nan_to_num(ratio, nan=0.0, posinf=0.0))
+        keep = np.flatnonzero(worst > KEEP_MISMATCH)
+        keep = keep[np.argsort(-worst[keep], kind="stable")][:int(KEEP_MOST * n)]
+        out.append(np.union1d(lines, keep).astype(np.int64))
     return out[0], out[1]
 
 

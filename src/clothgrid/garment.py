@@ -393,9 +393,6 @@ MAX_ALTERNATIVES = 12
 
 #: ... chosen among this many corner sets by a transfinite grid's score (no relaxation) first.
 PRE_RANKED = 3 * MAX_ALTERNATIVES
-#: :func:`_unfold` stops at the first corner set that leaves no fold and a panel's smallest corner
-#: sine at least this (the sine of :data:`~clothgrid.quality.TARGET_MIN_ANGLE_DEG`, 10 degrees)
-UNFOLD_GOOD_SINE = math.sin(math.radians(TARGET_MIN_ANGLE_DEG))
 
 
 def _alternatives(lay: "_Layout") -> list[list[tuple[int, float]]]:
@@ -510,6 +507,7 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
 
     grid = gridded(X)
     q = quality(grid)
+    angle = _smallest_angle(grid)
     tips: list[tuple[int, float]] = []
     if q.folded and lay.dart_tips:
         # a needle-sharp dart tip: its two cells share the outline's reflex angle there, and the
@@ -519,8 +517,9 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
         if moved:
             g2 = gridded(Y)
             q2 = quality(g2)
-            if (q2.folded, -q2.min_scaled_jacobian) < (q.folded, -q.min_scaled_jacobian):
-                grid, q, X, tips = g2, q2, Y, moved
+            a2 = _smallest_angle(g2)
+            if (q2.folded, -a2) < (q.folded, -angle):
+                grid, q, X, tips, angle = g2, q2, Y, moved, a2
     p = np.arange(L)
     gi = np.where(p < nu - 1, p, np.where(p < nu + nv - 2, nu - 1,
                   np.where(p < 2 * nu + nv - 3, nu - 1 - (p - (nu + nv - 2)), 0)))
@@ -546,7 +545,7 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
         edge_nodes[e] = np.concatenate(nodes)
         edge_fracs[e] = np.concatenate(fracs)
     out = {"grid": grid, "shape": (nu, nv), "edge_nodes": edge_nodes, "edge_fracs": edge_fracs,
-           "drift": drift, "quality": q, "key": key, "dart_tips_moved": tips}
+           "drift": drift, "quality": q, "min_angle": angle, "key": key, "dart_tips_moved": tips}
     cache[key] = out
     return out
 
@@ -602,10 +601,26 @@ def _blunted(X: np.ndarray, lay: "_Layout", L: int) -> tuple[np.ndarray, list[tu
     return Y, moved
 
 
+def _smallest_angle(grid: Any) -> float:
+    """A panel grid's smallest cell angle (degrees), the four grid-corner cells aside
+    (:func:`~clothgrid.quality.sim_figures`)."""
+    from .quality import sim_figures
+
+    return float(sim_figures(grid.points)["min_angle_deg"])
+
+
+def _panel_cost(m: dict[str, Any]) -> tuple[int, float]:
+    """One panel's :func:`_grid_panel` result: its folded cells, then its smallest angle (negated)."""
+    return int(m["quality"].folded), -float(m["min_angle"])
+
+
 def _cost(made: dict[str, dict[str, Any]]) -> tuple[int, float]:
-    """Folded cells in all, then the smallest scaled Jacobian (negated: lower is better)."""
+    """Folded cells in all, then the smallest cell angle of all panels (negated: lower is better),
+    the grid-corner cells aside: a corner on a straight side (a triangular godet's) has a scaled
+    Jacobian of 0 whatever the grid, which made the scaled Jacobian a tie at rounding (1e-16) between
+    grids of 1.1 and 4.0 degrees."""
     folded = sum(int(m["quality"].folded) for m in made.values())
-    return folded, -min(float(m["quality"].min_scaled_jacobian) for m in made.values())
+    return folded, -min(float(m["min_angle"]) for m in made.values())
 
 
 #: The count objectives :func:`garment` tries: the relative deviations alone (None), and with
@@ -690,8 +705,7 @@ def _unfold(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, c
             except (CountConflict, InputError):
                 continue
             own = _grid_panel(lay, c2, opts, cache)     # the panel alone first: most sets fold it too
-            if (int(own["quality"].folded), -float(own["quality"].min_scaled_jacobian)) >= (
-                    int(best[5][name]["quality"].folded), -float(best[5][name]["quality"].min_scaled_jacobian)):
+            if _panel_cost(own) >= _panel_cost(best[5][name]):
                 continue
             m2 = {n: _grid_panel(la, c2, opts, cache) for n, la in lays.items()}
             cost = _cost(m2)
@@ -700,7 +714,7 @@ def _unfold(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, c
                 # no fold left: enough where the panel's smallest angle meets the target, else the
                 # other sets are looked at too (a high-low circle skirt's first unfolded set left
                 # 1.6 degrees, a later one 6.3)
-                if cost[0] == 0 and float(m2[name]["quality"].min_scaled_jacobian) >= UNFOLD_GOOD_SINE:
+                if cost[0] == 0 and float(m2[name]["min_angle"]) >= TARGET_MIN_ANGLE_DEG:
                     break
         cost, corners, counts, count_info, prob, made, method = best
         lay.corners, lay.corner_method = corners, method
