@@ -711,3 +711,41 @@ def test_the_coarser_grid_keeps_the_lines_through_sharp_boundary_nodes():
     Y[1:-1:2, 0, 1] += 5.0                          # a zigzag bottom: every odd node sharp
     ic, _ = _coarse_lines(Y)
     assert len(ic) - len(_every_other(nu)) <= int(KEEP_MOST * nu)
+
+
+def test_garment_grids_are_ranked_by_angle_with_the_grid_corner_cells_aside():
+    """A grid corner on a straight side (a triangular godet's, split there) has a cell angle of 180
+    degrees and a scaled Jacobian of 0 whatever the grid: ranked by that, two grids tied at rounding
+    (1e-16). garment._cost ranks by the smallest angle of the other cells (the quality target's
+    measure, quality.sim_figures)."""
+    from types import SimpleNamespace
+
+    import clothgrid.garment as G
+    from clothgrid.grid import Grid
+    from clothgrid.quality import quality
+
+    from clothgrid.initial import transfinite
+
+    # a right triangle, its hypotenuse split in the middle: the top-right grid corner (0.5, 0.5)
+    # sits on a straight side
+    n = 7
+    t = np.linspace(0, 1, n)[:, None]
+    P = np.zeros((n, n, 3))
+    P[:, 0, :2] = t * [1.0, 0.0]                                   # bottom (0, 0) -> (1, 0)
+    P[-1, :, :2] = [1.0, 0.0] + t * [-0.5, 0.5]                    # right: to the middle
+    P[:, -1, :2] = [0.0, 1.0] + t * [0.5, -0.5]                    # top: (0, 1) -> the middle
+    P[0, :, :2] = t * [0.0, 1.0]                                   # left
+    P = transfinite(P)
+    good, poor = P.copy(), P.copy()
+    poor[2, 1:-1, 1] += 0.08                      # one grid line's inner nodes moved: sheared cells, no fold
+    made = {}
+    for name, pts in (("good", good), ("poor", poor)):
+        g = Grid.from_points(pts, dim=2)
+        q = quality(g)
+        assert q.folded == 0 and abs(q.min_scaled_jacobian) < 1e-12    # pinned by the corner cell
+        made[name] = {"quality": q, "min_angle": G._smallest_angle(g)}
+    assert made["good"]["min_angle"] == pytest.approx(18.43, abs=0.01)
+    assert made["poor"]["min_angle"] == pytest.approx(14.61, abs=0.01)
+    assert G._cost({"a": made["good"]}) < G._cost({"a": made["poor"]})
+    assert G._panel_cost(made["good"]) < G._panel_cost(made["poor"])
+    assert G._cost(made) == (0, -made["poor"]["min_angle"])
