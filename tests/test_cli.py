@@ -643,3 +643,19 @@ def test_verbose_prints_where_the_time_goes(tmp_path, capsys):
 def test_timing_lines_without_proc():
     lines = cli.timing_lines(None, 0.01, 0.02, [], 0.03, None)
     assert lines[0].startswith("time: start-up") and "n/a" in lines[0] and lines[-1] == "time: whole command n/a s"
+
+
+def test_pieces_lists_an_automatic_choices_runners_up(tmp_path, capsys):
+    """A piece with six convex corners: its corners are scored, and `clothgrid pieces` lists the
+    three runners-up `generate` would try (and --json holds them), each distinct from the choice."""
+    svg = tmp_path / "hex.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="600mm" viewBox="0 0 400 600">'
+                   '<path id="hex" d="M 20,580 L 320,580 L 340,200 L 240,60 L 80,80 L 0,220 Z"/></svg>')
+    code, out, err = run(capsys, "pieces", svg)
+    assert code == 0, err
+    line = next(s for s in out.splitlines() if s.startswith("  runners-up: "))
+    sets = [tuple(map(int, a.split(","))) for a in line.removeprefix("  runners-up: ").split("; ")]
+    code, out, _ = run(capsys, "pieces", svg, "--json")
+    corners = json.loads(out)["pieces"][0]["corners"]
+    assert corners["method"] == "scored" and [list(a) for a in sets] == corners["alternatives"]
+    assert len(sets) == 3 and len({tuple(sorted(a)) for a in sets} | {tuple(sorted(corners["indices"]))}) == 4

@@ -888,6 +888,8 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
         c = e["corners"]
         pts = "; ".join(f"{x:.6g},{y:.6g}" for x, y in c["points"])
         print(f"  corners {','.join(map(str, c['indices']))} ({pts} mm): {c['message']}")
+        if c.get("alternatives"):       # tried where the grid is poor; any can be given with --corners
+            print("  runners-up: " + "; ".join(",".join(map(str, a)) for a in c["alternatives"]))
         if e["grain_line"] is not None:
             (x0, y0), (x1, y1) = e["grain_line"]
             print(f"  grain line: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm")
