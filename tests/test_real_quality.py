@@ -455,3 +455,15 @@ def test_no_runners_up_where_a_darts_tip_sets_the_smallest_angle():
     assert forced_by_outline(np.ascontiguousarray(grid.points[..., :2]))
     assert not any("(runner-up" in s for s in said)
     assert grid.info["piece"]["corners"]["alternatives"]                        # there were some
+
+
+def test_no_runners_up_on_grids_over_the_node_cap(monkeypatch):
+    from clothgrid import pipeline
+    piece = _hexagon()
+    monkeypatch.setattr(pipeline, "RUNNER_UP_BELOW_DEG", 90.0)       # every grid would try them
+    monkeypatch.setattr(pipeline, "RUNNER_UP_MAX_NODES", 100)
+    said: list[str] = []
+    grid = generate_piece(piece, progress=said.append)
+    assert grid.shape[0] * grid.shape[1] > 100
+    assert not any("(runner-up" in s for s in said)
+    assert any("runners-up not tried" in s for s in said)

@@ -620,6 +620,9 @@ RUNNER_UP_BELOW_DEG = TARGET_MIN_ANGLE_DEG
 #: A runner-up is kept where it folds fewer cells, or as many and its smallest angle is larger by this
 #: (degrees).
 RUNNER_UP_GAIN_DEG = 1.0
+#: Runners-up are gridded only where the first grid has at most this many nodes (a piece of a metre at
+#: 2 mm edges has about 150,000; each runner-up costs another whole grid).
+RUNNER_UP_MAX_NODES = 1 << 18
 
 
 def runners_up(piece: Piece, choice: CornerChoice, first: tuple[Grid, Quality, dict[str, Any]],
@@ -649,6 +652,12 @@ def runners_up(piece: Piece, choice: CornerChoice, first: tuple[Grid, Quality, d
     if not choice.alternatives or good(first[1], first[2]):
         return None
     f0 = first[2]
+    nodes_first = first[0].shape[0] * first[0].shape[1]
+    if nodes_first > RUNNER_UP_MAX_NODES:
+        if progress is not None:
+            progress(f"corners' runners-up not tried: {nodes_first} nodes, more than {RUNNER_UP_MAX_NODES} "
+                     "(give other corners with --corners; clothgrid pieces lists the runners-up)")
+        return None
     if not first[1].folded and forced_by_outline(np.ascontiguousarray(first[0].points[..., :2])):
         return None
     why = (f"its grid folded {first[1].folded} cells" if first[1].folded
