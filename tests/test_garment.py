@@ -235,7 +235,7 @@ def test_unfold_looks_further_while_the_smallest_angle_is_below_target(monkeypat
         gridded.append(key)
         folded, sine = sines.get(key, (3, -0.5))
         return {"quality": SimpleNamespace(folded=folded, min_scaled_jacobian=sine),
-                "min_angle": np.degrees(np.arcsin(sine))}
+                "figures": {"min_angle_deg": np.degrees(np.arcsin(sine))}}
 
     monkeypatch.setattr(G, "_alternatives", lambda lay: alts)
     monkeypatch.setattr(G, "_count_problem", lambda *a: "problem")
@@ -722,7 +722,7 @@ def test_garment_grids_are_ranked_by_angle_with_the_grid_corner_cells_aside():
 
     import clothgrid.garment as G
     from clothgrid.grid import Grid
-    from clothgrid.quality import quality
+    from clothgrid.quality import quality, sim_figures
 
     from clothgrid.initial import transfinite
 
@@ -743,9 +743,10 @@ def test_garment_grids_are_ranked_by_angle_with_the_grid_corner_cells_aside():
         g = Grid.from_points(pts, dim=2)
         q = quality(g)
         assert q.folded == 0 and abs(q.min_scaled_jacobian) < 1e-12    # pinned by the corner cell
-        made[name] = {"quality": q, "min_angle": G._smallest_angle(g)}
-    assert made["good"]["min_angle"] == pytest.approx(18.43, abs=0.01)
-    assert made["poor"]["min_angle"] == pytest.approx(14.61, abs=0.01)
+        made[name] = {"quality": q, "figures": sim_figures(g.points)}
+    angle = {name: m["figures"]["min_angle_deg"] for name, m in made.items()}
+    assert angle["good"] == pytest.approx(18.43, abs=0.01)
+    assert angle["poor"] == pytest.approx(14.61, abs=0.01)
     assert G._cost({"a": made["good"]}) < G._cost({"a": made["poor"]})
     assert G._panel_cost(made["good"]) < G._panel_cost(made["poor"])
-    assert G._cost(made) == (0, -made["poor"]["min_angle"])
+    assert G._cost(made) == (0, -angle["poor"])

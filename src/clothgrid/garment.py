@@ -473,7 +473,7 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
     """Sample one panel's boundary at its segments' node counts and grid it (``generate`` keeps the
     boundary fixed). Node ids are the panel's own (``i * nv + j``). Cached by corners and counts."""
     from .generate import generate
-    from .quality import quality
+    from .quality import quality, sim_figures
 
     key = (lay.spec.name, tuple(lay.corners), tuple(tuple(lay.fracs[e]) for e in sorted(lay.fracs)),
            tuple(int(counts[lay.seg[s[:2]]]) for s in lay.sequence))
@@ -507,7 +507,7 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
 
     grid = gridded(X)
     q = quality(grid)
-    angle = _smallest_angle(grid)
+    figs = sim_figures(grid.points)
     tips: list[tuple[int, float]] = []
     if q.folded and lay.dart_tips:
         # a needle-sharp dart tip: its two cells share the outline's reflex angle there, and the
@@ -517,9 +517,9 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
         if moved:
             g2 = gridded(Y)
             q2 = quality(g2)
-            a2 = _smallest_angle(g2)
-            if (q2.folded, -a2) < (q.folded, -angle):
-                grid, q, X, tips, angle = g2, q2, Y, moved, a2
+            f2 = sim_figures(g2.points)
+            if (q2.folded, -f2["min_angle_deg"]) < (q.folded, -figs["min_angle_deg"]):
+                grid, q, X, tips, figs = g2, q2, Y, moved, f2
     p = np.arange(L)
     gi = np.where(p < nu - 1, p, np.where(p < nu + nv - 2, nu - 1,
                   np.where(p < 2 * nu + nv - 3, nu - 1 - (p - (nu + nv - 2)), 0)))
@@ -545,7 +545,7 @@ def _grid_panel(lay: "_Layout", counts: np.ndarray, opts: dict[str, Any],
         edge_nodes[e] = np.concatenate(nodes)
         edge_fracs[e] = np.concatenate(fracs)
     out = {"grid": grid, "shape": (nu, nv), "edge_nodes": edge_nodes, "edge_fracs": edge_fracs,
-           "drift": drift, "quality": q, "min_angle": angle, "key": key, "dart_tips_moved": tips}
+           "drift": drift, "quality": q, "figures": figs, "key": key, "dart_tips_moved": tips}
     cache[key] = out
     return out
 
@@ -601,17 +601,9 @@ def _blunted(X: np.ndarray, lay: "_Layout", L: int) -> tuple[np.ndarray, list[tu
     return Y, moved
 
 
-def _smallest_angle(grid: Any) -> float:
-    """A panel grid's smallest cell angle (degrees), the four grid-corner cells aside
-    (:func:`~clothgrid.quality.sim_figures`)."""
-    from .quality import sim_figures
-
-    return float(sim_figures(grid.points)["min_angle_deg"])
-
-
 def _panel_cost(m: dict[str, Any]) -> tuple[int, float]:
     """One panel's :func:`_grid_panel` result: its folded cells, then its smallest angle (negated)."""
-    return int(m["quality"].folded), -float(m["min_angle"])
+    return int(m["quality"].folded), -float(m["figures"]["min_angle_deg"])
 
 
 def _cost(made: dict[str, dict[str, Any]]) -> tuple[int, float]:
@@ -620,7 +612,7 @@ def _cost(made: dict[str, dict[str, Any]]) -> tuple[int, float]:
     Jacobian of 0 whatever the grid, which made the scaled Jacobian a tie at rounding (1e-16) between
     grids of 1.1 and 4.0 degrees."""
     folded = sum(int(m["quality"].folded) for m in made.values())
-    return folded, -min(float(m["min_angle"]) for m in made.values())
+    return folded, -min(float(m["figures"]["min_angle_deg"]) for m in made.values())
 
 
 #: The count objectives :func:`garment` tries: the relative deviations alone (None), and with
@@ -714,7 +706,7 @@ def _unfold(gs: Any, lays: dict[str, "_Layout"], h: float, fixed: dict | None, c
                 # no fold left: enough where the panel's smallest angle meets the target, else the
                 # other sets are looked at too (a high-low circle skirt's first unfolded set left
                 # 1.6 degrees, a later one 6.3)
-                if cost[0] == 0 and float(m2[name]["min_angle"]) >= TARGET_MIN_ANGLE_DEG:
+                if cost[0] == 0 and float(m2[name]["figures"]["min_angle_deg"]) >= TARGET_MIN_ANGLE_DEG:
                     break
         cost, corners, counts, count_info, prob, made, method = best
         lay.corners, lay.corner_method = corners, method
@@ -786,8 +778,6 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         A malformed spec; :class:`~clothgrid.garment_counts.CountConflict` when
         no node counts exist (the message names the conflicting constraints).
     """
-    from .quality import sim_figures
-
     say = progress or (lambda _m: None)
     t_start = time.perf_counter()
     h = parse_length(edge_length, "mm", what="edge length")
@@ -880,8 +870,7 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
         face_panel.append(np.full(len(q), pi, dtype=np.int32))
         shapes.append((nu, nv))
         offsets.append(offsets[-1] + nu * nv)
-        qual = m["quality"]
-        figs = sim_figures(grid.points, h)
+        qual, figs = m["quality"], m["figures"]       # (the edge length asked does not enter these two)
         per_panel.append({"name": name, "nodes": [nu, nv], "corners": lay.corner_method,
                           "corner_vertices": _corner_names(lay), "flipped": lay.flipped,
                           "functional": grid.info.get("functional"), "folded": int(qual.folded),

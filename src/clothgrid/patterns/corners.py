@@ -107,9 +107,10 @@ class CornerChoice:
         """Alternative ``k``, its message saying why it was taken (``why``: what the first choice's
         grid missed, one phrase)."""
         alt = self.alternatives[k]
-        head, named = alt.message.rsplit(": bottom-left", 1)
-        return replace(alt, message=f"{head}; the first choice {_fmt_idx(self.corners)}: {why}, so took "
-                                    f"runner-up {k + 2} by its coarse grid: bottom-left{named}")
+        named = _corners_named(alt.corners)             # what the message ends with
+        return replace(alt, message=f"{alt.message.removesuffix(named)}; the first choice "
+                                    f"{_fmt_idx(self.corners)}: {why}, so took runner-up {k + 2} by its "
+                                    f"coarse grid{named}")
 
     @property
     def points(self) -> np.ndarray:

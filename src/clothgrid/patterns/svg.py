@@ -532,9 +532,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
             using.discard(id(target))
             return
         if tag in _SHAPES:
-            if tag != "line":       # (lines, read since, leave the other shapes' fallback names as they were)
+            if tag == "line":       # (not counted: lines, read since, leave the shapes' fallback names as they were)
+                fallback = "line"
+            else:
                 counter += 1
-            base = _name(el, _group_name(group) or (f"piece{counter}" if tag != "line" else "line"))
+                fallback = f"piece{counter}"
+            base = _name(el, _group_name(group) or fallback)
             label = f"<{tag}> {base!r}"
             loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
             try:
