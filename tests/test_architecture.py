@@ -48,7 +48,7 @@ def test_the_protocol_names_what_the_solvers_use():
             "array_module", "residual", "max_step", "multigrid", "jacobi_sweeper", "heat_ops"} == set(BACKEND_MEMBERS)
     assert {"smooth", "restrict", "prolong", "restrict_full", "prolong_full", "max_step", "band_steps", "solution",
             "solution_into", "solution_max", "vector", "residual", "apply", "dot", "axpy", "xpay", "bind", "synchronize",
-            "extra"} == set(MULTIGRID_OPERATIONS)
+            "spare", "extra"} == set(MULTIGRID_OPERATIONS)
     assert {"sweeps", "result", "extra", "close"} == set(JACOBI_OPERATIONS)
     assert {"vector", "upload", "download", "copy", "dot", "apply", "residual", "axpy", "xpay", "bind", "smooth",
             "restrict", "coarse_solve", "prolong", "extra", "release"} == set(HEAT_OPERATIONS)

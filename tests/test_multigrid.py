@@ -459,7 +459,7 @@ def test_solve_in_its_grids_memory_is_the_same_solve(rng, monkeypatch, weights, 
     assert own.points is grid and any(a.used > 0 for a in arenas)   # arrays carved from the grid itself
     assert np.array_equal(own.points, copy.points) and own.iterations == copy.iterations
     assert own.error_estimate == copy.error_estimate
-    before = len(freed)            # (per-edge weights: the barrier solve's coarse levels, fresh)
+    before = len(freed)            # (per-edge weights: the barrier solve runs in the grid's memory too)
     ref = exact_solution(boundary_grid(b), ww.wu, ww.wv)
     assert max_rel_error(own.points, ref, b.size) <= own.error_estimate <= TOL
     # without a spare the coarse levels are fresh and give their pages back before the download
@@ -498,6 +498,41 @@ def test_spare_memory_full_of_nan_changes_no_bit(rng, weights, spare_nodes):
         got = run(CpuMultigrid(levels, grid[..., :2], None if b is None else b[..., :2], spare=grid))
         want2 = run(CpuMultigrid(levels, x[..., :2].copy(), None if b is None else b[..., :2]))
         assert np.array_equal(got[0], want2[0]) and got[1] == want2[1]
+
+
+def test_a_solve_lends_its_coarse_levels_to_another_bit_for_bit(rng):
+    """``spare()`` lends the memory of a solve's coarse levels and scratch (not its level 0), whose
+    contents are dead until its next start or cycle: a second solve run there in between (the
+    barrier solve of per-edge weights, its level-0 planes carved there too) and the first solve
+    after it give the very bits of solves in fresh memory."""
+    from clothgrid.backends._cpu_multigrid import CpuMultigrid
+    from clothgrid.solvers.multigrid import fmg, vcycle
+
+    nu, nv = 47, 39
+    levels = build_hierarchy(make_weights(random_weights(rng, nu, nv), nu, nv))
+    x = rng.standard_normal((nu, nv, 3))
+    rhs = rng.uniform(1.0, 2.0, (nu - 2, nv - 2, 1))
+
+    def run(ops):
+        fmg(ops)
+        vcycle(ops)
+        return ops.solution(), ops.max_step()
+
+    want = run(CpuMultigrid(levels, x.copy()))
+    want_b = run(CpuMultigrid(levels, np.zeros((nu, nv, 1)), rhs))
+    assert CpuMultigrid(levels, x.copy()).spare() is None          # nothing carved: nothing to lend
+    grid = x.copy()
+    ops = CpuMultigrid(levels, grid, spare=grid)
+    lent = ops.spare()
+    assert lent is not None and lent.flags.c_contiguous and np.shares_memory(lent, grid)
+    assert not any(np.shares_memory(lent, a) for a in ops.x[0])     # level 0 is not lent
+    lent.view(np.float32)[:] = np.nan                                # dead: anything may be there
+    bar = CpuMultigrid(levels, np.zeros((nu, nv, 1)), rhs, spare=lent)
+    assert bar._arena.used > 0 and all(np.shares_memory(a, lent) for a in bar.x[0] + bar.b[0])
+    got_b = run(bar)
+    got = run(ops)
+    assert np.array_equal(got_b[0], want_b[0]) and got_b[1] == want_b[1]
+    assert np.array_equal(got[0], want[0]) and got[1] == want[1]
 
 
 @pytest.mark.parametrize("weights", ["paper", "random"])
@@ -552,6 +587,16 @@ def test_release_and_arena():
     assert not arena.owns(c) and not c.any()
     assert not Arena(None).owns(a) and not Arena(spare[::2]).owns(Arena(spare[::2]).empty((4,)))
     assert DISCARD_MIN_BYTES > 8000
+    # what was carved after a mark, as one block of the spare's bytes
+    arena = Arena(spare)
+    arena.empty((5,))
+    mark = arena.position
+    assert arena.carved_since(mark) is None
+    d, e = arena.empty((3,), np.float32), arena.empty((4,))
+    got = arena.carved_since(mark)
+    assert got.dtype == np.uint8 and got.flags.c_contiguous and np.shares_memory(got, spare)
+    assert got.ctypes.data <= d.ctypes.data and e.ctypes.data + e.nbytes == got.ctypes.data + got.nbytes
+    assert Arena(None).carved_since(0) is None
 
 
 @pytest.mark.parametrize("plane", [(0, 2), (1, 2), (0, 1)])

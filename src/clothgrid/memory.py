@@ -305,6 +305,19 @@ class Arena:
                 return self._buf[start:start + n].view(dtype).reshape(shape)
         return np.zeros(shape, dtype)
 
+    @property
+    def position(self) -> int:
+        """Bytes of the spare memory carved so far, alignment included (where the next array starts
+        at the earliest): a mark for :meth:`carved_since`."""
+        return self._pos
+
+    def carved_since(self, mark: int) -> "np.ndarray | None":
+        """The spare memory carved after ``mark`` (:attr:`position` then) as one C-contiguous uint8
+        array, or None if nothing was."""
+        if self._buf is None or self._pos <= mark:
+            return None
+        return self._buf[mark:self._pos]
+
     def owns(self, a: "np.ndarray") -> bool:
         """Whether ``a`` was carved from the spare memory."""
         import numpy as np

@@ -867,6 +867,22 @@ def _split_grid(x, xe, xo):
 
 
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _split_interior(r, xe, xo):
+    """:func:`_split_grid` of the grid whose interior nodes hold ``r`` (``(nu-2, nv-2, k)``) and whose
+    boundary ring is zero, without that grid."""
+    k, nu = xe.shape[0], xe.shape[1]
+    nv = xe.shape[2] + xo.shape[2]
+    for i in numba.prange(nu):
+        for j in range(nv):
+            for c in range(k):
+                v = r[i - 1, j - 1, c] if 0 < i < nu - 1 and 0 < j < nv - 1 else 0.0
+                if j % 2 == 0:
+                    xe[c, i, j // 2] = v
+                else:
+                    xo[c, i, j // 2] = v
+
+
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _merge_grid(xe, xo, x):
     """The inverse of :func:`_split_grid`."""
     nu, nv, k = x.shape
@@ -895,9 +911,17 @@ def _merge_rows(ae: np.ndarray, ao: np.ndarray) -> np.ndarray:
     return out
 
 
-def _parity_planes(x: np.ndarray, dtype=np.float64):
+def _parity_planes(x: np.ndarray, dtype=np.float64, arena: Arena | None = None,
+                   interior: np.ndarray | None = None):
+    """``x`` (``(nu, nv, k)``) split into parity planes (:func:`_split_grid`), carved from ``arena``
+    if given; with ``interior`` (``(nu-2, nv-2, k)``), that array's values on the interior nodes and
+    zero on the boundary ring instead of ``x``'s."""
     nu, nv, k = x.shape
-    xe, xo = np.empty((k, nu, (nv + 1) // 2), dtype=dtype), np.empty((k, nu, nv // 2), dtype=dtype)
+    shapes = ((k, nu, (nv + 1) // 2), (k, nu, nv // 2))
+    xe, xo = ((arena.empty(s, dtype) for s in shapes) if arena is not None else (np.empty(s, dtype) for s in shapes))
+    if interior is not None:
+        _split_interior(interior, xe, xo)
+        return xe, xo
     _split_grid(x, xe, xo)
     return xe, xo
 
@@ -1054,13 +1078,18 @@ class CpuMultigrid:
         per_thread = [-(-(nv // 2) // threads) for nv in self.nv]      # rows of a parity / threads, rounded up
         self.mbs = [LINE_BLOCK if n < _PARALLEL_NODES else min(LINE_BLOCK, max(16, (r + 7) // 8 * 8))
                     for n, r in zip(self.nodes, per_thread)]
-        self.x = [_parity_planes(x0)]
+        # Level 0's planes come from spare where x0 and rhs do not view it (a barrier solve run in
+        # the memory of another solve's coarse levels: MultigridOps.spare), else fresh.
+        self._arena = arena = Arena(spare)
+        into = arena if spare is not None and not any(
+            a is not None and np.may_share_memory(a, spare) for a in (x0, rhs)) else None
+        self.x = [_parity_planes(x0, arena=into)]
         if rhs is not None:
-            b0 = np.zeros(x0.shape)
-            b0[1:-1, 1:-1] = rhs
-            self.b = [_parity_planes(b0)]
+            self.b = [_parity_planes(x0, arena=into, interior=rhs)]
         else:
             self.b = [(np.zeros((k, 1, 1)), np.zeros((k, 1, 1)))]
+        #: where the memory spare() lends starts: after level 0's planes
+        self._lend_from = arena.position
         fine = levels[0]
         # A level 0 with an explicit centre (a 9-point level: the 5-point stencil plus a diagonal
         # term, e.g. the heat solver's mass over the time step) runs the coarse levels' kernels in
@@ -1098,7 +1127,6 @@ class CpuMultigrid:
         # Every operation writes a coarse level's iterate and right-hand side (boundary rows
         # included) before it reads them, and the line solves their scratch rows, so neither
         # needs a first value (a test runs a solve in a spare full of NaN).
-        self._arena = arena = Arena(spare)
         self._scr = {np.dtype(t): arena.empty((nthreads, x0.shape[0] + 1, mb), t)
                      for t in (np.float64, np.float32)}
         self._rows = arena.empty((nthreads, x0.shape[1] + 2), np.float64)   # restriction's residual rows
@@ -1358,6 +1386,12 @@ class CpuMultigrid:
 
     def synchronize(self) -> None:
         """Nothing to wait for: every kernel has returned when its call does."""
+
+    def spare(self) -> np.ndarray | None:
+        """The part of ``spare``'s memory holding the coarse levels and the line solves' scratch (dead
+        until the next full-multigrid start or V-cycle: each writes them before reading them), or
+        None if none of them is there."""
+        return self._arena.carved_since(self._lend_from)
 
     def extra(self) -> dict[str, Any]:
         """No keys for the result's info: ``{}``."""

@@ -147,6 +147,12 @@ class MultigridOps(Protocol):
     def synchronize(self) -> None:
         """Wait until the device has done the work issued so far (a no-op where nothing is queued)."""
 
+    def spare(self) -> np.ndarray | None:
+        """Host memory this object holds whose contents are dead until its next full-multigrid start
+        or V-cycle (the cpu's coarse levels and line-solve scratch), as one C-contiguous array: another
+        solve run in between may take it as its ``spare`` (the barrier solve of per-edge weights does,
+        instead of fresh pages). None where there is none (the devices')."""
+
     def extra(self) -> dict[str, Any]:
         """Keys the solve adds to its result's info (e.g. the gl backend's pass counts); ``{}`` if none."""
 

@@ -309,7 +309,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     ops = backend.multigrid(levels, x0, spare=spare)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
     setup = time.perf_counter() - t0
-    zmax = barrier_max(problem) if problem.weights.unit_stencil else _barrier_max(problem, backend, levels)
+    zmax = barrier_max(problem) if problem.weights.unit_stencil else _barrier_max(problem, backend, levels, ops.spare())
     # The band barriers' bound (solvers.bounds) where the weights and the backend allow it
     bands = BandBarriers.for_grid(nu, nv, tol * problem.scale / zmax, zmax) if stop == "error" else None
 
@@ -401,18 +401,19 @@ BARRIER_MAX_ITER = 200
 BARRIER_DIRECT_MAX_NODES = 128 * 128
 
 
-def _barrier_max(problem: Problem, backend: Backend, levels: list[Level]) -> float:
+def _barrier_max(problem: Problem, backend: Backend, levels: list[Level], spare: np.ndarray | None = None) -> float:
     """An upper bound of ``max z`` (:func:`~clothgrid.solvers.bounds.barrier_max`) by multigrid, with
     a rigorous correction.
 
     ``max z`` only needs an upper bound: for an approximation ``y`` of
     ``z = A^-1 D 1`` with ``delta = max |D^-1 (D 1 - A y)| < 1``, ``z <= y + delta z``
     node by node, so ``max z <= max y / (1 - delta)``. Iterations (V-cycles, then conjugate
-    gradients where they are slow) run until ``delta <= BARRIER_DELTA``.
+    gradients where they are slow) run until ``delta <= BARRIER_DELTA``. ``spare``: dead memory the
+    barrier solve's arrays may take (the solve's own coarse levels, :meth:`MultigridOps.spare`).
     """
     nu, nv = problem.shape
     rhs = problem.diagonal().reshape(nu - 2, nv - 2, 1)
-    ops = backend.multigrid(levels, np.zeros((nu, nv, 1)), rhs=rhs)
+    ops = backend.multigrid(levels, np.zeros((nu, nv, 1)), rhs=rhs, spare=spare)
     delta = math.inf
     if FULL_MULTIGRID_START:
         fmg(ops)        # from zero, plain V-cycles took 4 to reach delta <= 0.01 at 1024^2; after it, 1-2

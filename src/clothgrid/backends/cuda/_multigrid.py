@@ -240,6 +240,10 @@ class CudaMultigrid:
         if self._xp is not np:
             self._xp.cuda.Device().synchronize()   # GPU only
 
+    def spare(self) -> None:
+        """None: this backend's levels live on the device (no dead host memory to lend)."""
+        return None
+
     def band_steps(self, barriers: Any) -> None:
         """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
         return None

@@ -231,6 +231,10 @@ class GLMultigrid(NoVectors):
         with self.dev.current():
             self.dev.ctx.finish()
 
+    def spare(self) -> None:
+        """None: this backend's levels live on the device (no dead host memory to lend)."""
+        return None
+
     def band_steps(self, barriers: Any) -> None:
         """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
         return None
