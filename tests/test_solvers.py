@@ -300,6 +300,25 @@ def test_a_command_line_run_starts_blas_on_one_thread(monkeypatch):
     assert blas_threads._controller() is None and "ctl" not in blas_threads._STATE
 
 
+def test_importing_clothgrid_shortens_the_openmp_spin_unless_the_user_chose():
+    """``import clothgrid`` sets ``GOMP_SPINCOUNT`` (libgomp, Numba's threads) to ``OPENMP_SPIN`` in a
+    fresh process, before any parallel kernel loads libgomp; a spin count or a wait policy of the
+    user's is left as it is. (The speed it buys on a busy machine: ``benchmarks/bench_contention.py``.)"""
+    import subprocess
+    import sys
+
+    from clothgrid._startup import OPENMP_SPIN
+
+    code = "import os, clothgrid; print(os.environ.get('GOMP_SPINCOUNT'), os.environ.get('OMP_WAIT_POLICY'))"
+    base = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")}
+    for extra, want in (({}, f"{OPENMP_SPIN} None"), ({"GOMP_SPINCOUNT": "7"}, "7 None"),
+                        ({"OMP_WAIT_POLICY": "ACTIVE"}, "None ACTIVE")):
+        out = subprocess.run([sys.executable, "-c", code], env={**base, **extra}, capture_output=True, text=True,
+                             check=True)
+        assert out.stdout.split() == want.split()
+    assert int(OPENMP_SPIN) < 300000         # libgomp's own default, which the import replaces
+
+
 def test_blas_blocks_of_two_threads_count_together(monkeypatch):
     """one_blas_thread entered by two Python threads, left in the other order: the BLAS libraries
     stay on one thread until the last block leaves, then have the caller's setting back (the

@@ -12,9 +12,10 @@ The public API::
 
 from __future__ import annotations
 
-from ._startup import guard_cli_start
+from ._startup import guard_cli_start, short_openmp_spin
 
 guard_cli_start()     # python -m clothgrid / the clothgrid script: a signal while importing ends it cleanly
+short_openmp_spin()   # Numba's threads sleep soon when they wait: no 25x slowdown on a busy machine
 
 from .boundary import Boundary
 from .errors import (BackendUnavailableError, BoundaryError, ClothgridError, InputError, NotConvergedError,

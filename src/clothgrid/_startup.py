@@ -21,7 +21,8 @@ import signal
 import sys
 from typing import Any
 
-__all__ = ["guard_cli_start", "starting_the_cli", "one_blas_thread_from_the_start", "BLAS_THREAD_VARIABLES"]
+__all__ = ["guard_cli_start", "starting_the_cli", "one_blas_thread_from_the_start", "BLAS_THREAD_VARIABLES",
+           "short_openmp_spin", "OPENMP_SPIN"]
 
 #: options of the ``python`` command that take a separate argument (``-X importtime``)
 _OPTION_ARGS = ("-X", "-W", "--check-hash-based-pycs")
@@ -89,6 +90,28 @@ def one_blas_thread_from_the_start() -> None:
     for v in BLAS_THREAD_VARIABLES:
         os.environ[v] = "1"
     os.environ["CLOTHGRID_ONE_BLAS_THREAD"] = "1"
+
+
+#: GNU OpenMP's spin count (``GOMP_SPINCOUNT``) that clothgrid sets where the user set neither it nor
+#: ``OMP_WAIT_POLICY``: how long a Numba thread that has finished its share of a parallel loop
+#: busy-waits for the next one before it sleeps. libgomp's default (300,000) is right on an idle
+#: machine and ruinous on a busy one: a parallel loop ends only when its last thread does, and a
+#: thread the system has parked behind other work keeps the others spinning for a whole time slice.
+#: Two clothgrid runs side by side on two cores took 25x their time alone with it (the paper
+#: weights' 1024^2 solve 1.7-1.9 s against 0.069 s; 91 survey pieces' fold-free grids 27 s against
+#: 0.75 s), 2.4x and 1.7x with 3,000; alone, 3,000 costs nothing measurable
+#: (``benchmarks/bench_contention.py``, docs/performance.md).
+OPENMP_SPIN = "3000"
+
+
+def short_openmp_spin() -> None:
+    """Set ``GOMP_SPINCOUNT`` to :data:`OPENMP_SPIN` where the user set neither it nor
+    ``OMP_WAIT_POLICY``. libgomp reads it once, when it loads: with Numba's first parallel kernel
+    (Numba's ``omp`` threading layer); a process that loaded libgomp before importing clothgrid
+    keeps its own setting."""
+    if "GOMP_SPINCOUNT" in os.environ or "OMP_WAIT_POLICY" in os.environ:
+        return
+    os.environ["GOMP_SPINCOUNT"] = OPENMP_SPIN
 
 
 def guard_cli_start() -> None:
