@@ -304,7 +304,7 @@ def test_imports_run_one_way():
                 "clothgrid._heat_kernels"):
         up = sorted(t for t in g[low] if _under(t, "clothgrid.backends", "clothgrid.solvers"))
         assert not up, f"{low} imports {up}"
-    assert g["clothgrid._galerkin"] == set()
+    assert g["clothgrid._galerkin"] == {"clothgrid.jit_variants"}     # the low level's fork_safe only
     for mod, targets in g.items():
         if _under(mod, "clothgrid.backends"):
             up = sorted(t for t in targets if _under(t, "clothgrid.solvers"))

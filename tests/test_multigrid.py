@@ -982,6 +982,50 @@ def test_barrier_falls_back_to_an_exact_solve_on_small_grids(rng, monkeypatch):
         clothgrid.generate(b, weights=(wu, wv), solver="multigrid")
 
 
+def _grid_in_child(n):
+    """A piece gridded (multigrid solve and fold-free step) in a pool's process: points and whether
+    this process was forked from one whose Numba threads run on GNU OpenMP."""
+    from importlib.resources import files
+
+    from clothgrid.jit_variants import forked_from_openmp
+
+    b = clothgrid.load_boundary(files("clothgrid").joinpath("data", "tshirt_front.json")).resampled(n, n)
+    g = clothgrid.generate(b, solver="multigrid", functional="auto")
+    return g.points, forked_from_openmp()
+
+
+def test_a_process_forked_after_the_parallel_kernels_ran_grids_the_same():
+    """GNU OpenMP does not survive fork(): Numba kills a child forked after the parent's parallel
+    kernels ran at the child's first parallel loop, and a ``multiprocessing.Pool`` on ``fork``
+    (Linux's default up to Python 3.13) then waits for ever. Such a child runs the kernels'
+    serial twins (``jit_variants.fork_safe``): the same grid as the parent's, bit for bit."""
+    import multiprocessing
+    import sys
+
+    import numba
+
+    from clothgrid.jit_variants import ForkSafe, forked_from_openmp
+
+    if not hasattr(__import__("os"), "fork"):
+        pytest.skip("no fork() on this platform")
+    want, _ = _grid_in_child(160)            # the parent's parallel kernels have run
+    assert not forked_from_openmp()
+    layer = numba.threading_layer()
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        got, flagged = pool.apply_async(_grid_in_child, (160,)).get(timeout=600)
+    assert np.array_equal(got, want)
+    assert flagged == (layer == "omp" and sys.modules["numba.np.ufunc.omppool"].openmp_vendor == "GNU")
+    # every parallel kernel of the package is declared fork-safe
+    import clothgrid.backends._cpu_multigrid as cm
+    import clothgrid.evening as ev
+    import clothgrid.foldfree_kernels as fk
+
+    for mod in (cm, ev, fk):
+        for name, obj in vars(mod).items():
+            if getattr(obj, "targetoptions", {}).get("parallel"):
+                assert isinstance(obj, ForkSafe), f"{mod.__name__}.{name} is a bare parallel kernel"
+
+
 def test_the_package_runs_with_numba_jit_disabled():
     """``NUMBA_DISABLE_JIT=1`` (Numba's debugging mode: every kernel runs as plain Python) imports
     the package and grids a small piece with the fold-free step and the multigrid solver: a parallel

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .jit_variants import fork_safe
+
 
 @numba.njit(inline="always", error_model="numpy")
 def _gal(lo, c, up, nv, J, nc):
@@ -30,6 +32,7 @@ def _gal(lo, c, up, nv, J, nc):
     return d, u
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _coarsen(C, E, N, NE, nine, Cc, Ec, Nc, NEc):
     """Galerkin coarse stencil ``P^T A P`` (linear interpolation along j).

@@ -31,6 +31,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .jit_variants import fork_safe
+
 _OPTS = dict(cache=True, nogil=True, error_model="numpy", fastmath=False)
 
 # --------------------------------------------------------------------------- level 0: 5 points
@@ -45,6 +47,7 @@ def _flux5(we, wn, c0, x, i, j):
             + wn[i, j - 1] * (xc - x[i, j - 1]) + wn[i, j] * (xc - x[i, j + 1]))
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def apply5_dot(we, wn, c0, x, out):
     """``out = A x`` on the interior (``c0``: the diagonal less the couplings between unknowns); returns
@@ -62,6 +65,7 @@ def apply5_dot(we, wn, c0, x, out):
     return s
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def residual5(we, wn, c0, b, x, r, i0=1, step=1):
     """``r = b - A x`` on the interior rows ``i0, i0 + step, ...`` (flux form, as :func:`apply5_dot`)."""
@@ -73,6 +77,7 @@ def residual5(we, wn, c0, b, x, r, i0=1, step=1):
             r[i, j] = b[i, j] - _flux5(we, wn, c0, x, i, j)
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def five_to_nine(we, wn, d, S):
     """The 9-point form of a 5-point level (corners zero)."""
@@ -101,6 +106,7 @@ def _row9(S, x, i, j):
             + S[i, j, 6] * x[i + 1, j - 1] + S[i, j, 7] * x[i + 1, j] + S[i, j, 8] * x[i + 1, j + 1])
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def residual9(S, b, x, r, i0=1, step=1):
     """``r = b - A x`` on the interior rows ``i0, i0 + step, ...``."""
@@ -112,6 +118,7 @@ def residual9(S, b, x, r, i0=1, step=1):
             r[i, j] = b[i, j] - S[i, j, 4] * x[i, j] - _row9(S, x, i, j)
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def line_factors(S, we, wn, d, five, cp, im):
     """The Thomas factors of every line along ``j``, once per level: ``cp`` the eliminated
@@ -131,6 +138,7 @@ def line_factors(S, we, wn, d, five, cp, im):
             im[i, j] = inv
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def lines5(we, wn, b, x, colour, cp, im, dp, first=False):
     """Zebra line Gauss-Seidel: solve every line ``i`` with ``i % 2 == colour`` exactly along ``j``
@@ -155,6 +163,7 @@ def lines5(we, wn, b, x, colour, cp, im, dp, first=False):
             x[i, j] = v
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def lines9(S, b, x, colour, cp, im, dp, first=False):
     """Zebra line Gauss-Seidel on a 9-point level (as :func:`lines5`)."""
@@ -181,6 +190,7 @@ def lines9(S, b, x, colour, cp, im, dp, first=False):
 # --------------------------------------------------------------------------- transfers
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def restrict_even(P, r, bc):
     """``bc = P^T r`` for a residual that is zero on the odd rows ``i`` (after a zebra sweep that ends
@@ -198,6 +208,7 @@ def restrict_even(P, r, bc):
             bc[I, J] = s
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def prolong_add_even(P, xc, x):
     """``x += P xc`` on the even rows ``i`` only: before a zebra sweep that starts with the odd lines,
@@ -212,6 +223,7 @@ def prolong_add_even(P, xc, x):
             x[i, j] += P[i, j, 0] * xc[I, J] + P[i, j, 2] * xc[I, J + 1]
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def interpolation(S, ncu, ncv, P, work):
     """Operator-dependent interpolation weights ``P`` from a 9-point level ``S`` (``work``: scratch
@@ -297,6 +309,7 @@ def interpolation(S, ncu, ncv, P, work):
                         P[i, j, a + 2 * b] = 0.0
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def galerkin(S, P, Sc):
     """The coarse 9-point operator ``Sc = P^T A P`` of a 9-point level ``S`` and its interpolation ``P``."""
@@ -345,6 +358,7 @@ def galerkin(S, P, Sc):
 # --------------------------------------------------------------------------- conjugate-gradient vectors
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def dot(a, b):
     """``sum(a * b)`` over the interior."""
@@ -359,6 +373,7 @@ def dot(a, b):
     return s
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def update_xr(x, r, p, q, alpha):
     """``x += alpha p``, ``r -= alpha q``; returns ``r . r``."""
@@ -376,6 +391,7 @@ def update_xr(x, r, p, q, alpha):
     return s
 
 
+@fork_safe
 @numba.njit(parallel=True, **_OPTS)
 def update_p(p, z, beta):
     """``p = z + beta p`` on the interior."""

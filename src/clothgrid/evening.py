@@ -41,7 +41,7 @@ from numba import njit, prange
 
 from .blas_threads import one_blas_thread
 from .foldfree_kernels import PARALLEL_CELLS, squared_bound, surely_at_least
-from .jit_variants import by_size
+from .jit_variants import by_size, fork_safe
 
 __all__ = ["even_edges", "even_in_plane", "FLOOR_DEG", "FLOOR_MAX_DEG", "BAND", "WIDE_BAND", "FINAL_BANDS", "SPREAD_OK"]
 
@@ -123,6 +123,7 @@ def _term(t, lo, hi):
     return 0.0, 0.0
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _energy(X, lo, hi):
     """``sum max(0, |log l| - log BAND)^2`` over every edge (lengths already over the mean): each
@@ -414,6 +415,7 @@ def _sweep(X, lo, hi, floor, nodes, omega, sweep, moved_at, failed_at):
                        failed_at)
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def _sweep_parts(X, lo, hi, floor, nodes, index, starts, omega, sweep, moved_at, failed_at):
     """:func:`_sweep` with the nodes in parts (``nodes[starts[p]:starts[p + 1]]``, whole components
@@ -431,6 +433,7 @@ def _sweep_parts(X, lo, hi, floor, nodes, index, starts, omega, sweep, moved_at,
     return bigs.max(), counts.sum()
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def _sweep_coloured(X, lo, hi, floor, active, omega, sweep, moved_at, failed_at):
     """:func:`_sweep` in four colours ``(i mod 2, j mod 2)``, the rows of each colour in parallel
@@ -482,6 +485,7 @@ def _edge_bands(d2, los, his, lo2s, hi2s, bit, flags, energy):
     return flags
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _outside_edges(X, los, his):
     """Which edges lie outside each band ``k`` (limits ``los[k] <= his[k]``, nested, the narrowest
@@ -516,6 +520,7 @@ def _outside_edges(X, los, his):
     return edges, total
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _hot_nodes(edges, k):
     """Band ``k``'s nodes at an outlying edge (:func:`_outside_edges`' flags): its own u- or v-edge,
@@ -775,6 +780,7 @@ def even_edges(points: np.ndarray, *, dim: int = 3, floor_deg: float = FLOOR_DEG
     return _with_interior(R, X, centre, basis, dim, copy=False), info   # R: this call's own copy
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _scale_rows(X, factor):
     for i in prange(X.shape[0]):
@@ -916,6 +922,7 @@ def _edge_stat(d2, lo, hi, p, e, s):
 EDGE_BLOCK = 64
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _edge_stats(X, blocks):
     """The smallest and largest squared edge length ``d0 * d0 + d1 * d1`` of a ``(nu, nv, 2)`` grid
@@ -950,6 +957,7 @@ def _edge_stats(X, blocks):
     return rows[:, 0].min(), rows[:, 1].max(), rows[:, 2].sum()
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _edge_extremes(X, blocks, todo):
     """:func:`_edge_stats`' blocks marked in ``todo`` (``(nu, blocks)``) measured again; the smallest

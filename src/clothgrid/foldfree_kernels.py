@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from .grid_kernels import row_counts_into
-from .jit_variants import by_size
+from .jit_variants import by_size, fork_safe
 
 __all__ = ["sweep_nodes", "sweep_nodes_coloured", "sweep_nodes_parts", "node_components", "corner_min", "CornerCells",
            "cell_min_sine", "cells_below", "smallest_cell_sine", "axes_to_plane", "axes_from_plane", "dilate"]
@@ -341,6 +341,7 @@ def sweep_nodes(X, nodes, delta2, sweeps, tol, omega=1.0, quiet=0.0):
 CHUNKS = 8
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def sweep_nodes_coloured(X, nodes, starts, delta2, sweeps, tol, omega=1.0, quiet=0.0):
     """:func:`sweep_nodes` in four colours, the nodes of each colour in parallel.
@@ -441,6 +442,7 @@ def _corner_row(X, ci, skip_grid_corners, apart, masked):
     return best, bad
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _corner_min(X, skip_grid_corners, apart, masked):
     """:func:`corner_min` (with ``masked``, of the cells not marked in ``apart``), rows in parallel."""
@@ -456,6 +458,7 @@ def _corner_min(X, skip_grid_corners, apart, masked):
 _corner_min_sized = by_size(_corner_min, PARALLEL_CELLS)
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _listed_corner_min(X, skip_grid_corners, cells, blocks):
     """:func:`_cell_corners` of the ``(C, 2)`` cells listed, in ``blocks`` in parallel: the smallest
@@ -563,6 +566,7 @@ def _cell_sine(X, i, j):
     return best
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def _cell_min_sine(X, out):
     """:func:`cell_min_sine`: :func:`_cell_sine` of every cell, rows of cells in parallel."""
@@ -622,6 +626,7 @@ def _cell_surely_at_least(X, i, j, bound2):
             and surely_at_least(c2, lt * lw, bound2) and surely_at_least(c3, lv * lt, bound2))
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def _cells_below(X, sine, out):
     """:func:`cells_below`: a cell whose four corners are each :func:`surely_at_least` the bound is
@@ -638,6 +643,7 @@ def _cells_below(X, sine, out):
                 out[i, j] = False if _cell_surely_at_least(X, i, j, s2) else _cell_sine(X, i, j) < sine
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def _smallest_cell_sine(X, cap):
     nu, nv = X.shape[0], X.shape[1]
@@ -686,6 +692,7 @@ def cells_below(X: np.ndarray, sine: float) -> np.ndarray:
     return out
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _axes_to_plane(R, k0, s0, k1, s1, shift0, shift1, scale, affine, X):
     """``X[..., 0] = R[..., k0] * s0`` and ``X[..., 1] = R[..., k1] * s1``: a grid in the xy-plane
@@ -703,6 +710,7 @@ def _axes_to_plane(R, k0, s0, k1, s1, shift0, shift1, scale, affine, X):
                 X[i, j, 1] = R[i, j, k1] * s1
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
     """The way back for the interior nodes: ``R[i, j, k0] = X[i, j, 0] * s0`` (and ``k1``), with
@@ -717,6 +725,7 @@ def _axes_from_plane(X, k0, s0, k1, s1, shift0, shift1, scale, affine, R):
                 R[i, j, k1] = X[i, j, 1] * s1
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _grid_from_plane(R, X, k0, s0, k1, s1, out):
     """A new grid ``out`` in one pass: ``R``'s boundary nodes as they are, the interior's
@@ -737,6 +746,7 @@ def _grid_from_plane(R, X, k0, s0, k1, s1, out):
 _axes_to_plane_sized = by_size(_axes_to_plane, PARALLEL_CELLS)
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _unscale_in_plane(X, R, moved, k0, s0, k1, s1, shift0, shift1, scale):
     """The nodes of ``X`` that moved (``moved``, interior) ``X * scale + shift`` in place (NumPy's
@@ -799,6 +809,7 @@ def axes_from_plane(X: np.ndarray, axes: list[tuple[int, float]], shift, scale: 
     kernel(X, *_axes_args(axes, shift, scale), R)
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _dilate(mask, before, after, nu, nv):
     """The interior nodes of an ``(nu, nv)`` grid near a true entry of ``mask``, and their count.
@@ -854,12 +865,14 @@ def _count_true(mask):
     return rows.sum()
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _true_count(mask):
     """:func:`_count_true`, rows in parallel."""
     return _count_true(mask)
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _dilate_boxes(mask, before, after, nu, nv):
     """:func:`_dilate` of a sparse ``mask``: each true entry ``(ci, cj)`` marks its box of interior
@@ -936,6 +949,7 @@ def node_components(nodes):
     return label, count
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def sweep_nodes_parts(X, nodes, starts, delta2, sweeps, tol, omega=1.0, quiet=0.0):
     """:func:`sweep_nodes` with ``nodes`` in parts (part ``p`` is ``nodes[starts[p]:starts[p + 1]]``,

@@ -15,12 +15,15 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .jit_variants import fork_safe
+
 __all__ = ["arc_length_uv_into", "mask_places"]
 
 #: columns per block of the u pass (the running sums of a block stay in the cache)
 _COLUMNS = 256
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def arc_length_uv_into(P, uv, flat_u, flat_v):
     """Write the normalised arc-length parameters of ``P`` (``(nu, nv, 3)``) into ``uv``.
@@ -67,6 +70,7 @@ def arc_length_uv_into(P, uv, flat_u, flat_v):
                     uv[i, j, 0] /= t
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _mask_places(mask, out, starts):
     """Fill ``out`` (``(K, 2)``) with the true entries' places, row ``i``'s from ``starts[i]``."""
@@ -91,6 +95,7 @@ def row_counts_into(mask, counts):
         counts[r + 1] = c
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def _row_counts(mask, counts):
     """:func:`row_counts_into`, rows in parallel."""

@@ -11,9 +11,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .jit_variants import fork_safe
+
 __all__ = ["transfinite_into"]
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def transfinite_into(r, u, v):
     """Fill the interior of ``r`` (``(nu, nv, d)``, C-contiguous) from its boundary by eq. (4).

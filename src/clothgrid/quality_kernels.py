@@ -15,6 +15,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from .jit_variants import fork_safe
+
 __all__ = ["angle_and_edge_extremes", "planar_blocks", "new_blocks", "block_figures"]
 
 
@@ -88,6 +90,7 @@ def _cell_angles(P, i, j, out):
 _COS_MARGIN = 1e-9
 
 
+@fork_safe
 @njit(cache=True, parallel=True)
 def angle_and_edge_extremes(P):
     """Smallest and largest corner angle over the cells (the four grid-corner cells aside when
@@ -238,6 +241,7 @@ def block_figures(blocks):
     return sj, asp, deviation, uh, ul, vh, vl
 
 
+@fork_safe
 @njit(cache=True, parallel=True, error_model="numpy")
 def planar_blocks(R, basis, straight, folded, blocks, todo):
     """:func:`clothgrid.quality.quality`'s measures of a planar grid ``R`` (``(nu, nv, 3)`` float64,

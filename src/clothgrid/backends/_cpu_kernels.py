@@ -5,7 +5,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..jit_variants import fork_safe
 
+
+@fork_safe
 @numba.njit(parallel=True, cache=True)
 def _sweep(r, out, wu, wv):
     nu, nv = r.shape[0], r.shape[1]

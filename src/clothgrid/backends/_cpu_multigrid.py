@@ -28,7 +28,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from ..jit_variants import serial_twin
+from ..jit_variants import fork_safe, serial_twin
 from ..memory import DISCARD_MIN_BYTES, Arena, discard
 from ..multigrid_levels import LINE_BLOCK, Level, diagonal_partner
 
@@ -72,6 +72,7 @@ def _line_range(nv, p):
     return 1, (nv - 2) // 2 + 1
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb, scr):
     """Level 0: solve the interior rows of parity ``p`` exactly along ``i``, ``mb`` rows a block."""
@@ -113,6 +114,7 @@ def _relax5(xo, xt, bo, Eo, No, Nt, p, nv, has_b, mb, scr):
                     xi[q] += gi[q] * xn[q]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _relax5u(xo, xt, bo, eo, nn, p, nv, has_b, mb, scr):
     """:func:`_relax5` for a unit-stencil level 0 (the paper's and uniform weights): ``E[i, j] = e[j]``
@@ -160,6 +162,7 @@ def _relax5u(xo, xt, bo, eo, nn, p, nv, has_b, mb, scr):
                     xi[q] += gi[q] * xn[q]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, p, nv, mb, scr):
     """Coarse levels: the same line solves for a 9-point stencil. A cell's two diagonal couplings are
@@ -206,6 +209,7 @@ def _relax9(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, p, nv, mb, scr):
                     xi[q] += gi[q] * xn[q]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _relax9s(xo, xt, bo, cu, kud, du, mdo, muo, kdo, kuo, mut, kut, p, nv, mb, scr):
     """Coarse levels of separable weights: :func:`_relax9` with the stencil formed on the fly.
@@ -282,6 +286,7 @@ def _zero_rows(i, a, b, c, d):
 # zeroed, and the right-hand sides written once (no zero-fill first).
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco, rows):
     """Coarse right-hand side from level 0's even rows (the odd rows' residual is zero
@@ -318,6 +323,7 @@ def _restrict5(xe, xo, be, Ee, Ne, No, has_b, bce, bco, xce, xco, rows):
                 oo[K] = row[2 * K + 1]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5u(xe, xo, be, ee, nn, has_b, bce, bco, xce, xco, rows):
     """:func:`_restrict5` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``, see
@@ -353,6 +359,7 @@ def _restrict5u(xe, xo, be, ee, nn, has_b, bce, bco, xce, xco, rows):
                 oo[K] = row[2 * K + 1]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, bce, bco, xce, xco, rows):
     """:func:`_restrict5` for a 9-point level (``NW`` read as ``NE`` of the column before, see
@@ -387,6 +394,7 @@ def _restrict9(xe, xo, be, Ce, Ee, Ne, No, NEe, NEo, bce, bco, xce, xco, rows):
                 oo[K] = row[2 * K + 1]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco, xce, xco, rows):
     """:func:`_restrict9` for a separable level (the stencil formed on the fly, see :func:`_relax9s`)."""
@@ -425,6 +433,7 @@ def _restrict9s(xe, xo, be, cu, kud, du, mde, mue, kde, kue, muo, kuo, bce, bco,
                 oo[K] = row[2 * K + 1]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _prolong(xe, xce, xco):
     """Add the coarse correction to the even rows (odd rows are re-solved next)."""
@@ -462,6 +471,7 @@ def _res5_row(x, t, b, Eo, No, Nt, c, i, a, z, ob, has_b, out):
     _add_rhs_row(b, c, i, a, z, has_b, out)
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5_full(xe, xo, be, bo, Ee, Eo, Ne, No, has_b, nv, bce, bco, xce, xco):
     """``P^T (b - A x)`` from level 0 with every row's residual (for the full multigrid start)."""
@@ -496,6 +506,7 @@ def _res5u_row(x, t, b, e, ni, c, i, a, z, ob, has_b, out):
     _add_rhs_row(b, c, i, a, z, has_b, out)
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict5u_full(xe, xo, be, bo, ee, eo, nn, has_b, nv, bce, bco, xce, xco, rows):
     """:func:`_restrict5_full` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``, see
@@ -528,6 +539,7 @@ def _restrict5u_full(xe, xo, be, bo, ee, eo, nn, has_b, nv, bce, bco, xce, xco, 
                 oo[K] = re[2 * K + 1]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
     """``b_c = P^T b`` and ``x_c = 0`` (the full multigrid start's coarse right-hand sides)."""
@@ -548,6 +560,7 @@ def _restrict_rhs(be, bo, nv, bce, bco, xce, xco):
                     bco[c, i, J // 2] = r
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _prolong_full(xe, xo, xce, xco, nv):
     """``x += P x_c`` on every interior row (odd rows take the mean of their neighbours)."""
@@ -602,6 +615,7 @@ def _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2):
     return m_lo, n
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     """``max |D^-1 (b - A x)|`` (Euclidean per node) on level 0."""
@@ -661,6 +675,7 @@ def _unit_steps2(xe, xo, be, bo, ee, eo, nn, nv, has_b, i, p, s2):
     return m_lo, n
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _max_step5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows):
     """:func:`_max_step5` for a unit-stencil level 0 (``E[i, j] = e[j]``, ``N[i, j] = nn[i]``,
@@ -700,6 +715,7 @@ def _charge(out, v, choice, w2, kui, kvq, eref, M, nb, fbits, ibits):
         out[base + nb + kvq] = w2
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _band_steps5u(xe, xo, be, bo, ee, eo, nn, nv, has_b, rows, ku, kve, kvo, cost, zmax, ref2, nbuckets):
     """:func:`clothgrid.solvers.bounds.band_steps`' table for a unit-stencil level 0 (the residual
@@ -778,6 +794,7 @@ def _cheaper(a, b, num, den):
     return a * den < num * b
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _band_steps5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, nthreads, ku, kve, kvo, su, sve, svo, widths, cost,
                  zmax, ref2, nbuckets, deficits):
@@ -853,6 +870,7 @@ def _band_steps5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, nthreads, ku, kve, k
     return res
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_grid(x, xe, xo):
     """``(nu, nv, k)`` grid into parity planes ``xe[c, i, m] = x[i, 2m, c]``, ``xo[c, i, m] = x[i, 2m+1, c]``."""
@@ -866,6 +884,7 @@ def _split_grid(x, xe, xo):
                     xo[c, i, j // 2] = x[i, j, c]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_interior(r, xe, xo):
     """:func:`_split_grid` of the grid whose interior nodes hold ``r`` (``(nu-2, nv-2, k)``) and whose
@@ -882,6 +901,7 @@ def _split_interior(r, xe, xo):
                     xo[c, i, j // 2] = v
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _merge_grid(xe, xo, x):
     """The inverse of :func:`_split_grid`."""
@@ -892,6 +912,7 @@ def _merge_grid(xe, xo, x):
                 x[i, j, c] = xe[c, i, j // 2] if j % 2 == 0 else xo[c, i, j // 2]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _split_rows(a, ae, ao):
     """Rows ``j`` even / odd of a ``(n, nv)`` stencil array into two contiguous arrays."""
@@ -941,6 +962,7 @@ def _in_order(part):
     return res
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _apply5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, sign, oute, outo):
     """``out = sign (b - A x)`` on level 0's interior nodes (the ring of ``out`` is not written);
@@ -962,6 +984,7 @@ def _apply5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, sign, oute, outo):
     return _in_order(part)
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _dot(ae, ao, be, bo):
     """``a . b`` per coordinate of two level-0 vectors (parity planes)."""
@@ -978,6 +1001,7 @@ def _dot(ae, ao, be, bo):
     return _in_order(part)
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _axpy(xe, xo, re, ro, pe, po, qe, qo, alpha):
     """``x += alpha p``, ``r -= alpha q`` (``alpha`` per coordinate; ``p``, ``q`` zero on the ring, so
@@ -994,6 +1018,7 @@ def _axpy(xe, xo, re, ro, pe, po, qe, qo, alpha):
                 ro[c, i, m] -= a * qo[c, i, m]
 
 
+@fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
 def _xpay(pe, po, ze, zo, beta):
     """``p = z + beta p`` (``beta`` per coordinate)."""
