@@ -319,6 +319,47 @@ def test_importing_clothgrid_shortens_the_openmp_spin_unless_the_user_chose():
     assert int(OPENMP_SPIN) < 300000         # libgomp's own default, which the import replaces
 
 
+def test_the_cpu_quota_of_a_control_group_sets_numbas_threads(tmp_path):
+    """A container's CPU limit (a cgroup's CFS quota over its period, v1 or v2, the least of the
+    group's and its ancestors') caps Numba's threads, rounded up, where it is below the processors
+    the process may run on and the user set no count."""
+    from clothgrid._startup import cpu_quota, threads_for_cpu_quota
+
+    def tree(files: dict[str, str], proc: str) -> tuple[str, str]:
+        root = tmp_path / f"t{len(list(tmp_path.iterdir()))}"
+        for rel, text in files.items():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            (root / rel).write_text(text)
+        (root / "proc").write_text(proc)
+        return str(root / "fs"), str(root / "proc")
+
+    # v2 (pure): the group's cpu.max and its parent's; the least wins
+    assert cpu_quota(*tree({"fs/cgroup.controllers": "cpu", "fs/a/cpu.max": "max 100000\n",
+                            "fs/a/b/cpu.max": "250000 100000\n"}, "0::/a/b\n")) == 2.5
+    assert cpu_quota(*tree({"fs/cgroup.controllers": "cpu", "fs/a/cpu.max": "50000 100000",
+                            "fs/a/b/cpu.max": "250000 100000"}, "0::/a/b\n")) == 0.5
+    assert cpu_quota(*tree({"fs/cgroup.controllers": "cpu", "fs/a/cpu.max": "max 100000"}, "0::/a\n")) is None
+    # v1: the cpu controller's files (a comma-joined mount too); -1 is no limit
+    assert cpu_quota(*tree({"fs/cpu/g/cpu.cfs_quota_us": "100000", "fs/cpu/g/cpu.cfs_period_us": "100000"},
+                           "4:memory:/x\n1:cpu:/g\n0::/\n")) == 1.0
+    assert cpu_quota(*tree({"fs/cpu,cpuacct/g/cpu.cfs_quota_us": "-1", "fs/cpu,cpuacct/g/cpu.cfs_period_us": "100000",
+                            "fs/cpu,cpuacct/cpu.cfs_quota_us": "300000",
+                            "fs/cpu,cpuacct/cpu.cfs_period_us": "100000"}, "2:cpu,cpuacct:/g\n")) == 3.0
+    # nothing to read: no limit known
+    assert cpu_quota(str(tmp_path / "none"), str(tmp_path / "none" / "proc")) is None
+    assert cpu_quota(*tree({"fs/cpu/cpu.cfs_quota_us": "x"}, "1:cpu:/\n")) is None
+    env: dict[str, str] = {}
+    assert threads_for_cpu_quota(env, quota=1.0, cpus=4) == 1 and env["NUMBA_NUM_THREADS"] == "1"
+    env = {}
+    assert threads_for_cpu_quota(env, quota=2.5, cpus=4) == 3 and env["NUMBA_NUM_THREADS"] == "3"
+    assert threads_for_cpu_quota(env := {}, quota=0.2, cpus=4) == 1
+    for quota, cpus in ((4.0, 4), (8.0, 4), (3.5, 4)):
+        env = {}
+        assert threads_for_cpu_quota(env, quota=quota, cpus=cpus) is None and env == {}
+    env = {"NUMBA_NUM_THREADS": "4"}                      # the user's: kept
+    assert threads_for_cpu_quota(env, quota=1.0, cpus=8) is None and env["NUMBA_NUM_THREADS"] == "4"
+
+
 def test_blas_blocks_of_two_threads_count_together(monkeypatch):
     """one_blas_thread entered by two Python threads, left in the other order: the BLAS libraries
     stay on one thread until the last block leaves, then have the caller's setting back (the

@@ -12,10 +12,11 @@ The public API::
 
 from __future__ import annotations
 
-from ._startup import guard_cli_start, short_openmp_spin
+from ._startup import guard_cli_start, short_openmp_spin, threads_for_cpu_quota
 
-guard_cli_start()     # python -m clothgrid / the clothgrid script: a signal while importing ends it cleanly
-short_openmp_spin()   # Numba's threads sleep soon when they wait: no 25x slowdown on a busy machine
+guard_cli_start()          # python -m clothgrid / the clothgrid script: a signal while importing ends it cleanly
+short_openmp_spin()        # Numba's threads sleep soon when they wait: no 25x slowdown on a busy machine
+threads_for_cpu_quota()    # a container's CPU limit: no more Numba threads than it allows
 
 from .boundary import Boundary
 from .errors import (BackendUnavailableError, BoundaryError, ClothgridError, InputError, NotConvergedError,
