@@ -267,6 +267,25 @@ def test_a_killed_run_restarted_finishes_with_nothing_lost_or_duplicated(tmp_pat
 # --------------------------------------------------------------------------- without a cluster
 
 
+def test_local_workers_follow_the_cores_and_a_containers_cpu_limit(monkeypatch):
+    """A local cluster's workers: the cores this process may use, at most a cgroup's CPU quota rounded
+    up (a 2-CPU pod on a many-core node starts 2 workers, not one per core of the node, and their
+    memory); each worker's Numba threads share the cores left (one worker, every core)."""
+    import clothgrid._startup as startup
+    from clothgrid.batch import default_workers, worker_threads
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)
+    monkeypatch.setattr(startup, "cpu_quota", lambda: None)
+    assert default_workers() == 16 and worker_threads(16) == 1 and worker_threads(4) == 4
+    assert worker_threads(1) == 16 and worker_threads(5) == 3 and worker_threads(40) == 1
+    monkeypatch.setattr(startup, "cpu_quota", lambda: 2.0)
+    assert default_workers() == 2 and worker_threads(2) == 1 and worker_threads(1) == 2
+    monkeypatch.setattr(startup, "cpu_quota", lambda: 0.5)
+    assert default_workers() == 1 and worker_threads(1) == 1
+    monkeypatch.setattr(startup, "cpu_quota", lambda: 64.0)
+    assert default_workers() == 16
+
+
 def test_find_inputs(tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "a" / ".hidden").mkdir()

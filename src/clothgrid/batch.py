@@ -32,6 +32,7 @@ import contextlib
 import glob
 import hashlib
 import logging
+import math
 import os
 import sys
 import time
@@ -47,7 +48,7 @@ from .pipeline import GridOptions, OutputOptions, check_outputs, read_jobs, repo
     write_results
 
 __all__ = ["batch", "BatchSummary", "FileTask", "find_inputs", "assign_stems", "grid_file", "warm_up", "WarmUp",
-           "ProgressLine", "DEFAULT_TEMPLATE", "DEFAULT_RETRIES", "default_workers"]
+           "ProgressLine", "DEFAULT_TEMPLATE", "DEFAULT_RETRIES", "default_workers", "worker_threads"]
 
 #: outputs of one input, relative to its folder ``OUTDIR/<stem>/``
 DEFAULT_TEMPLATE = "{piece}.npz"
@@ -113,11 +114,24 @@ def assign_stems(paths: Sequence[Path]) -> list[str]:
 
 
 def default_workers() -> int:
-    """Workers of a local cluster: the CPU cores this process may use."""
+    """Workers of a local cluster: the CPU cores this process may use (its affinity, and at most a
+    container's CPU limit, rounded up: :func:`clothgrid._startup.cpu_quota`)."""
+    from ._startup import cpu_quota
+
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        n = len(os.sched_getaffinity(0))
     except AttributeError:          # not on Linux
-        return max(1, os.cpu_count() or 1)
+        n = os.cpu_count() or 1
+    quota = cpu_quota()
+    if quota is not None:           # a 2-CPU pod on a 64-core node: 2 workers, not 64 (and their memory)
+        n = min(n, math.ceil(quota - 1e-9))
+    return max(1, n)
+
+
+def worker_threads(workers: int) -> int:
+    """Numba threads of each of ``workers`` local workers: the cores left to share, at least one
+    (one worker gridding one file on a 2-core machine uses both)."""
+    return max(1, default_workers() // max(1, workers))
 
 
 # --------------------------------------------------------------------------- one file (runs on a worker)
@@ -505,7 +519,7 @@ def _client_for(scheduler: str | None, workers: int | None, retries: int, n_task
                                          "distributed.worker.daemon": True}))
     cluster = stack.enter_context(LocalCluster(
         n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-        silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}))
+        silence_logs=logging.ERROR, env={"NUMBA_NUM_THREADS": str(worker_threads(n)), "OMP_NUM_THREADS": "1"}))
     return stack.enter_context(Client(cluster))
 
 

@@ -613,8 +613,9 @@ def _add_batch_parser(sub: Any) -> None:
     c = b.add_argument_group("cluster")
     where = c.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_positive_int, metavar="N",
-                       help="worker processes of the local Dask cluster (default: the CPU cores, at "
-                            "most one per file)")
+                       help="worker processes of the local Dask cluster (default: the CPU cores, at most "
+                            "a container's CPU limit and one per file; the cores left are shared "
+                            "out as each worker's threads)")
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="use the Dask scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786) instead of a "
                             "local cluster; its workers need clothgrid installed and the same paths")
