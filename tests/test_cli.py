@@ -637,7 +637,14 @@ def test_verbose_prints_where_the_time_goes(tmp_path, capsys):
     assert "time:" not in capsys.readouterr().err
     # multigrid's set-up (where a fresh process loads Numba) is its own figure within the solve
     assert main(["generate", str(src), "-o", str(tmp_path / "m.npz"), "-v", "--solver", "multigrid"]) == 0
-    assert " of which set-up " in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert " of which set-up " in err
+    # and the threads the kernels ran on (the multigrid solve's kernels are parallel)
+    import numba
+
+    threads = next(s for s in err.splitlines() if s.startswith("clothgrid: threads: "))
+    assert f"threads: {numba.config.NUMBA_NUM_THREADS} Numba thread" in threads
+    assert f"threading layer {numba.threading_layer()}" in threads
 
 
 def test_timing_lines_without_proc():

@@ -23,7 +23,7 @@ import sys
 from typing import Any
 
 __all__ = ["guard_cli_start", "starting_the_cli", "one_blas_thread_from_the_start", "BLAS_THREAD_VARIABLES",
-           "short_openmp_spin", "OPENMP_SPIN", "cpu_quota", "threads_for_cpu_quota"]
+           "short_openmp_spin", "OPENMP_SPIN", "cpu_quota", "threads_for_cpu_quota", "thread_summary"]
 
 #: options of the ``python`` command that take a separate argument (``-X importtime``)
 _OPTION_ARGS = ("-X", "-W", "--check-hash-based-pycs")
@@ -195,7 +195,39 @@ def threads_for_cpu_quota(environ: "os._Environ[str] | dict[str, str] | None" = 
     if want >= cpus:
         return None
     env["NUMBA_NUM_THREADS"] = str(want)
+    if environ is None:
+        _CAPPED[:] = [quota, cpus]
     return want
+
+
+#: ``[quota, processors]`` where :func:`threads_for_cpu_quota` capped this process's Numba threads
+_CAPPED: list[float] = []
+
+
+def thread_summary() -> str:
+    """One line (``-v``) on the threads the kernels run on: Numba's count and threading layer, what
+    set the count, the OpenMP spin, and whether this process runs them serially (forked after its
+    parent's OpenMP threads started). Imports nothing: a process that has not loaded Numba says so."""
+    numba = sys.modules.get("numba")
+    if numba is None:
+        return "threads: Numba not loaded (no parallel kernel ran)"
+    par = sys.modules.get("numba.np.ufunc.parallel")
+    layer = getattr(par, "_threading_layer", None) if par is not None else None
+    n = numba.config.NUMBA_NUM_THREADS
+    if _CAPPED:
+        why = f"a CPU limit of {_CAPPED[0]:g} of {int(_CAPPED[1])} processors"
+    elif "NUMBA_NUM_THREADS" in os.environ:
+        why = "NUMBA_NUM_THREADS"
+    else:
+        why = "the processors it may run on"
+    parts = [f"threads: {n} Numba thread{'s' if n != 1 else ''} ({why})",
+             f"threading layer {layer or 'not started'}"]
+    if layer == "omp":
+        parts.append(f"GOMP_SPINCOUNT {os.environ.get('GOMP_SPINCOUNT', 'libgomp default')}")
+    jv = sys.modules.get("clothgrid.jit_variants")
+    if jv is not None and jv.forked_from_openmp():
+        parts.append("forked after the parent's OpenMP threads started: kernels run serially")
+    return ", ".join(parts)
 
 
 def guard_cli_start() -> None:

@@ -834,8 +834,11 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     if progress:
         progress(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - t0:.3f} s")
     if args.verbose:
+        from ._startup import thread_summary
+
         for line in timing_lines(startup, imports, read, results, time.perf_counter() - t0, process_seconds()):
             _say(line)
+        _say(thread_summary())
     if failed:
         _say_failed(args.input, failed)
         n = len(results) + len(failed)
