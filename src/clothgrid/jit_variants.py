@@ -96,10 +96,10 @@ class ForkSafe:
         self.kernel = kernel
         self._twin = None
 
-    def __call__(self, *args):
+    def __call__(self, *args, **kwargs):
         if _FORKED:
-            return self.serial(*args)
-        return self.kernel(*args)
+            return self.serial(*args, **kwargs)
+        return self.kernel(*args, **kwargs)
 
     @property
     def serial(self):
