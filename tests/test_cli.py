@@ -647,6 +647,53 @@ def test_verbose_prints_where_the_time_goes(tmp_path, capsys):
     assert f"threading layer {numba.threading_layer()}" in threads
 
 
+def test_a_first_compile_is_said_once(tmp_path, monkeypatch):
+    """A run whose kernels compile (Numba's disk cache holds none: a fresh installation) says so once,
+    at the first compile, through its progress; nothing with -q (no progress). The listener waits for
+    Numba's import (``lean_imports.after_import``): a module imported later gets its callback right
+    after it has run, and a failing callback leaves the import alone."""
+    import numba
+
+    from clothgrid.lean_imports import after_import
+
+    said: list[str] = []
+
+    def fresh():
+        @numba.njit(cache=False)
+        def f(x):
+            return x + 1
+        return f
+
+    with cli._first_compile_said(None):                 # -q: nothing said
+        assert fresh()(1) == 2
+    with cli._first_compile_said(said.append):          # numba is imported here: in place at once
+        assert said == []
+        assert fresh()(1) == 2 and fresh()(2) == 3 and fresh()(1.5) == 2.5     # three compiles
+    assert len(said) == 1 and said[0].startswith("compiling numerical kernels")
+    assert fresh()(1) == 2 and len(said) == 1          # after the command: nothing said to it
+    with cli._first_compile_said(said.append):          # the next command: said once again
+        assert fresh()(1) == 2
+    from numba.core import event
+
+    assert len(said) == 2 and sum(type(x).__name__ == "FirstCompile" for x in event._registered["numba:compile"]) == 1
+    # after_import: a module not imported yet
+    (tmp_path / "cg_later_mod.py").write_text("VALUE = 7\n")
+    (tmp_path / "cg_later_bad.py").write_text("VALUE = 8\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    seen = []
+    assert after_import("cg_later_mod", lambda m: seen.append(m.VALUE))
+    assert not after_import("cg_later_mod", seen.append)             # one hook a module
+    assert seen == []
+    import cg_later_mod                                                  # noqa: F401
+
+    assert seen == [7]
+    assert after_import("cg_later_mod", lambda m: seen.append(-m.VALUE)) and seen == [7, -7]   # imported: now
+    assert after_import("cg_later_bad", lambda m: 1 / 0)
+    import cg_later_bad                                                  # the callback failed: imported still
+
+    assert cg_later_bad.VALUE == 8
+
+
 def test_timing_lines_without_proc():
     lines = cli.timing_lines(None, 0.01, 0.02, [], 0.03, None)
     assert lines[0].startswith("time: start-up") and "n/a" in lines[0] and lines[-1] == "time: whole command n/a s"

@@ -19,7 +19,7 @@ import re
 import sys
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -433,9 +433,10 @@ def _cmd_garment(args: argparse.Namespace) -> int:
         if not o.parent.is_dir():
             raise InputError(f"output folder {str(o.parent)!r} does not exist (for {str(o)!r})")
     t0 = time.perf_counter()
-    g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
-                fixed=dict(args.fix) if args.fix else None, stitches=args.stitches,
-                progress=_progress(args.quiet))
+    with _first_compile_said(_progress(args.quiet)):
+        g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
+                    fixed=dict(args.fix) if args.fix else None, stitches=args.stitches,
+                    progress=_progress(args.quiet))
     written: list[Path] = []
     try:
         for o in outs:
@@ -690,6 +691,50 @@ def _progress(quiet: bool) -> Callable[[str], None] | None:
     return None if quiet else _say
 
 
+#: What the compile listener says to (the running command's progress, None between commands) and
+#: whether it is in place (one listener a process)
+_COMPILE_NOTE: dict[str, Any] = {"say": None, "listening": False}
+
+
+@contextlib.contextmanager
+def _first_compile_said(progress: Callable[[str], None] | None) -> Iterator[None]:
+    """While the block runs, say once, when Numba first compiles a kernel (its disk cache holds none:
+    the installation's first run, or the first after an update), that the kernels compile now: a
+    first ``clothgrid demo`` spends about half a minute on it, later runs load them in a fraction of
+    a second. Numba is not imported for this (a run that needs no kernel does not load it): one
+    listener a process is put in place once it is (:func:`clothgrid.lean_imports.after_import`).
+    Nothing with ``-q``."""
+    if progress is None:
+        yield
+        return
+    _COMPILE_NOTE["say"] = progress
+    if not _COMPILE_NOTE["listening"]:
+        from .lean_imports import after_import
+
+        _COMPILE_NOTE["listening"] = after_import("numba", _listen_for_compiles)
+    try:
+        yield
+    finally:
+        _COMPILE_NOTE["say"] = None
+
+
+def _listen_for_compiles(_numba: Any) -> None:
+    """Register the listener of Numba's compile events that :func:`_first_compile_said` speaks through."""
+    from numba.core import event
+
+    class FirstCompile(event.Listener):
+        def on_start(self, ev: Any) -> None:
+            say, _COMPILE_NOTE["say"] = _COMPILE_NOTE["say"], None
+            if say is not None:
+                say("compiling numerical kernels into Numba's cache: this installation's first run, "
+                    "or the first after an update (about half a minute, once)")
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    event.register("numba:compile", FirstCompile())
+
+
 def folded_text(q: Any, max_listed: int = 5) -> str:
     """``"N folded cells (i, j), ..."``: how many cells are folded and the first few."""
     shown = ", ".join(f"({i}, {j})" for i, j in list(q.folded_cells)[:max_listed])
@@ -808,7 +853,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
                  f"{_fmt(args.tol, '.2e')}) because of --allow-unconverged")
 
     read = time.perf_counter() - t_read
-    results, failed = pipeline.run_jobs(jobs, progress, done)
+    with _first_compile_said(progress):
+        results, failed = pipeline.run_jobs(jobs, progress, done)
     folded = [r for r in results if r.quality.folded]
     hint = "try --functional auto" if args.functional == "length" else ""
     if folded and args.strict:
@@ -1014,7 +1060,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         (job,) = pipeline.read_jobs(source, [folder / f"{name}.obj", folder / f"{name}.npz"], folder / f"{name}.png",
                                     options=options)
     t_load = time.perf_counter() - t0
-    result = pipeline.run_job(job, _say)
+    with _first_compile_said(_say):
+        result = pipeline.run_job(job, _say)
     t0 = time.perf_counter()
     written = pipeline.write_result(result)
     t_write = time.perf_counter() - t0

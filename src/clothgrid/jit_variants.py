@@ -134,3 +134,4 @@ def by_size(kernel, least: int, **options):
 
     pick.parallel, pick.serial = kernel, twin
     return pick
+

@@ -39,8 +39,9 @@ import importlib.util
 import os
 import sys
 from types import ModuleType
+from typing import Callable
 
-__all__ = ["preload_cython_blas", "svgpathtools_without_quad"]
+__all__ = ["preload_cython_blas", "svgpathtools_without_quad", "after_import"]
 
 _PACKAGE = "scipy.linalg"
 _MODULE = "scipy.linalg.cython_blas"
@@ -161,3 +162,42 @@ class _Blocking(_Wrapping):
         finally:
             if block and sys.modules.get(_INTEGRATE, 0) is None:
                 del sys.modules[_INTEGRATE]
+
+
+def after_import(name: str, then: Callable[[ModuleType], None]) -> bool:
+    """Call ``then(module)`` once module ``name`` has been imported: now if it is, else right after
+    its first import (a finder on ``sys.meta_path`` that stands aside after it), without importing
+    it here. An exception in ``then`` is swallowed: the import itself goes on as usual.
+
+    Returns
+    -------
+    bool
+        True if ``then`` ran now or will run, False if the hook could not be placed (one for
+        ``name`` is in place already).
+    """
+    if name in sys.modules:
+        _quietly(then, sys.modules[name])
+        return True
+    if any(isinstance(f, _WrapOnce) and f.name == name for f in sys.meta_path):
+        return False
+    sys.meta_path.insert(0, _WrapOnce(name, lambda loader: _Then(loader, then)))
+    return True
+
+
+def _quietly(then: Callable[[ModuleType], None], module: ModuleType) -> None:
+    try:
+        then(module)
+    except Exception:         # a hook's failure must not fail the import it follows
+        pass
+
+
+class _Then(_Wrapping):
+    """Runs the module, then ``then(module)``."""
+
+    def __init__(self, loader: importlib.abc.Loader, then: Callable[[ModuleType], None]):
+        super().__init__(loader)
+        self.then = then
+
+    def exec_module(self, module: ModuleType) -> None:
+        self._run(module)
+        _quietly(self.then, module)
