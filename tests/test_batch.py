@@ -271,7 +271,7 @@ def test_local_workers_follow_the_cores_and_a_containers_cpu_limit(monkeypatch):
     """A local cluster's workers: the cores this process may use, at most a cgroup's CPU quota rounded
     up (a 2-CPU pod on a many-core node starts 2 workers, not one per core of the node, and their
     memory); each worker's Numba threads share the cores left (one worker, every core)."""
-    import clothgrid._startup as startup
+    import clothgrid.cgroups as startup
     from clothgrid.batch import default_workers, worker_threads
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)

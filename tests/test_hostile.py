@@ -251,6 +251,54 @@ def test_memory_check_counts_the_address_space_limit(tmp_path, out):
     assert have == pytest.approx(lim - used, abs=2e-3) and may == pytest.approx(0.9 * have, rel=1e-3)
 
 
+def test_memory_check_counts_a_control_groups_memory_limit(tmp_path, out, capsys, monkeypatch):
+    """In a container with a memory limit (a cgroup's; ``MemAvailable`` shows the whole machine's) a
+    grid the limit cannot hold is refused by the memory check with the limit's figures, not killed
+    by the group's out-of-memory killer (seen: exit 137 and no word at 4096^2 under 800 MiB). The
+    limits are read from v1 and v2 files, the tightest along the group's ancestors, the group's
+    page cache that can be dropped not counted as used."""
+    import clothgrid.cgroups as cg
+
+    def tree(files: dict[str, str], proc: str) -> tuple[str, str]:
+        root = tmp_path / f"t{len(list(tmp_path.glob('t*')))}"
+        for rel, text in files.items():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            (root / rel).write_text(text)
+        (root / "proc").write_text(proc)
+        return str(root / "fs"), str(root / "proc")
+
+    mib = 2**20
+    # v2: the group's and its parent's limits; the parent's is tighter
+    m = cg.memory_headroom(*tree({"fs/cgroup.controllers": "memory",
+                                  "fs/a/memory.max": f"{800 * mib}", "fs/a/memory.current": f"{700 * mib}",
+                                  "fs/a/memory.stat": f"anon 1\ninactive_file {100 * mib}\n",
+                                  "fs/a/b/memory.max": f"{1000 * mib}", "fs/a/b/memory.current": f"{300 * mib}",
+                                  "fs/a/b/memory.stat": "inactive_file 0\n"}, "0::/a/b\n"))
+    assert (m.limit, m.used, m.room) == (800 * mib, 600 * mib, 200 * mib)
+    assert cg.memory_headroom(*tree({"fs/cgroup.controllers": "memory", "fs/memory.max": "max",
+                                     "fs/memory.current": "5"}, "0::/\n")) is None
+    # v1: the memory controller's files; the kernel's "no limit" is a huge number
+    m = cg.memory_headroom(*tree({"fs/memory/g/memory.limit_in_bytes": f"{512 * mib}",
+                                  "fs/memory/g/memory.usage_in_bytes": f"{200 * mib}",
+                                  "fs/memory/g/memory.stat": f"cache 9\ntotal_inactive_file {50 * mib}\n",
+                                  "fs/memory/memory.limit_in_bytes": "9223372036854771712",
+                                  "fs/memory/memory.usage_in_bytes": "1"}, "5:memory:/g\n1:cpu:/\n"))
+    assert (m.limit, m.used) == (512 * mib, 150 * mib)
+    assert cg.memory_headroom(str(tmp_path / "none"), str(tmp_path / "none" / "proc")) is None
+    # the check: the group's limit binds, its figures in the message, which add up; nothing written
+    monkeypatch.setattr(cg, "memory_headroom", lambda: cg.MemoryLimit(800 * mib, 84 * mib, "/g"))
+    src = tmp_path / "sq.json"
+    src.write_text(json.dumps(_boundary(_square(16))))
+    code, err = _run(capsys, ["generate", str(src), "-o", str(out / "g.npz"), "--nodes", "4096x4096", "-q"])
+    _clean_error(code, err, out, needle="under the memory limit of its control group (a container's --memory)")
+    found = re.search(r"90% of the ([\d.]+) MiB available under the memory limit of its control group "
+                      r"\(a container's --memory\): ([\d.]+) MiB less the ([\d.]+) MiB the group uses already, "
+                      r"is ([\d.]+) MiB", err)
+    assert found, err
+    have, lim, used, may = map(float, found.groups())
+    assert (lim, used, have) == (800, 84, 716) and may == pytest.approx(0.9 * have, rel=1e-3)
+
+
 def test_svg_deep_groups(capsys, tmp_path, out):
     svg = tmp_path / "a.svg"
     svg.write_text('<svg xmlns="http://www.w3.org/2000/svg">' + "<g>" * 20_000

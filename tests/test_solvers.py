@@ -323,7 +323,8 @@ def test_the_cpu_quota_of_a_control_group_sets_numbas_threads(tmp_path):
     """A container's CPU limit (a cgroup's CFS quota over its period, v1 or v2, the least of the
     group's and its ancestors') caps Numba's threads, rounded up, where it is below the processors
     the process may run on and the user set no count."""
-    from clothgrid._startup import cpu_quota, threads_for_cpu_quota
+    from clothgrid._startup import threads_for_cpu_quota
+    from clothgrid.cgroups import cpu_quota
 
     def tree(files: dict[str, str], proc: str) -> tuple[str, str]:
         root = tmp_path / f"t{len(list(tmp_path.iterdir()))}"

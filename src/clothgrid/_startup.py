@@ -23,7 +23,7 @@ import sys
 from typing import Any
 
 __all__ = ["guard_cli_start", "starting_the_cli", "one_blas_thread_from_the_start", "BLAS_THREAD_VARIABLES",
-           "short_openmp_spin", "OPENMP_SPIN", "cpu_quota", "threads_for_cpu_quota", "thread_summary"]
+           "short_openmp_spin", "OPENMP_SPIN", "threads_for_cpu_quota", "thread_summary"]
 
 #: options of the ``python`` command that take a separate argument (``-X importtime``)
 _OPTION_ARGS = ("-X", "-W", "--check-hash-based-pycs")
@@ -115,62 +115,6 @@ def short_openmp_spin() -> None:
     os.environ["GOMP_SPINCOUNT"] = OPENMP_SPIN
 
 
-def _quota_of(directory: str, v2: bool) -> float | None:
-    """The CPUs one cgroup directory allows (quota over period), or None for no limit or no file."""
-    try:
-        if v2:
-            with open(os.path.join(directory, "cpu.max")) as f:
-                quota, period = f.read().split()[:2]
-            if quota == "max":
-                return None
-        else:
-            with open(os.path.join(directory, "cpu.cfs_quota_us")) as f:
-                quota = f.read().strip()
-            with open(os.path.join(directory, "cpu.cfs_period_us")) as f:
-                period = f.read().strip()
-        q, p = int(quota), int(period)
-    except (OSError, ValueError):
-        return None
-    return q / p if q > 0 and p > 0 else None
-
-
-def cpu_quota(root: str = "/sys/fs/cgroup", proc: str = "/proc/self/cgroup") -> float | None:
-    """The CPUs this process's control group may use (its CFS quota over its period: a container's
-    ``--cpus``, a Kubernetes CPU limit), the least of its own and its ancestors'; None where no
-    limit is set or none can be read. cgroup v2 (``cpu.max``) and v1 (``cpu.cfs_quota_us``); in a
-    container whose cgroup is the root of its own view, the root's files."""
-    try:
-        with open(proc) as f:
-            lines = f.read().splitlines()
-    except OSError:
-        lines = []
-    places: list[tuple[str, bool]] = []
-    for line in lines:
-        parts = line.split(":", 2)
-        if len(parts) != 3:
-            continue
-        _, controllers, path = parts
-        if controllers == "":          # v2: the unified hierarchy (beside v1 ones under unified/)
-            hybrid = not os.path.exists(os.path.join(root, "cgroup.controllers"))
-            base, v2 = (os.path.join(root, "unified") if hybrid else root), True
-        elif "cpu" in controllers.split(","):
-            base, v2 = os.path.join(root, controllers), False
-            if not os.path.isdir(base):
-                base = os.path.join(root, "cpu")
-        else:
-            continue
-        path = path.strip("/")
-        while True:                                         # the group and each of its ancestors
-            places.append((os.path.join(base, path) if path else base, v2))
-            if not path:
-                break
-            path = os.path.dirname(path)
-    if not lines:
-        places = [(root, True), (os.path.join(root, "cpu"), False)]
-    found = [q for d, v2 in dict.fromkeys(places) if (q := _quota_of(d, v2)) is not None]
-    return min(found) if found else None
-
-
 def threads_for_cpu_quota(environ: "os._Environ[str] | dict[str, str] | None" = None,
                           quota: float | None = None, cpus: int | None = None) -> int | None:
     """Set ``NUMBA_NUM_THREADS`` to the CPUs the process's control group allows (rounded up) where
@@ -183,6 +127,8 @@ def threads_for_cpu_quota(environ: "os._Environ[str] | dict[str, str] | None" = 
     if "NUMBA_NUM_THREADS" in env:
         return None
     if quota is None:
+        from .cgroups import cpu_quota          # the standard library only: Numba is not loaded yet
+
         quota = cpu_quota()
     if quota is None:
         return None

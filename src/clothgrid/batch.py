@@ -115,8 +115,8 @@ def assign_stems(paths: Sequence[Path]) -> list[str]:
 
 def default_workers() -> int:
     """Workers of a local cluster: the CPU cores this process may use (its affinity, and at most a
-    container's CPU limit, rounded up: :func:`clothgrid._startup.cpu_quota`)."""
-    from ._startup import cpu_quota
+    container's CPU limit, rounded up: :func:`clothgrid.cgroups.cpu_quota`)."""
+    from .cgroups import cpu_quota
 
     try:
         n = len(os.sched_getaffinity(0))

@@ -29,8 +29,10 @@ interpreter's (0.86 GB in all), estimate 0.67 GB; with the coarse levels in the 
 The memory available is the system's (``MemAvailable``) or, when the process
 runs under a resource limit (``ulimit -v``: ``RLIMIT_AS``; ``ulimit -d``:
 ``RLIMIT_DATA``), what that limit leaves above what the process maps already,
-whichever is less: a request the limit cannot hold is refused by the check,
-with the limit's figures, instead of failing with ``MemoryError``.
+or, in a control group with a memory limit (a container's ``--memory``), what
+that leaves above the group's working set, whichever is least: a request the
+limit cannot hold is refused by the check, with the limit's figures, instead of
+failing with ``MemoryError`` or being killed by the group's out-of-memory killer.
 """
 
 from __future__ import annotations
@@ -76,30 +78,41 @@ def _status_bytes(key: str) -> int | None:
 
 
 class Headroom(NamedTuple):
-    """What a resource limit leaves: ``bytes = limit - used`` (at least 0)."""
+    """What a resource limit leaves: ``bytes = limit - used`` (at least 0); ``used_what`` says whose
+    use ``used`` is."""
 
     bytes: int
     limit: int
     used: int
     what: str
+    used_what: str = "this process maps already"
 
 
 def limit_headroom() -> Headroom | None:
-    """What the tighter of the soft address-space and data limits still lets this process map.
+    """What the tightest of this process's limits still lets it use: the soft address-space and
+    data limits (``ulimit -v``, ``ulimit -d``) and its control group's memory limit (a container's
+    ``--memory``, :func:`clothgrid.cgroups.memory_headroom`), which ``MemAvailable`` does not show
+    (a grid that fitted the machine was killed by the group's out-of-memory killer, without a word).
 
     Returns
     -------
     Headroom or None
-        The limit in bytes less what the process holds under it (``VmSize``
-        for ``RLIMIT_AS``, ``VmData`` for ``RLIMIT_DATA``), and which limit
-        (``"address-space limit (ulimit -v)"``); None when neither limit is set
-        (or on a system without them).
+        The limit in bytes less what is held under it (``VmSize`` for ``RLIMIT_AS``, ``VmData``
+        for ``RLIMIT_DATA``, the group's working set for its limit), and which limit
+        (``"address-space limit (ulimit -v)"``); None when none is set (or on a system without them).
     """
+    from .cgroups import memory_headroom
+
+    best: Headroom | None = None
+    group = memory_headroom()
+    if group is not None:
+        best = Headroom(group.room, group.limit, group.used,
+                        "memory limit of its control group (a container's --memory)",
+                        "the group uses already")
     try:
         import resource
     except ImportError:                      # not a Unix system
-        return None
-    best: Headroom | None = None
+        return best
     for name, key, what in (("RLIMIT_AS", "VmSize", "address-space limit (ulimit -v)"),
                             ("RLIMIT_DATA", "VmData", "data-segment limit (ulimit -d)")):
         res = getattr(resource, name, None)
@@ -234,7 +247,7 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
         source = ""
         if limit is not None and limit.bytes <= have:
             source = (f" under the {limit.what}: {limit.limit / scale:.4g} {unit_of} less the "
-                      f"{limit.used / scale:.4g} {unit_of} this process maps already,")
+                      f"{limit.used / scale:.4g} {unit_of} {limit.used_what},")
         raise SizeError(f"{what}a {nu}x{nv} grid with solver '{solver}' needs about {format_bytes(total)} of "
                         f"memory{held}, more than a solve may take: {FIT_FRACTION:.0%} of the "
                         f"{have / scale:.4g} {unit_of} available{source} is {FIT_FRACTION * have / scale:.4g} "
