@@ -99,3 +99,15 @@ def parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         else:
             raise AssertionError(f"unexpected OBJ line {line!r}")
     return np.array(v), np.array(vt), np.array(f, dtype=np.int64)
+
+
+def fake_cgroup(folder, files: dict[str, str], proc: str) -> tuple[str, str]:
+    """A cgroup file system in a new folder under ``folder``: ``files`` (paths under ``fs/``, their
+    text) and a ``/proc/self/cgroup`` of text ``proc``; returns ``(root, proc)`` paths for
+    :mod:`clothgrid.cgroups`' readers."""
+    root = folder / f"cgroup{len(list(folder.glob('cgroup*')))}"
+    for rel, text in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text)
+    (root / "proc").write_text(proc)
+    return str(root / "fs"), str(root / "proc")

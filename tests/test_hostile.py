@@ -259,13 +259,10 @@ def test_memory_check_counts_a_control_groups_memory_limit(tmp_path, out, capsys
     page cache that can be dropped not counted as used."""
     import clothgrid.cgroups as cg
 
+    from conftest import fake_cgroup
+
     def tree(files: dict[str, str], proc: str) -> tuple[str, str]:
-        root = tmp_path / f"t{len(list(tmp_path.glob('t*')))}"
-        for rel, text in files.items():
-            (root / rel).parent.mkdir(parents=True, exist_ok=True)
-            (root / rel).write_text(text)
-        (root / "proc").write_text(proc)
-        return str(root / "fs"), str(root / "proc")
+        return fake_cgroup(tmp_path, files, proc)
 
     mib = 2**20
     # v2: the group's and its parent's limits; the parent's is tighter

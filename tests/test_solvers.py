@@ -326,13 +326,10 @@ def test_the_cpu_quota_of_a_control_group_sets_numbas_threads(tmp_path):
     from clothgrid._startup import threads_for_cpu_quota
     from clothgrid.cgroups import cpu_quota
 
+    from conftest import fake_cgroup
+
     def tree(files: dict[str, str], proc: str) -> tuple[str, str]:
-        root = tmp_path / f"t{len(list(tmp_path.iterdir()))}"
-        for rel, text in files.items():
-            (root / rel).parent.mkdir(parents=True, exist_ok=True)
-            (root / rel).write_text(text)
-        (root / "proc").write_text(proc)
-        return str(root / "fs"), str(root / "proc")
+        return fake_cgroup(tmp_path, files, proc)
 
     # v2 (pure): the group's cpu.max and its parent's; the least wins
     assert cpu_quota(*tree({"fs/cgroup.controllers": "cpu", "fs/a/cpu.max": "max 100000\n",
