@@ -356,6 +356,25 @@ def test_the_cpu_quota_of_a_control_group_sets_numbas_threads(tmp_path):
         assert threads_for_cpu_quota(env, quota=quota, cpus=cpus) is None and env == {}
     env = {"NUMBA_NUM_THREADS": "4"}                      # the user's: kept
     assert threads_for_cpu_quota(env, quota=1.0, cpus=8) is None and env["NUMBA_NUM_THREADS"] == "4"
+    # Numba's threads started before clothgrid was imported: their count stays (a changed
+    # NUMBA_NUM_THREADS would make Numba's next compile raise), and compiling still works
+    import subprocess
+    import sys
+
+    code = ("import numba, numpy as np\n"
+            "@numba.njit(parallel=True)\n"
+            "def f(a):\n"
+            "    for i in numba.prange(a.size): a[i] = i\n"
+            "f(np.zeros(4))\n"
+            "from clothgrid._startup import threads_for_cpu_quota\n"
+            "import os\n"
+            "got = threads_for_cpu_quota(None, quota=0.5, cpus=numba.config.NUMBA_NUM_THREADS + 1)\n"
+            "numba.njit(lambda x: x + 1)(1)\n"
+            "print(got, os.environ.get('NUMBA_NUM_THREADS'))\n")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["None", "None"]
 
 
 def test_blas_blocks_of_two_threads_count_together(monkeypatch):

@@ -126,6 +126,11 @@ def threads_for_cpu_quota(environ: "os._Environ[str] | dict[str, str] | None" = 
     env = os.environ if environ is None else environ
     if "NUMBA_NUM_THREADS" in env:
         return None
+    par = sys.modules.get("numba.np.ufunc.parallel")
+    if par is not None and getattr(par, "_is_initialized", False):
+        # Numba imported and its threads started before clothgrid: their count is fixed, and a
+        # different NUMBA_NUM_THREADS would make Numba's next compile raise (it rereads it)
+        return None
     if quota is None:
         from .cgroups import cpu_quota          # the standard library only: Numba is not loaded yet
 
