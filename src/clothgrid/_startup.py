@@ -122,14 +122,15 @@ def threads_for_cpu_quota(environ: "os._Environ[str] | dict[str, str] | None" = 
     count set, or None. Numba starts a thread for every processor: under a CPU limit of one
     processor on two, the 1024^2 solve took 1.14x and the survey's fold-free grids 1.05x the time
     of one thread (1.2x and 1.3x with libgomp's own spin), and more threads over a smaller limit
-    wait on each other more. Read once, when Numba loads."""
+    wait on each other more. Read once, when Numba loads. ``environ`` (default: this process's) with
+    ``quota`` and ``cpus`` given: what would be set there."""
     env = os.environ if environ is None else environ
     if "NUMBA_NUM_THREADS" in env:
         return None
     par = sys.modules.get("numba.np.ufunc.parallel")
-    if par is not None and getattr(par, "_is_initialized", False):
-        # Numba imported and its threads started before clothgrid: their count is fixed, and a
-        # different NUMBA_NUM_THREADS would make Numba's next compile raise (it rereads it)
+    if environ is None and par is not None and getattr(par, "_is_initialized", False):
+        # this process's Numba imported and its threads started before clothgrid: their count is
+        # fixed, and a different NUMBA_NUM_THREADS would make Numba's next compile raise (it rereads it)
         return None
     if quota is None:
         from .cgroups import cpu_quota          # the standard library only: Numba is not loaded yet
