@@ -16,7 +16,6 @@ standard library is imported here.
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import sys
@@ -132,18 +131,15 @@ def threads_for_cpu_quota(environ: "os._Environ[str] | dict[str, str] | None" = 
         # this process's Numba imported and its threads started before clothgrid: their count is
         # fixed, and a different NUMBA_NUM_THREADS would make Numba's next compile raise (it rereads it)
         return None
-    if quota is None:
-        from .cgroups import cpu_quota          # the standard library only: Numba is not loaded yet
+    from .cgroups import cpu_quota, processors, quota_processors   # the standard library only
 
+    if quota is None:
         quota = cpu_quota()
     if quota is None:
         return None
     if cpus is None:
-        try:
-            cpus = len(os.sched_getaffinity(0))
-        except (AttributeError, OSError):
-            cpus = os.cpu_count() or 1
-    want = max(1, math.ceil(quota - 1e-9))
+        cpus = processors()
+    want = quota_processors(quota)
     if want >= cpus:
         return None
     env["NUMBA_NUM_THREADS"] = str(want)

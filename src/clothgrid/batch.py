@@ -32,7 +32,6 @@ import contextlib
 import glob
 import hashlib
 import logging
-import math
 import os
 import sys
 import time
@@ -114,18 +113,12 @@ def assign_stems(paths: Sequence[Path]) -> list[str]:
 
 
 def default_workers() -> int:
-    """Workers of a local cluster: the CPU cores this process may use (its affinity, and at most a
-    container's CPU limit, rounded up: :func:`clothgrid.cgroups.cpu_quota`)."""
-    from .cgroups import cpu_quota
+    """Workers of a local cluster: the CPU cores this process may use, at most a container's CPU
+    limit (:func:`clothgrid.cgroups.usable_processors`: a 2-CPU pod on a 64-core node starts 2
+    workers, not 64 and their memory)."""
+    from .cgroups import usable_processors
 
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:          # not on Linux
-        n = os.cpu_count() or 1
-    quota = cpu_quota()
-    if quota is not None:           # a 2-CPU pod on a 64-core node: 2 workers, not 64 (and their memory)
-        n = min(n, math.ceil(quota - 1e-9))
-    return max(1, n)
+    return usable_processors()
 
 
 def worker_threads(workers: int) -> int:

@@ -21,9 +21,10 @@ before Numba loads.
 
 from __future__ import annotations
 
+import math
 import os
 
-__all__ = ["cpu_quota", "memory_headroom", "MemoryLimit"]
+__all__ = ["cpu_quota", "processors", "quota_processors", "usable_processors", "memory_headroom", "MemoryLimit"]
 
 ROOT = "/sys/fs/cgroup"
 PROC = "/proc/self/cgroup"
@@ -98,6 +99,29 @@ def cpu_quota(root: str = ROOT, proc: str = PROC) -> float | None:
     limit is set or none can be read."""
     found = [q for d, v2 in _group_dirs("cpu", root, proc) if (q := _quota_of(d, v2)) is not None]
     return min(found) if found else None
+
+
+def processors() -> int:
+    """The processors this process may run on (its affinity mask; all of them where the system has
+    no such mask)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):          # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def quota_processors(quota: float) -> int:
+    """Whole processors for a CPU quota of ``quota``: rounded up, at least one (a 1.5-CPU quota
+    keeps two busy half the time)."""
+    return max(1, math.ceil(quota - 1e-9))
+
+
+def usable_processors() -> int:
+    """The processors this process may use: :func:`processors`, at most its control group's quota
+    rounded up (:func:`quota_processors`)."""
+    n = processors()
+    quota = cpu_quota()
+    return n if quota is None else min(n, quota_processors(quota))
 
 
 class MemoryLimit:

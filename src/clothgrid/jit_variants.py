@@ -134,4 +134,3 @@ def by_size(kernel, least: int, **options):
 
     pick.parallel, pick.serial = kernel, twin
     return pick
-

@@ -939,7 +939,8 @@ def _parity_planes(x: np.ndarray, dtype=np.float64, arena: Arena | None = None,
     zero on the boundary ring instead of ``x``'s."""
     nu, nv, k = x.shape
     shapes = ((k, nu, (nv + 1) // 2), (k, nu, nv // 2))
-    xe, xo = ((arena.empty(s, dtype) for s in shapes) if arena is not None else (np.empty(s, dtype) for s in shapes))
+    empty = np.empty if arena is None else arena.empty
+    xe, xo = (empty(s, dtype) for s in shapes)
     if interior is not None:
         _split_interior(interior, xe, xo)
         return xe, xo
