@@ -5,8 +5,9 @@
 #   bash benchmarks/gpu_check.sh            # OUT defaults to /tmp/clothgrid-gpu
 #   STEPS="tests bench" MAX=4096 METHODS="cpu multigrid;cuda multigrid;gl multigrid" bash benchmarks/gpu_check.sh
 #
-# STEPS picks the checks (default: tests weights heat ops bench); METHODS (';'-separated) and MAX the
-# solvers and the largest side of the bench step.
+# STEPS picks the checks and their order (default: tests weights heat ops bench); METHODS (';'-separated) and MAX the
+# solvers and the largest side of the bench step; WEIGHT_SIZES and OPS_SIZES the sides of the weights
+# and ops steps.
 #
 # On the project's device machines the Python packages the image lacks travel as wheels in .whl/
 # and the GL loader libraries as Debian packages in .gl/ (both git-ignored; see the device tool's
@@ -35,29 +36,35 @@ log=$OUT/log.txt
 } >"$log" 2>&1
 
 STEPS=${STEPS:-tests weights heat ops bench}
-METHODS=${METHODS:-cpu multigrid;cuda multigrid;gl jacobi (paper rule);gl jacobi (true rule);cpu direct}
+METHODS=${METHODS:-cpu multigrid;cuda multigrid;cuda multigrid (three kernels);gl multigrid}
 MAX=${MAX:-4096}
 IFS=';' read -r -a methods <<<"$METHODS"
 
 step() {  # step SECONDS NAME COMMAND...: run COMMAND under a limit, its output to $OUT/NAME
     local limit=$1 name=$2; shift 2
-    case " $STEPS " in *" ${name%.txt} "*) ;; *) return ;; esac
     local t0=$SECONDS
     timeout "$limit" "$@" >"$OUT/$name" 2>&1
     echo "$name: exit $? after $((SECONDS - t0)) s" >>"$log"
 }
 
-# 1. the GPU tests: cuda and gl multigrid, and heat on gl and cuda (never run on a GPU before)
-step 230 tests.txt python3 -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_gl.py tests/test_heat_backends.py
-# 2. every weight kind (paper, uniform, per-edge smooth and 10:1 to 10^4:1 jumps) on cuda and on the host's cpu
-step 150 weights.txt python3 benchmarks/gpu_weights.py --sizes ${WEIGHT_SIZES:-1024 2048} --repeat 2
-# 3. heat: cpu (all host cores, one core), gl and cuda against FiPy's direct solve, in the same run
-step 100 heat.txt python3 benchmarks/bench_heat.py 256 1024 --gl --cuda
-# 4. each cuda multigrid operation per level, and a V-cycle replayed from a CUDA graph
-step 60 ops.txt python3 benchmarks/gpu_ops.py 4096
-# 5. what the loan of 2026-11-23 left unmeasured: the paper's gl Jacobi (its own rule, the true rule)
-#    and the CPU direct solve on the GPU host; cuda multigrid again as the same-run anchor
-step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max "$MAX" --ref-max 1024 --timeout 60 --out "$OUT/gpu" \
-    --methods "${methods[@]}"
-rm -f "$OUT/gpu/gpu.csv" "$OUT/gpu/gpu_fig5.png"   # made again from rows.jsonl by --render
+for s in $STEPS; do   # in the order STEPS names them
+    case $s in
+    # the GPU tests: cuda and gl multigrid, and heat on gl and cuda
+    tests) step 230 tests.txt python3 -m pytest -q -p no:cacheprovider -rs tests/test_cuda.py tests/test_gl.py \
+        tests/test_heat_backends.py ;;
+    # every weight kind (paper, uniform, per-edge smooth and 10:1 to 10^4:1 jumps) on cuda and on the host's cpu
+    weights) step 150 weights.txt python3 benchmarks/gpu_weights.py --sizes ${WEIGHT_SIZES:-1024 2048} --repeat 2 ;;
+    # heat: cpu (all host cores, one core), gl and cuda against FiPy's direct solve, in the same run
+    heat) step 100 heat.txt python3 benchmarks/bench_heat.py 256 1024 --gl --cuda ;;
+    # each cuda multigrid operation per level (the fused line solve against its three kernels), the
+    # grid's transfers, and a V-cycle replayed from a CUDA graph
+    ops) step 60 ops.txt python3 benchmarks/gpu_ops.py ${OPS_SIZES:-4096} ;;
+    # the solvers of METHODS (add "gl jacobi (paper rule)", "gl jacobi (true rule)" and "cpu direct"
+    # for the paper's Jacobi and the direct solve) against the bandwidth floor, CPU multigrid as reference
+    bench) step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max "$MAX" --ref-max 1024 --timeout 60 \
+        --out "$OUT/gpu" --methods "${methods[@]}"
+        rm -f "$OUT/gpu/gpu.csv" "$OUT/gpu/gpu_fig5.png" ;;   # made again from rows.jsonl by --render
+    *) echo "unknown step $s (tests weights heat ops bench)" >>"$log" ;;
+    esac
+done
 cat "$log"

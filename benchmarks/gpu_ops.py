@@ -9,6 +9,12 @@ times between two device synchronisations, and its median time is printed
 per level, with the level's nodes, next to a whole V-cycle, the full-multigrid
 start and the time the same number of kernel launches takes on an empty grid
 (launch overhead).
+
+Line solves, V-cycle and full-multigrid start are timed both ways in the same
+run: the fused line solve (one launch a colour, ``_kernels.line_solve``) and
+the three kernels it replaces (``fused=False``), with their ratio. The grid's
+upload (strided host view, pinned chunks) and download are timed too, against
+CuPy's plain copies of a contiguous array of the same size.
 """
 
 from __future__ import annotations
@@ -51,13 +57,26 @@ def main(sizes):
         ops = cuda.multigrid(levels, x0)
         sync = ops.synchronize
         print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
-        print(f"  V-cycle {timed(lambda: vcycle(ops), sync) * 1e3:.2f} ms, full-multigrid start "
-              f"{timed(lambda: fmg(ops), sync, 3) * 1e3:.2f} ms, max_step {timed(ops.max_step, sync) * 1e3:.3f} ms",
-              flush=True)
+        transfers(ops, x0)
+
+        def both(fn, reps=10):
+            """(fused, three kernels) median seconds of fn()."""
+            out = []
+            for fused in (True, False):
+                ops.fused = fused and ops.nsep > 0
+                out.append(timed(fn, sync, reps))
+            ops.fused = ops.nsep > 0
+            return out
+
+        for what, fn, reps in (("V-cycle", lambda: vcycle(ops), 10), ("full-multigrid start", lambda: fmg(ops), 3)):
+            one, three = both(fn, reps)
+            print(f"  {what}: fused {one * 1e3:.2f} ms, three kernels {three * 1e3:.2f} ms ({three / one:.2f}x)",
+                  flush=True)
+        print(f"  max_step {timed(ops.max_step, sync) * 1e3:.3f} ms", flush=True)
         for lvl in range(ops.levels):
             rows = ops.nv[lvl]
-            t_s = timed(lambda: ops.smooth(lvl), sync)
-            line = f"  level {lvl:2d} ({n}x{rows}): smooth {t_s * 1e3:8.3f} ms"
+            one, three = both(lambda: ops.smooth(lvl))
+            line = f"  level {lvl:2d} ({n}x{rows}): smooth {one * 1e3:8.3f} ms (three kernels {three * 1e3:8.3f})"
             if lvl + 1 < ops.levels:
                 t_r = timed(lambda: ops.restrict(lvl), sync)
                 t_p = timed(lambda: ops.prolong(lvl), sync)
@@ -77,6 +96,36 @@ def main(sizes):
                   f"{g.info['cycle_seconds'] * 1e3:.1f} ms, bound {g.info['error_estimate']:.2e}", flush=True)
             del g
         multigrid.FULL_MULTIGRID_START = True
+
+
+def transfers(ops, x0) -> None:
+    """The grid's upload and download (pinned chunks, strided host view) against CuPy's own copies of a
+    contiguous host array of the same bytes (pageable memory), each the median of 5."""
+    import cupy
+    import numpy as np
+
+    from clothgrid.backends.cuda import _transfer
+
+    full = np.zeros((*x0.shape[:2], 3))
+    full[..., :2] = x0
+    view = full[..., :2]
+    dense = np.ascontiguousarray(x0)
+    dev = cupy.asarray(dense)
+    sync = cupy.cuda.Device().synchronize
+    mb = dense.nbytes / 1e6
+    t_up = timed(lambda: _transfer.upload(view, cupy), sync, 5)
+    t_down = timed(lambda: _transfer.download(dev, view), sync, 5)
+    t_cup = timed(lambda: cupy.asarray(dense), sync, 5)
+    t_cdown = timed(lambda: cupy.asnumpy(dev), sync, 5)
+    t_old = timed(lambda: cupy.asarray(np.ascontiguousarray(view)), sync, 5)   # what the upload was
+    t_old_down = timed(lambda: view.__setitem__(Ellipsis, cupy.asnumpy(dev)), sync, 5)   # and the download
+    print(f"  transfers of {mb:.0f} MB: upload {t_up * 1e3:.1f} ms ({mb / 1e3 / t_up:.1f} GB/s; before: "
+          f"contiguous copy + cupy.asarray {t_old * 1e3:.1f} ms), download {t_down * 1e3:.1f} ms "
+          f"({mb / 1e3 / t_down:.1f} GB/s; before: cupy.asnumpy + copy {t_old_down * 1e3:.1f} ms); "
+          f"cupy.asarray of a contiguous array {t_cup * 1e3:.1f} ms, "
+          f"cupy.asnumpy {t_cdown * 1e3:.1f} ms", flush=True)
+    assert np.array_equal(cupy.asnumpy(_transfer.upload(view, cupy)), dense)
+    del dev
 
 
 def graph_vcycle(ops, vcycle) -> None:

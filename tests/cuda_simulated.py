@@ -17,7 +17,7 @@ from reference import exact_solution, max_rel_error, paper_weights, uniform_weig
 
 import clothgrid
 from clothgrid.backends import _cpu_multigrid, cuda, get_backend
-from clothgrid.backends.cuda import _multigrid, _sim
+from clothgrid.backends.cuda import _multigrid, _sim, _transfer
 from clothgrid.initial import boundary_grid, initial_grid
 from clothgrid.solvers.multigrid import build_hierarchy, fmg, vcycle
 from clothgrid.weights import make_weights
@@ -121,14 +121,46 @@ def test_each_operation_matches_cpu(rng, shape, kind, k, block, with_rhs):
     assert gpu.solution_max() == gpu.solution()[1:-1, 1:-1, 0].max()
 
 
-def test_solution_into_a_strided_view_in_chunks(rng, monkeypatch):
+@pytest.mark.parametrize("shape, kind, k, block, threads", [
+    ((17, 12), "paper", 3, 2, 256),   # the last block ends on a multiple of L+1; every line in one thread block
+    ((16, 9), "random", 2, 1, 8),     # one node per block; 8 // 7 = 1 line per thread block
+    ((23, 19), "random", 1, 3, 13),   # 13 // 6 = 2 lines per thread block, the last one half full
+])
+def test_fused_line_solve_gives_the_three_kernels_bits(rng, monkeypatch, shape, kind, k, block, threads):
+    monkeypatch.setattr(_multigrid, "FUSED_THREADS", threads)
+    nu, nv = shape
+    levels = build_hierarchy(make_weights(random_weights(rng, nu, nv) if kind == "random" else kind, nu, nv))
+    x0 = rng.standard_normal((nu, nv, k))
+    rhs = rng.standard_normal((nu - 2, nv - 2, k))
+    one, three = (_multigrid.CudaMultigrid(levels, x0, rhs, block=block, fused=f) for f in (True, False))
+    assert one.fused and not three.fused and one.nsep > 0
+    for lvl in range(len(levels)):
+        for reverse in (False, True):
+            same_random_state(rng, one, three)
+            one.smooth(lvl, reverse)
+            three.smooth(lvl, reverse)
+            for n, (a, b) in enumerate(zip(arrays(one), arrays(three))):
+                assert np.array_equal(read(a), read(b)), f"level {lvl}, reverse {reverse}: array {n}"
+
+
+@pytest.mark.parametrize("rows_per_chunk", [3, 4, 100])
+def test_upload_and_solution_through_strided_views_in_chunks(rng, monkeypatch, rows_per_chunk):
+    """Both staging buffers take turns (3 and 4 rows of 9: chunks of 3+3+3 and 4+4+1), the host's
+    side of each chunk split between copy threads (one row each), the views strided both ways."""
     nu, nv = 9, 8
-    x0 = rng.standard_normal((nu, nv, 2))
-    gpu = _multigrid.CudaMultigrid(build_hierarchy(make_weights("paper", nu, nv)), x0)
-    monkeypatch.setattr(_multigrid, "DOWNLOAD_BYTES", 3 * nv * 2 * 8)   # three rows i per chunk
+    monkeypatch.setattr(_transfer, "CHUNK_BYTES", rows_per_chunk * nv * 2 * 8)
+    monkeypatch.setattr(_transfer, "MIN_ROWS_PER_THREAD", 1)
+    monkeypatch.setattr(_transfer, "_STAGING", [])
+    grid = np.zeros((nu, nv, 3))
+    grid[..., 1:] = x0 = rng.standard_normal((nu, nv, 2))
+    gpu = _multigrid.CudaMultigrid(build_hierarchy(make_weights("paper", nu, nv)), grid[..., 1:])
+    assert np.array_equal(gpu.solution(), x0)
     out = np.zeros((nu, nv, 3))
     gpu.solution_into(out[..., 1:])
     assert np.array_equal(out[..., 1:], x0) and not out[..., 0].any()
+    out = np.zeros((nv, nu, 2)).transpose(1, 0, 2)          # rows i not contiguous either
+    gpu.solution_into(out)
+    assert np.array_equal(out, x0)
 
 
 @pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((12, 17), 3, "uniform"), ((17, 13), 2, "random")])

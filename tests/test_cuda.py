@@ -76,6 +76,7 @@ def kernel_signatures():
     coarse4 = (a3(f4),) * 4
     return {
         "line_blocks": [line[f8], line[f4]],
+        "line_solve": [line[f8], line[f4]],
         "line_separators": [seps[f8], seps[f4]],
         "line_spread": [spread[f8], spread[f4]],
         "restrict5": [(a3(f8),) * 3 + (a2(f8),) * 3 + (i8, i8, b1) + coarse4],

@@ -356,9 +356,9 @@ class Backend(Protocol):
         spare : numpy.ndarray, optional
             A C-contiguous host array whose contents are dead once ``x0`` and ``rhs`` have been
             read (``x0`` may view it; e.g. the grid the solution is written into): the backend may
-            keep its own host arrays in its memory (the cpu's coarse levels), or give its pages
-            back (:func:`clothgrid.memory.release`; the devices'). Its contents are undefined
-            afterwards.
+            keep its own host arrays in its memory (the cpu's coarse levels), give its pages
+            back (:func:`clothgrid.memory.release`; gl's) or leave it alone (cuda's). Its contents
+            are undefined afterwards.
         """
 
     def jacobi_sweeper(self, problem: ProblemData, *, stop: str = "error") -> JacobiSweeper:

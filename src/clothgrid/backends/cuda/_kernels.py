@@ -28,6 +28,12 @@ neighbours in memory. Line solves (zebra relaxation) run one thread per line
    of the separators (nodes ``i = L+1, 2(L+1), ...``) that the spikes give;
 3. :func:`line_spread` adds the separators' spikes to every other node.
 
+:func:`line_solve` does the three in one launch (the default where a line's
+blocks fit one thread block), with a barrier between them: a thread block
+holds whole lines, so no line waits for the others' blocks, and a colour
+costs one launch instead of three; the arithmetic, and so the bits, are the
+same.
+
 A line of ``nu`` nodes then takes about ``2 L + 2 nu / L`` dependent steps
 instead of the Thomas algorithm's ``2 nu``, which on a GPU (memory latency
 per step, and as few as one line per coarse level) is the difference between
@@ -133,23 +139,11 @@ def _scaled_step2(x, t, b, E, No, Nt, i, m, ob, ei, nm, has_b):
 
 # --- zebra line relaxation ------------------------------------------------------------------------------
 
-@cuda.jit(cache=True)
-def line_blocks(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr,
-                m_lo, lines, L, nsep, ob, ei, nm, has_b, nine):
-    """Thomas solve of each block of ``L`` columns of the own-parity lines ``m_lo .. m_lo+lines-1``.
-
-    Thread ``(q, kb)``: line ``m = m_lo + q``, block ``kb`` (columns
-    ``kb (L+1) + 1 ..``, up to the next separator or the last interior column).
-    Writes the block's solution with zero separators into ``xo``, and with
-    ``nsep > 0`` the spikes ``yl``, ``yr`` and, for the separator to its right,
-    its diagonal into ``g`` and its right-hand side into ``xo``. ``Co``, ``NE*``,
-    ``NW*`` are read only for a 9-point level (``nine``).
-    """
-    q, kb = cuda.grid(2)
-    if q >= lines or kb > nsep:
-        return
+@cuda.jit(device=True)
+def _solve_block(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr, q, m, kb, L, nsep, ob, ei, nm,
+                 has_b, nine):
+    """Thomas solve of block ``kb`` of own-parity line ``m`` (scratch column ``q``): see :func:`line_blocks`."""
     k, nu = xo.shape[0], xo.shape[1]
-    m = m_lo + q
     a = kb * (L + 1) + 1
     z = nu - 2 if kb == nsep else a + L - 1
     xc = cuda.local.array(MAX_COORDS, xo.dtype)   # x[i-1] going forward, x[i+1] going back
@@ -193,21 +187,10 @@ def line_blocks(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr,
             yr[i, q] = sc[2]
 
 
-@cuda.jit(cache=True)
-def line_separators(xo, Eo, g, yl, yr, m_lo, lines, L, nsep, ei):
-    """Solve each line's separators ``s = L+1, 2(L+1), ..`` from the blocks' spikes (one thread per line).
-
-    Separator ``s`` couples to its neighbours ``s - 1`` and ``s + 1``, which
-    :func:`line_blocks` expressed through the separators around them; the
-    result is a tridiagonal system over the separators, solved here by the
-    Thomas algorithm. ``g[s]`` holds the separator's diagonal on entry and its
-    Thomas factor after; ``xo[:, s]`` its right-hand side on entry and its value after.
-    """
-    q = cuda.grid(1)
-    if q >= lines:
-        return
+@cuda.jit(device=True)
+def _solve_separators(xo, Eo, g, yl, yr, q, m, L, nsep, ei):
+    """The separators of line ``m`` (scratch column ``q``): see :func:`line_separators`."""
     k = xo.shape[0]
-    m = m_lo + q
     xc = cuda.local.array(MAX_COORDS, xo.dtype)
     sc = cuda.local.array(2, g.dtype)             # the previous separator's factor, the inverse pivot
     for c in range(k):
@@ -236,6 +219,53 @@ def line_separators(xo, Eo, g, yl, yr, m_lo, lines, L, nsep, ei):
             xc[c] = v
 
 
+@cuda.jit(device=True)
+def _spread(xo, yl, yr, q, m, i, kb, L, nsep):
+    """Node ``i`` of block ``kb`` of line ``m`` plus its separators' values times its spikes."""
+    for c in range(xo.shape[0]):
+        v = xo[c, i, m]
+        if kb > 0:
+            v += yl[i, q] * xo[c, kb * (L + 1), m]
+        if kb < nsep:
+            v += yr[i, q] * xo[c, (kb + 1) * (L + 1), m]
+        xo[c, i, m] = v
+
+
+@cuda.jit(cache=True)
+def line_blocks(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr,
+                m_lo, lines, L, nsep, ob, ei, nm, has_b, nine):
+    """Thomas solve of each block of ``L`` columns of the own-parity lines ``m_lo .. m_lo+lines-1``.
+
+    Thread ``(q, kb)``: line ``m = m_lo + q``, block ``kb`` (columns
+    ``kb (L+1) + 1 ..``, up to the next separator or the last interior column).
+    Writes the block's solution with zero separators into ``xo``, and with
+    ``nsep > 0`` the spikes ``yl``, ``yr`` and, for the separator to its right,
+    its diagonal into ``g`` and its right-hand side into ``xo``. ``Co``, ``NE*``,
+    ``NW*`` are read only for a 9-point level (``nine``).
+    """
+    q, kb = cuda.grid(2)
+    if q >= lines or kb > nsep:
+        return
+    _solve_block(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr, q, m_lo + q, kb, L, nsep, ob, ei, nm,
+                 has_b, nine)
+
+
+@cuda.jit(cache=True)
+def line_separators(xo, Eo, g, yl, yr, m_lo, lines, L, nsep, ei):
+    """Solve each line's separators ``s = L+1, 2(L+1), ..`` from the blocks' spikes (one thread per line).
+
+    Separator ``s`` couples to its neighbours ``s - 1`` and ``s + 1``, which
+    :func:`line_blocks` expressed through the separators around them; the
+    result is a tridiagonal system over the separators, solved here by the
+    Thomas algorithm. ``g[s]`` holds the separator's diagonal on entry and its
+    Thomas factor after; ``xo[:, s]`` its right-hand side on entry and its value after.
+    """
+    q = cuda.grid(1)
+    if q >= lines:
+        return
+    _solve_separators(xo, Eo, g, yl, yr, q, m_lo + q, L, nsep, ei)
+
+
 @cuda.jit(cache=True)
 def line_spread(xo, yl, yr, m_lo, lines, L, nsep):
     """Add the separators' values times the spikes to every block node (thread per node ``(q, i)``)."""
@@ -246,14 +276,37 @@ def line_spread(xo, yl, yr, m_lo, lines, L, nsep):
         kb = nsep
     if q >= lines or i < 1 or i > nu - 2 or i == kb * (L + 1):
         return
+    _spread(xo, yl, yr, q, m_lo + q, i, kb, L, nsep)
+
+
+@cuda.jit(cache=True)
+def line_solve(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr,
+               m_lo, lines, L, nsep, ob, ei, nm, has_b, nine):
+    """:func:`line_blocks`, :func:`line_separators` and :func:`line_spread` in one launch, the same bits.
+
+    A thread block holds every line block of ``blockDim.x`` whole lines: thread
+    ``(x, y)`` is line ``q = blockIdx.x * blockDim.x + x`` (neighbouring threads,
+    neighbouring lines: neighbouring addresses) and its block ``kb = y``
+    (``blockDim.y = nsep + 1``). After a barrier one thread a line solves its
+    separators, and after another each thread adds them to its own block's nodes.
+    One launch a colour instead of three, and no wait for the other lines' blocks.
+    """
+    q = cuda.blockIdx.x * cuda.blockDim.x + cuda.threadIdx.x
+    kb = cuda.threadIdx.y
+    live = q < lines and kb <= nsep
     m = m_lo + q
-    for c in range(xo.shape[0]):
-        v = xo[c, i, m]
-        if kb > 0:
-            v += yl[i, q] * xo[c, kb * (L + 1), m]
-        if kb < nsep:
-            v += yr[i, q] * xo[c, (kb + 1) * (L + 1), m]
-        xo[c, i, m] = v
+    if live:
+        _solve_block(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr, q, m, kb, L, nsep, ob, ei, nm,
+                     has_b, nine)
+    cuda.syncthreads()                        # every block's spikes and separator terms are written
+    if live and kb == 0:
+        _solve_separators(xo, Eo, g, yl, yr, q, m, L, nsep, ei)
+    cuda.syncthreads()                        # the separators' values are written
+    if live:
+        a = kb * (L + 1) + 1
+        z = xo.shape[1] - 2 if kb == nsep else a + L - 1
+        for i in range(a, z + 1):
+            _spread(xo, yl, yr, q, m, i, kb, L, nsep)
 
 
 # --- transfers between levels ----------------------------------------------------------------------------

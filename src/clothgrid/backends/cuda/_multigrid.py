@@ -20,6 +20,7 @@ import numpy as np
 from ...multigrid_levels import Level
 from . import _kernels as K
 from ._sim import array_module, kernel_array
+from ._transfer import download, upload
 
 #: Threads per block of the node kernels and of the line kernels.
 NODE_THREADS = 256
@@ -28,9 +29,11 @@ LINE_THREADS = 128
 MAX_STEP_ROWS = 32
 #: Smallest block of columns per thread of a line solve (see :func:`line_block`).
 MIN_LINE_BLOCK = 32
-#: Bytes per chunk when the grid is copied to the host.
-DOWNLOAD_BYTES = 64 << 20
-
+#: Threads per block of the fused line solve (:func:`~._kernels.line_solve`): whole lines of
+#: ``nsep + 1`` threads each, as many lines as fit (at least one).
+FUSED_THREADS = 256
+#: Whether a partitioned line solve is one launch (:func:`~._kernels.line_solve`) or three.
+FUSED_LINE_SOLVE = True
 
 def line_block(nu: int) -> int:
     """Columns per block of the partitioned line solves for lines of ``nu`` nodes.
@@ -85,10 +88,12 @@ class CudaMultigrid:
         ``(nu-2, nv-2, k)`` level-0 right-hand side over interior nodes (zero if omitted).
     block : int, optional
         Columns per block of the line solves (default :func:`line_block`).
+    fused : bool, optional
+        A partitioned line solve in one launch (default :data:`FUSED_LINE_SOLVE`): the same bits.
     """
 
     def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
-                 block: int | None = None):
+                 block: int | None = None, fused: bool | None = None):
         nu, nv, k = x0.shape
         if k > K.MAX_COORDS:
             raise ValueError(f"the cuda multigrid solves at most {K.MAX_COORDS} coordinates, not {k}")
@@ -101,6 +106,8 @@ class CudaMultigrid:
         self.nv = [lv.shape[1] for lv in levels]
         self.block = block or line_block(nu)
         self.nsep = max(0, (nu - 3) // (self.block + 1))
+        # one launch a colour where a thread block holds a whole line's blocks (CUDA: 1024 threads)
+        self.fused = (FUSED_LINE_SOLVE if fused is None else fused) and 0 < self.nsep < 1024
         self.x = [self._split(x0)]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
@@ -133,7 +140,7 @@ class CudaMultigrid:
     def _split(self, grid: np.ndarray):
         """Upload an ``(nu, nv, k)`` float64 grid as parity planes."""
         nu, nv, k = grid.shape
-        full = kernel_array(self._xp.asarray(np.ascontiguousarray(grid, dtype=np.float64)))
+        full = kernel_array(upload(grid, self._xp))   # any strides: chunks through pinned buffers
         planes = tuple(self._zeros((k, nu, n)) for n in _planes(nv))
         blocks, threads = launch(nv, nu, NODE_THREADS)
         K.split_grid[blocks, threads, self.stream](full, *planes)
@@ -187,9 +194,13 @@ class CudaMultigrid:
                            (NWe, NWo)[p], (NWe, NWo)[q])
                 flags = (1, 1, True, True)
             ob = 0 if p == 1 else -1
+            args = (own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block, self.nsep, ob, *flags)
+            if self.fused:
+                per = min(lines, max(1, FUSED_THREADS // (self.nsep + 1)))   # lines per thread block
+                K.line_solve[(lines + per - 1) // per, (per, self.nsep + 1), self.stream](*args)
+                continue
             blocks, threads = launch(lines, self.nsep + 1, LINE_THREADS)
-            K.line_blocks[blocks, threads, self.stream](own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block,
-                                           self.nsep, ob, *flags)
+            K.line_blocks[blocks, threads, self.stream](*args)
             if self.nsep:
                 blocks, threads = launch(lines, 1, LINE_THREADS)
                 K.line_separators[blocks, threads, self.stream](own, E, g, yl, yr, m_lo, lines, self.block, self.nsep, flags[0])
@@ -343,16 +354,14 @@ class CudaMultigrid:
         """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides).
 
         The parity planes are merged into a device grid, copied to ``out`` in
-        chunks of rows ``i`` of at most ``DOWNLOAD_BYTES``.
+        chunks of rows ``i`` through pinned buffers (:mod:`._transfer`).
         """
         nu, nv, k = self._shape
         grid = self._xp.empty(self._shape)
         blocks, threads = launch(nv, nu, NODE_THREADS)
         K.merge_grid[blocks, threads, self.stream](*self.x[0], kernel_array(grid))
-        to_host = getattr(self._xp, "asnumpy", np.asarray)
-        rows = max(1, DOWNLOAD_BYTES // (8 * nv * k))
-        for i in range(0, nu, rows):
-            out[i:i + rows] = to_host(grid[i:i + rows])
+        self.synchronize()   # the copies run on a stream of their own
+        download(grid, out)
 
     def extra(self) -> dict[str, Any]:
         """No keys for the result's info: ``{}`` (the backend's ``describe`` adds the ``cuda_*`` keys)."""
