@@ -128,6 +128,7 @@ def test_each_operation_matches_cpu(rng, shape, kind, k, block, with_rhs):
 ])
 def test_fused_line_solve_gives_the_three_kernels_bits(rng, monkeypatch, shape, kind, k, block, threads):
     monkeypatch.setattr(_multigrid, "FUSED_THREADS", threads)
+    monkeypatch.setattr(_multigrid, "FUSED_MAX_LINES", 1 << 30)
     nu, nv = shape
     levels = build_hierarchy(make_weights(random_weights(rng, nu, nv) if kind == "random" else kind, nu, nv))
     x0 = rng.standard_normal((nu, nv, k))

@@ -32,8 +32,11 @@ MIN_LINE_BLOCK = 32
 #: Threads per block of the fused line solve (:func:`~._kernels.line_solve`): whole lines of
 #: ``nsep + 1`` threads each, as many lines as fit (at least one).
 FUSED_THREADS = 256
-#: Whether a partitioned line solve is one launch (:func:`~._kernels.line_solve`) or three.
+#: Whether a partitioned line solve may be one launch (:func:`~._kernels.line_solve`) or is three.
 FUSED_LINE_SOLVE = True
+#: The fused line solve runs on a colour of at most this many lines; more lines take the three
+#: kernels, whose blocks of 32 neighbouring lines read memory in wider runs (see docs/performance.md).
+FUSED_MAX_LINES = 32
 
 def line_block(nu: int) -> int:
     """Columns per block of the partitioned line solves for lines of ``nu`` nodes.
@@ -89,7 +92,8 @@ class CudaMultigrid:
     block : int, optional
         Columns per block of the line solves (default :func:`line_block`).
     fused : bool, optional
-        A partitioned line solve in one launch (default :data:`FUSED_LINE_SOLVE`): the same bits.
+        A partitioned line solve in one launch on colours of at most :data:`FUSED_MAX_LINES` lines
+        (default :data:`FUSED_LINE_SOLVE`): the same bits.
     """
 
     def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
@@ -195,7 +199,7 @@ class CudaMultigrid:
                 flags = (1, 1, True, True)
             ob = 0 if p == 1 else -1
             args = (own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block, self.nsep, ob, *flags)
-            if self.fused:
+            if self.fused and lines <= FUSED_MAX_LINES:
                 per = min(lines, max(1, FUSED_THREADS // (self.nsep + 1)))   # lines per thread block
                 K.line_solve[(lines + per - 1) // per, (per, self.nsep + 1), self.stream](*args)
                 continue

@@ -1,0 +1,100 @@
+"""Which colours of a cuda multigrid the fused line solve should take: timings to choose the rule.
+
+    python benchmarks/gpu_line_solve.py 1024 4096 8192
+
+For each size (the T-shirt front, paper weights, two coordinates) and each
+level, one zebra sweep (``smooth``) is timed, device-synchronised, with the
+three kernels (``line_blocks``, ``line_separators``, ``line_spread``) and with
+the fused ``line_solve`` at several thread-block sizes (``FUSED_THREADS``:
+whole lines of ``nsep + 1`` threads, as many as fit). Then the V-cycle and the
+full-multigrid start are timed under each candidate rule ``FUSED_MAX_LINES``
+(the fused kernel on colours of at most that many lines), all in the same
+run, with the ratio to the three kernels everywhere. The fused kernel's
+registers per thread are printed (a thread block needs them all at once).
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+THREADS = (128, 256, 512, 1024)
+MAX_LINES = (0, 16, 32, 64, 128, 1 << 30)
+
+
+def timed(fn, sync, reps=10):
+    fn()
+    sync()
+    out = []
+    for _ in range(reps):
+        t = time.perf_counter()
+        fn()
+        sync()
+        out.append(time.perf_counter() - t)
+    return statistics.median(out)
+
+
+def main(sizes):
+    import clothgrid
+    from clothgrid import load_boundary
+    from clothgrid.backends import cuda
+    from clothgrid.backends.cuda import _kernels as K
+    from clothgrid.backends.cuda import _multigrid as M
+    from clothgrid.initial import initial_grid
+    from clothgrid.solvers.multigrid import build_hierarchy, fmg, vcycle
+    from clothgrid.weights import make_weights
+
+    cuda.require()
+    b = load_boundary(ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json")
+    clothgrid.generate(b, (300, 300), backend="cuda")   # compile
+    default_threads, default_lines = M.FUSED_THREADS, M.FUSED_MAX_LINES
+    for n in sizes:
+        bn = b.resampled(n, n)
+        x0 = initial_grid(bn, "tfi")[..., :2]
+        ops = cuda.multigrid(build_hierarchy(make_weights("paper", n, n)), x0)
+        sync = ops.synchronize
+        print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
+        print("  level  lines  three kernels ms  " + "  ".join(f"fused {t:4d} thr" for t in THREADS), flush=True)
+        M.FUSED_MAX_LINES = 1 << 30
+        for lvl in range(ops.levels):
+            ops.fused = False
+            three = timed(lambda: ops.smooth(lvl), sync)
+            cells = []
+            for t in THREADS:
+                M.FUSED_THREADS = t
+                ops.fused = ops.nsep > 0
+                try:
+                    one = timed(lambda: ops.smooth(lvl), sync)
+                    cells.append(f"{one * 1e3:8.3f} ({three / one:4.2f}x)")
+                except Exception as exc:   # too many resources for a launch of this size: say so
+                    cells.append(f"{type(exc).__name__[:18]:>18}")
+            print(f"  {lvl:5d}  {(ops.nv[lvl] - 1) // 2:5d}  {three * 1e3:16.3f}  " + "  ".join(cells), flush=True)
+        M.FUSED_THREADS = default_threads
+        ops.fused = False
+        v3, f3 = timed(lambda: vcycle(ops), sync), timed(lambda: fmg(ops), sync, 3)
+        print(f"  three kernels everywhere: V-cycle {v3 * 1e3:.2f} ms, full-multigrid start {f3 * 1e3:.2f} ms")
+        for t in (256, 512):
+            M.FUSED_THREADS = t
+            for lines in MAX_LINES[1:]:
+                M.FUSED_MAX_LINES = lines
+                ops.fused = ops.nsep > 0
+                try:
+                    v, f = timed(lambda: vcycle(ops), sync), timed(lambda: fmg(ops), sync, 3)
+                    print(f"  fused on colours of <= {lines} lines, {t} threads: V-cycle {v * 1e3:.2f} ms "
+                          f"({v3 / v:.2f}x), full-multigrid start {f * 1e3:.2f} ms ({f3 / f:.2f}x)", flush=True)
+                except Exception as exc:
+                    print(f"  fused on colours of <= {lines} lines, {t} threads: {type(exc).__name__}: {exc}")
+        M.FUSED_THREADS, M.FUSED_MAX_LINES = default_threads, default_lines
+        del ops
+    try:
+        print("registers per thread, line_solve:", K.line_solve.get_regs_per_thread())
+        print("registers per thread, line_blocks:", K.line_blocks.get_regs_per_thread())
+    except Exception as exc:
+        print(f"registers: {type(exc).__name__}: {exc}")
+
+
+if __name__ == "__main__":
+    main([int(a) for a in sys.argv[1:]] or [4096])
