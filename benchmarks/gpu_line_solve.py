@@ -7,9 +7,10 @@ level, one zebra sweep (``smooth``) is timed, device-synchronised, with the
 three kernels (``line_blocks``, ``line_separators``, ``line_spread``) and with
 the fused ``line_solve`` at several thread-block sizes (``FUSED_THREADS``:
 whole lines of ``nsep + 1`` threads, as many as fit). Then the V-cycle and the
-full-multigrid start are timed under each candidate rule ``FUSED_MAX_LINES``
-(the fused kernel on colours of at most that many lines), all in the same
-run, with the ratio to the three kernels everywhere. The fused kernel's
+full-multigrid start are timed with the fused kernel on colours of at most
+``MAX_LINES`` lines (a rule that was tried; the one kept, ``FUSED_MAX_BLOCK``,
+fuses every level or none by the line blocks' length), all in the same run,
+with the ratio to the three kernels everywhere. The fused kernel's
 registers per thread are printed (a thread block needs them all at once).
 """
 
@@ -50,7 +51,21 @@ def main(sizes):
     cuda.require()
     b = load_boundary(ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json")
     clothgrid.generate(b, (300, 300), backend="cuda")   # compile
-    default_threads, default_lines = M.FUSED_THREADS, M.FUSED_MAX_LINES
+    default_threads, default_block = M.FUSED_THREADS, M.FUSED_MAX_BLOCK
+    M.FUSED_MAX_BLOCK = 1 << 30          # the fused kernel wherever this script asks for it
+    smooth = M.CudaMultigrid.smooth
+
+    def smooth_up_to(self, level, reverse=False):
+        """The fused kernel on colours of at most MAX_LINES_NOW lines, the three kernels elsewhere."""
+        fused = self.fused
+        self.fused = fused and (self.nv[level] - 1) // 2 <= max_lines[0]
+        try:
+            smooth(self, level, reverse)
+        finally:
+            self.fused = fused
+
+    max_lines = [1 << 30]
+    M.CudaMultigrid.smooth = smooth_up_to
     for n in sizes:
         bn = b.resampled(n, n)
         x0 = initial_grid(bn, "tfi")[..., :2]
@@ -58,7 +73,7 @@ def main(sizes):
         sync = ops.synchronize
         print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
         print("  level  lines  three kernels ms  " + "  ".join(f"fused {t:4d} thr" for t in THREADS), flush=True)
-        M.FUSED_MAX_LINES = 1 << 30
+        max_lines[0] = 1 << 30
         for lvl in range(ops.levels):
             ops.fused = False
             three = timed(lambda: ops.smooth(lvl), sync)
@@ -79,7 +94,7 @@ def main(sizes):
         for t in (256, 512):
             M.FUSED_THREADS = t
             for lines in MAX_LINES[1:]:
-                M.FUSED_MAX_LINES = lines
+                max_lines[0] = lines
                 ops.fused = ops.nsep > 0
                 try:
                     v, f = timed(lambda: vcycle(ops), sync), timed(lambda: fmg(ops), sync, 3)
@@ -87,8 +102,9 @@ def main(sizes):
                           f"({v3 / v:.2f}x), full-multigrid start {f * 1e3:.2f} ms ({f3 / f:.2f}x)", flush=True)
                 except Exception as exc:
                     print(f"  fused on colours of <= {lines} lines, {t} threads: {type(exc).__name__}: {exc}")
-        M.FUSED_THREADS, M.FUSED_MAX_LINES = default_threads, default_lines
+        M.FUSED_THREADS = default_threads
         del ops
+    M.FUSED_MAX_BLOCK, M.CudaMultigrid.smooth = default_block, smooth
     try:
         print("registers per thread, line_solve:", K.line_solve.get_regs_per_thread())
         print("registers per thread, line_blocks:", K.line_blocks.get_regs_per_thread())

@@ -128,7 +128,6 @@ def test_each_operation_matches_cpu(rng, shape, kind, k, block, with_rhs):
 ])
 def test_fused_line_solve_gives_the_three_kernels_bits(rng, monkeypatch, shape, kind, k, block, threads):
     monkeypatch.setattr(_multigrid, "FUSED_THREADS", threads)
-    monkeypatch.setattr(_multigrid, "FUSED_MAX_LINES", 1 << 30)
     nu, nv = shape
     levels = build_hierarchy(make_weights(random_weights(rng, nu, nv) if kind == "random" else kind, nu, nv))
     x0 = rng.standard_normal((nu, nv, k))
@@ -142,6 +141,15 @@ def test_fused_line_solve_gives_the_three_kernels_bits(rng, monkeypatch, shape, 
             three.smooth(lvl, reverse)
             for n, (a, b) in enumerate(zip(arrays(one), arrays(three))):
                 assert np.array_equal(read(a), read(b)), f"level {lvl}, reverse {reverse}: array {n}"
+
+
+def test_the_fused_line_solve_where_line_blocks_are_short(rng):
+    levels = build_hierarchy(make_weights("paper", 40, 7))
+    x0 = rng.standard_normal((40, 7, 2))
+    assert _multigrid.CudaMultigrid(levels, x0).fuses()                       # block 32: two blocks a line
+    assert _multigrid.CudaMultigrid(levels, x0, block=_multigrid.FUSED_MAX_BLOCK - 20).fuses()
+    assert not _multigrid.CudaMultigrid(levels, x0, block=_multigrid.FUSED_MAX_BLOCK - 20, fused=False).fuses()
+    assert not _multigrid.CudaMultigrid(levels, x0, block=_multigrid.FUSED_MAX_BLOCK + 1).fuses()
 
 
 @pytest.mark.parametrize("rows_per_chunk", [3, 4, 100])

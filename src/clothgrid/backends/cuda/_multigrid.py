@@ -34,9 +34,12 @@ MIN_LINE_BLOCK = 32
 FUSED_THREADS = 256
 #: Whether a partitioned line solve may be one launch (:func:`~._kernels.line_solve`) or is three.
 FUSED_LINE_SOLVE = True
-#: The fused line solve runs on a colour of at most this many lines; more lines take the three
-#: kernels, whose blocks of 32 neighbouring lines read memory in wider runs (see docs/performance.md).
-FUSED_MAX_LINES = 32
+#: The fused line solve runs where the line blocks have at most this many columns (lines of up to
+#: about 1100 nodes). Its threads add the separators to their own block's ``L`` nodes one after
+#: another, where ``line_spread`` takes a thread a node: measured on an H200 (docs/performance.md), one
+#: launch instead of three wins at ``L = 32`` (a V-cycle at 1024^2 1.55x faster) and loses from ``L = 64``
+#: (4096^2: 0.77x) on every level, wide or narrow.
+FUSED_MAX_BLOCK = 32
 
 def line_block(nu: int) -> int:
     """Columns per block of the partitioned line solves for lines of ``nu`` nodes.
@@ -92,8 +95,8 @@ class CudaMultigrid:
     block : int, optional
         Columns per block of the line solves (default :func:`line_block`).
     fused : bool, optional
-        A partitioned line solve in one launch on colours of at most :data:`FUSED_MAX_LINES` lines
-        (default :data:`FUSED_LINE_SOLVE`): the same bits.
+        A partitioned line solve in one launch where its blocks have at most :data:`FUSED_MAX_BLOCK`
+        columns (default :data:`FUSED_LINE_SOLVE`): the same bits.
     """
 
     def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
@@ -199,7 +202,7 @@ class CudaMultigrid:
                 flags = (1, 1, True, True)
             ob = 0 if p == 1 else -1
             args = (own, other, b, *stencil, g, yl, yr, m_lo, lines, self.block, self.nsep, ob, *flags)
-            if self.fused and lines <= FUSED_MAX_LINES:
+            if self.fuses():
                 per = min(lines, max(1, FUSED_THREADS // (self.nsep + 1)))   # lines per thread block
                 K.line_solve[(lines + per - 1) // per, (per, self.nsep + 1), self.stream](*args)
                 continue
@@ -210,6 +213,10 @@ class CudaMultigrid:
                 K.line_separators[blocks, threads, self.stream](own, E, g, yl, yr, m_lo, lines, self.block, self.nsep, flags[0])
                 blocks, threads = launch(lines, own.shape[1], NODE_THREADS)
                 K.line_spread[blocks, threads, self.stream](own, yl, yr, m_lo, lines, self.block, self.nsep)
+
+    def fuses(self) -> bool:
+        """Whether :meth:`smooth` solves its lines in one launch (:func:`~._kernels.line_solve`)."""
+        return self.fused and self.block <= FUSED_MAX_BLOCK
 
     def _coarse_launch(self, level: int):
         """Blocks and threads over level ``level + 1``'s nodes ``(J, i)``."""
