@@ -16,47 +16,26 @@ registers per thread are printed (a thread block needs them all at once).
 
 from __future__ import annotations
 
-import statistics
 import sys
-import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from gpu_ops import piece, timed, uploaded   # benchmarks/, the script's own folder
+
 THREADS = (128, 256, 512, 1024)
 MAX_LINES = (0, 16, 32, 64, 128, 1 << 30)
 
 
-def timed(fn, sync, reps=10):
-    fn()
-    sync()
-    out = []
-    for _ in range(reps):
-        t = time.perf_counter()
-        fn()
-        sync()
-        out.append(time.perf_counter() - t)
-    return statistics.median(out)
-
-
 def main(sizes):
-    import clothgrid
-    from clothgrid import load_boundary
-    from clothgrid.backends import cuda
     from clothgrid.backends.cuda import _kernels as K
     from clothgrid.backends.cuda import _multigrid as M
-    from clothgrid.initial import initial_grid
-    from clothgrid.solvers.multigrid import build_hierarchy, fmg, vcycle
-    from clothgrid.weights import make_weights
+    from clothgrid.solvers.multigrid import fmg, vcycle
 
-    cuda.require()
-    b = load_boundary(ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json")
-    clothgrid.generate(b, (300, 300), backend="cuda")   # compile
+    b = piece()
     default_threads, default_block = M.FUSED_THREADS, M.FUSED_MAX_BLOCK
     M.FUSED_MAX_BLOCK = 1 << 30          # the fused kernel wherever this script asks for it
     smooth = M.CudaMultigrid.smooth
 
     def smooth_up_to(self, level, reverse=False):
-        """The fused kernel on colours of at most MAX_LINES_NOW lines, the three kernels elsewhere."""
+        """The fused kernel on colours of at most max_lines[0] lines, the three kernels elsewhere."""
         fused = self.fused
         self.fused = fused and (self.nv[level] - 1) // 2 <= max_lines[0]
         try:
@@ -67,11 +46,8 @@ def main(sizes):
     max_lines = [1 << 30]
     M.CudaMultigrid.smooth = smooth_up_to
     for n in sizes:
-        bn = b.resampled(n, n)
-        x0 = initial_grid(bn, "tfi")[..., :2]
-        ops = cuda.multigrid(build_hierarchy(make_weights("paper", n, n)), x0)
+        _, ops = uploaded(b, n)
         sync = ops.synchronize
-        print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
         print("  level  lines  three kernels ms  " + "  ".join(f"fused {t:4d} thr" for t in THREADS), flush=True)
         max_lines[0] = 1 << 30
         for lvl in range(ops.levels):

@@ -39,25 +39,41 @@ def timed(fn, sync, reps=10):
     return statistics.median(out)
 
 
-def main(sizes):
+def piece():
+    """The T-shirt front, after a warm-up solve on the GPU (every kernel compiled or loaded)."""
     import clothgrid
     from clothgrid import load_boundary
     from clothgrid.backends import cuda
-    from clothgrid.backends.cuda import _multigrid
-    from clothgrid.initial import initial_grid
-    from clothgrid.solvers.multigrid import build_hierarchy, fmg, vcycle
-    from clothgrid.weights import make_weights
 
     cuda.require()
     b = load_boundary(ROOT / "src" / "clothgrid" / "data" / "tshirt_front.json")
     clothgrid.generate(b, (300, 300), backend="cuda")   # compile
+    return b
+
+
+def uploaded(b, n):
+    """``(x0, ops)``: the piece's ``n x n`` TFI grid (two coordinates) and its cuda multigrid, paper
+    weights; the level counts printed."""
+    from clothgrid.backends import cuda
+    from clothgrid.initial import initial_grid
+    from clothgrid.solvers.multigrid import build_hierarchy
+    from clothgrid.weights import make_weights
+
+    x0 = initial_grid(b.resampled(n, n), "tfi")[..., :2]
+    ops = cuda.multigrid(build_hierarchy(make_weights("paper", n, n)), x0)
+    print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
+    return x0, ops
+
+
+def main(sizes):
+    import clothgrid
+    from clothgrid.backends.cuda import _multigrid
+    from clothgrid.solvers.multigrid import fmg, vcycle
+
+    b = piece()
     for n in sizes:
-        bn = b.resampled(n, n)
-        x0 = initial_grid(bn, "tfi")[..., :2]
-        levels = build_hierarchy(make_weights("paper", n, n))
-        ops = cuda.multigrid(levels, x0)
+        x0, ops = uploaded(b, n)
         sync = ops.synchronize
-        print(f"{n}x{n}: {ops.levels} levels, line block {ops.block}, {ops.nsep} separators a line", flush=True)
         transfers(ops, x0)
 
         def both(fn, reps=10):
