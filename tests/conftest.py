@@ -111,3 +111,37 @@ def fake_cgroup(folder, files: dict[str, str], proc: str) -> tuple[str, str]:
         (root / rel).write_text(text)
     (root / "proc").write_text(proc)
     return str(root / "fs"), str(root / "proc")
+
+
+def in_forked_child(fn, timeout: float = 60.0) -> str:
+    """What ``fn()`` (a string) returns in a child made by ``os.fork()``, or ``"timeout"`` if the child
+    has not answered after ``timeout`` seconds (it is then killed): a test of what survives a fork
+    must not hang the run when it fails."""
+    import select
+    import signal
+
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:   # the child: answer through the pipe, never return into pytest
+        code = 0
+        try:
+            os.close(r)
+            os.write(w, str(fn()).encode())
+        except BaseException as exc:   # noqa: BLE001 - reported to the parent
+            os.write(w, f"{type(exc).__name__}: {exc}".encode())
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(w)
+    try:
+        ready, _, _ = select.select([r], [], [], timeout)
+        if not ready:
+            os.kill(pid, signal.SIGKILL)
+            return "timeout"
+        chunks = []
+        while chunk := os.read(r, 1 << 16):
+            chunks.append(chunk)
+        return b"".join(chunks).decode()
+    finally:
+        os.close(r)
+        os.waitpid(pid, 0)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import smooth_quad_sides
+from conftest import in_forked_child, smooth_quad_sides
 from reference import exact_solution, max_rel_error, paper_weights
 
 import clothgrid
@@ -119,6 +119,20 @@ def test_kernels_compile_for_a_gpu(monkeypatch):
         for sig in variants:
             ptx, _ = ncuda.compile_ptx(getattr(_kernels, kernel_name).py_func, sig, cc=cc)
             assert f".target sm_{cc[0]}{cc[1]}" in ptx and ".entry" in ptx, kernel_name
+
+
+def test_a_process_forked_after_cuda_started_is_told_why(monkeypatch):
+    """A CUDA context does not survive fork(): a child forked after the parent found a GPU (and so
+    started CUDA) gets the reason instead of CUDA's errors; the simulator, the parent, and a parent
+    that found none are left as they were."""
+    monkeypatch.setattr(_device, "_PROBE", _device.Device("Test GPU", simulated=False))
+    said = in_forked_child(lambda: "|".join(map(str, cuda.available())))
+    assert said.startswith("False|backend 'cuda' cannot run in a process forked after its parent used CUDA"), said
+    assert cuda.available() == (True, "Test GPU")
+    monkeypatch.setattr(_device, "_PROBE", _device.Device(_device.SIMULATOR, simulated=True))
+    assert in_forked_child(lambda: "|".join(map(str, cuda.available()))) == f"True|{_device.SIMULATOR}"
+    monkeypatch.setattr(_device, "_PROBE", "no GPU (test)")
+    assert in_forked_child(lambda: "|".join(map(str, cuda.available()))) == "False|no GPU (test)"
 
 
 def test_device_memory_estimates():

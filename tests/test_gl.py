@@ -12,7 +12,7 @@ import threading
 
 import numpy as np
 import pytest
-from conftest import smooth_quad_sides
+from conftest import in_forked_child, smooth_quad_sides
 from reference import exact_solution, max_rel_error, paper_weights, uniform_weights
 
 import clothgrid
@@ -249,6 +249,27 @@ def test_unavailable_backend_says_why(rng, monkeypatch):
     with pytest.raises(clothgrid.BackendUnavailableError, match=r"\(test\)"):   # remembered
         clothgrid.generate(quad(rng, 9, 9), backend="gl")
     assert gl.available() == (False, "backend 'gl' could not create ... (test)")
+
+
+def test_a_process_forked_after_a_gl_solve_is_told_why_instead_of_waiting(rng):
+    """A driver's context does not survive fork(): in a child forked after the parent's first gl
+    solve, llvmpipe's first compute dispatch waited for ever (a multiprocessing Pool on fork hung).
+    The child is now refused with the reason, and backend 'auto' still grids there (the cpu)."""
+    b = quad(rng, 9, 9)
+    clothgrid.generate(b, backend="gl")         # the parent has a context
+
+    def child():
+        g = clothgrid.generate(b)                # auto: the cpu, unaffected
+        try:
+            clothgrid.generate(b, backend="gl")
+        except clothgrid.BackendUnavailableError as exc:
+            return f"{g.info['backend']}|{exc}"
+        return "gl ran"
+
+    said = in_forked_child(child)
+    assert said.startswith("cpu|backend 'gl' cannot run in a process forked"), said
+    assert "'spawn' or 'forkserver'" in said
+    assert clothgrid.generate(b, backend="gl").info["backend"] == "gl"    # the parent's context still works
 
 
 def test_missing_moderngl_says_how_to_install(monkeypatch):

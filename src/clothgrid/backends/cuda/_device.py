@@ -21,6 +21,22 @@ _INSTALL = "pip install 'clothgrid[cuda]'"
 
 _PROBE: Device | str | None = None   # the answer of probe(), once asked
 
+#: What a process forked after its parent had started CUDA is told (:func:`_forked`).
+FORKED = ("backend 'cuda' cannot run in a process forked after its parent used CUDA: a CUDA context "
+          "does not survive fork(). Start worker processes with multiprocessing's 'spawn' or "
+          "'forkserver' method, or use backend 'cpu'")
+
+
+def _forked() -> None:
+    """In a forked child of a parent that found a GPU (and so started CUDA): the backend is
+    unavailable, with the reason. The simulator's NumPy arrays survive a fork: it stays."""
+    global _PROBE
+    if isinstance(_PROBE, Device) and not _PROBE.simulated:
+        _PROBE = FORKED
+
+
+os.register_at_fork(after_in_child=_forked)
+
 
 @dataclass(frozen=True)
 class Device:

@@ -28,6 +28,24 @@ _LOCK = threading.RLock()
 _DEVICE: "Device | None" = None
 _FAILURE: str | None = None
 
+#: What a process forked after its parent had made a GL context is told (:func:`_forked`).
+FORKED = ("backend 'gl' cannot run in a process forked after its parent used OpenGL: the driver's "
+          "context and threads do not survive fork() (a compute dispatch would wait for ever). Start "
+          "worker processes with multiprocessing's 'spawn' or 'forkserver' method, or use backend 'cpu'")
+
+
+def _forked() -> None:
+    """In a forked child: where the parent had a context, the driver's state is the parent's (Mesa's
+    llvmpipe waits for ever on its worker threads, which the child does not have; a GPU's context
+    is the parent's), so the backend is unavailable, with the reason; else the child may make its own."""
+    global _LOCK, _DEVICE, _FAILURE
+    _LOCK = threading.RLock()
+    if _DEVICE is not None:
+        _DEVICE, _FAILURE = None, FORKED
+
+
+os.register_at_fork(after_in_child=_forked)
+
 #: GL version the backend needs: 4.3 for compute shaders (the line solves of the multigrid).
 REQUIRED_GL = 430
 #: Software renderers keep textures in the host's memory.
