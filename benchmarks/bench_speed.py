@@ -113,13 +113,21 @@ MEMORY_CHILD = """
 import sys, time
 import clothgrid
 base = clothgrid.load_boundary(sys.argv[1])
+n, kind = int(sys.argv[2]), sys.argv[3]
+if kind == "paper":
+    weights = "paper"
+else:   # per-edge weights, made before the baseline is read (the caller's arrays, not the solve's)
+    sys.path.insert(0, sys.argv[4])
+    from bench_speed import field_weights
+    weights = field_weights(n, kind)
+    clothgrid.generate(base.resampled(33, 33), solver="multigrid", weights=field_weights(33, kind))
 clothgrid.generate(base.resampled(33, 33), solver="multigrid")      # imports and kernels, not per node
 def status(key):
     with open("/proc/self/status") as f:
         return next(int(l.split()[1]) * 1024 for l in f if l.startswith(key))
 before = status("VmRSS")
 t = time.perf_counter()
-g = clothgrid.generate(base, nodes=sys.argv[2], solver="multigrid")
+g = clothgrid.generate(base, nodes=(n, n), solver="multigrid", weights=weights)
 wall = time.perf_counter() - t
 # VmHWM, this process's own high-water mark: getrusage's ru_maxrss keeps the parent's resident size at
 # the fork across exec (a parent that had held 2 GB made a 0.85 GB child read 2.1 GB)
@@ -130,12 +138,14 @@ print(wall, i["solve_seconds"], i["iterations"], i["error_estimate"], peak, befo
 """
 
 
-def memory_row(piece: Path, n: int) -> None:
-    """``generate`` at ``n x n`` in a fresh process: time, peak resident memory, the estimate (``--memory``)."""
-    out = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(piece), f"{n}x{n}"], check=True,
-                         capture_output=True, text=True).stdout.split()
+def memory_row(piece: Path, n: int, kind: str = "paper") -> None:
+    """``generate`` at ``n x n`` in a fresh process: time, peak resident memory, the estimate (``--memory``);
+    ``kind`` the weights: ``paper``, or per-edge ``smooth`` or ``blocks`` (:func:`field_weights`)."""
+    out = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(piece), str(n), kind, str(Path(__file__).parent)],
+                         check=True, capture_output=True, text=True).stdout.split()
     wall, solve, cycles, bound, peak, before, est, setup, cyc, down = (float(x) for x in out)
-    print(f"| {n}^2 | generate, paper weights, fresh process: {wall:.2f} s (solve {solve:.2f} s: set-up {setup:.2f}, "
+    what = "paper weights" if kind == "paper" else f"four weights a node ({kind})"
+    print(f"| {n}^2 | generate, {what}, fresh process: {wall:.2f} s (solve {solve:.2f} s: set-up {setup:.2f}, "
           f"{cycles:.0f} V-cycles {cyc:.2f}, download {down:.2f}; bound {bound:.2g}); peak resident {peak / 1e9:.3f} GB, {(peak - before) / 1e9:.3f} GB above the "
           f"interpreter's; estimate {est / 1e9:.3f} GB ({(est / (peak - before) - 1) * 100:+.0f} %) | {solve:.3g} | | |",
           flush=True)
@@ -236,6 +246,8 @@ def main() -> None:
     ap.add_argument("--only-solves", action="store_true", help="skip the generate, fold-free and CLI rows")
     ap.add_argument("--memory", type=int, nargs="*", default=[], metavar="N",
                     help="also generate at N x N in a fresh process: peak resident memory against the estimate")
+    ap.add_argument("--memory-weights", nargs="*", default=["paper"], choices=["paper", "smooth", "blocks"],
+                    help="the weights of the --memory rows (default paper)")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}, numpy {np.__version__}, "
           f"clothgrid {clothgrid.__version__}, load {os.getloadavg()[0]:.2f}; piece {args.piece.name}\n")
@@ -300,8 +312,9 @@ def main() -> None:
                 sec = cli_time(args.piece, n, args.repeat if n <= 512 or extra else 1, extra)
                 row(f"`clothgrid generate ... -o g.npz`, {what}, subprocess", sec,
                     f"direct / this {direct / sec:.1f}x" if direct else "")
-    for n in args.memory:
-        memory_row(args.piece, n)
+    for kind in args.memory_weights:
+        for n in args.memory:
+            memory_row(args.piece, n, kind)
     print(f"\nload at the end: {os.getloadavg()[0]:.2f}")
 
 

@@ -158,13 +158,15 @@ def multigrid_bytes(nu: int, nv: int, coords: int = 3, separable: bool = False) 
     grid = 24 * n
     planes = 8 * coords * n
     held = hierarchy_bytes(nu, nv, coords, separable=True) - planes          # coarse levels and scratch
-    # weights without a separable form: their arrays (16), the stencils, and the barrier solve's own
-    # operations (one coordinate: start grid, right-hand side, parity planes and coarse levels in fresh
-    # memory, 24 more at its peak: measured 0.571 GB above the start at 2048^2 against 0.470 without it)
-    # and conjugate gradients' three level-0 vectors where V-cycles are slow (float64, every
-    # coordinate: solvers.multigrid.ConjugateGradients; the barrier solve's three, one coordinate,
-    # are freed before)
-    extra = 0 if separable else (40 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
+    # weights without a separable form: the stencils (level 0's edge weights split by parity, the coarse
+    # levels' four arrays), the barrier solve's right-hand side (the diagonal, 8: its iterate, planes and
+    # coarse levels are carved out of the solve's own dead coarse levels and scratch, MultigridOps.spare),
+    # and conjugate gradients' three level-0 vectors where V-cycles are slow (float64, every coordinate:
+    # solvers.multigrid.ConjugateGradients; the barrier solve's three, one coordinate, are freed before).
+    # Measured above the start, two coordinates: 10:1 blocks (conjugate gradients) 0.582 GB at 2048^2
+    # and 2.396 GB at 4096^2 against 0.604 and 2.416 counted here; a smooth field (V-cycles only)
+    # 0.409 and 1.755 GB (benchmarks/bench_speed.py --memory 2048 4096 --memory-weights smooth blocks)
+    extra = 0 if separable else (8 * n + hierarchy_bytes(nu, nv, coords, separable=False) - planes - held
                                  + 24 * coords * n)
     # the coarse levels and scratch live in the grid's memory (an Arena over it), what does not fit beside
     return grid + planes + max(0, held - grid) + extra

@@ -260,11 +260,28 @@ def hierarchy_bytes(nu: int, nv: int, ncoords: int = 3, separable: bool = False)
     formed and split (32); and the line solves' per-thread scratch (``12 LINE_BLOCK`` bytes a
     column and thread).
     """
-    import os
-
     n = nu * nv
-    scratch = 12 * LINE_BLOCK * (os.cpu_count() or 1) * (nu + 1)   # the line solves' factors, float64 and float32
+    scratch = 12 * LINE_BLOCK * numba_threads() * (nu + 1)   # the line solves' factors, float64 and float32
     return 16 * ncoords * n + (0 if separable else 48 * n) + scratch
+
+
+def numba_threads() -> int:
+    """The threads Numba runs its parallel kernels on (the line-solve scratch has one slice each):
+    its configuration where Numba is loaded, else what it will read, ``NUMBA_NUM_THREADS`` (which
+    ``import clothgrid`` sets under a container's CPU quota) or the processors this process may use,
+    without loading Numba for it."""
+    import os
+    import sys
+
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        return int(numba.config.NUMBA_NUM_THREADS)
+    from .cgroups import processors
+
+    try:
+        return max(1, int(os.environ.get("NUMBA_NUM_THREADS", "")))
+    except ValueError:
+        return processors()
 
 
 def coarsen(level: Level, dtype: type = np.float32) -> Level:
