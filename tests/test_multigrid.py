@@ -364,11 +364,39 @@ def test_memory_estimate_covers_multigrid():
     n = 4096 * 4096
     sep = estimate_bytes("multigrid", 4096, 4096, separable=True)
     assert estimate_bytes("fdm", 4096, 4096) > sep > (24 + 8 * 3) * n     # at least the grid and its planes
-    # per-edge weights: their arrays, the stencils, and conjugate gradients' three float64 vectors
-    # of every coordinate (where V-cycles are slow) come on top
+    # per-edge weights: the barrier solve's right-hand side (8), the stencils (48: level 0's edge weights
+    # by parity, four coarse arrays) and conjugate gradients' three float64 vectors of every coordinate
+    # (where V-cycles are slow) come on top of the solve's own (the outputs' phase can be larger)
     for coords in (2, 3):
-        assert (estimate_bytes("multigrid", 4096, 4096, coords=coords)
-                - estimate_bytes("multigrid", 4096, 4096, coords=coords, separable=True)) >= (16 + 24 * coords) * n
+        assert (estimate_bytes("multigrid", 4096, 4096, coords=coords, outputs=False)
+                - estimate_bytes("multigrid", 4096, 4096, coords=coords, separable=True, outputs=False)
+                >= (8 + 48 + 24 * coords) * n)
+
+
+def test_the_scratch_estimate_counts_numbas_threads(monkeypatch):
+    """The line solves' scratch has a slice per Numba thread: hierarchy_bytes counts Numba's
+    threads (under a CPU quota fewer than the machine's cores), read without loading Numba."""
+    import os
+    import subprocess
+    import sys
+
+    import numba
+
+    from clothgrid.multigrid_levels import LINE_BLOCK, hierarchy_bytes, numba_threads
+
+    assert numba_threads() == numba.config.NUMBA_NUM_THREADS
+    one = hierarchy_bytes(100, 50, 2, separable=True)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", numba.config.NUMBA_NUM_THREADS + 3)
+    assert hierarchy_bytes(100, 50, 2, separable=True) - one == 3 * 12 * LINE_BLOCK * 101
+    code = "import sys, clothgrid.multigrid_levels as m; print('numba' in sys.modules, m.numba_threads())"
+    for env, want in (({"NUMBA_NUM_THREADS": "3"}, "False 3"), ({"NUMBA_NUM_THREADS": "x"}, None)):
+        out = subprocess.run([sys.executable, "-c", code], env={**os.environ, **env}, capture_output=True,
+                             text=True, check=True).stdout.strip()
+        if want:
+            assert out == want
+        else:   # not a number: the processors this process may use
+            from clothgrid.cgroups import processors
+            assert out == f"False {processors()}"
 
 
 def test_small_pages_holds_numpy_huge_pages_off_and_restores(monkeypatch):
