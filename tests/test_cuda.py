@@ -163,6 +163,22 @@ def test_auto_picks_cuda_only_on_a_gpu_and_for_its_solvers(monkeypatch):
     assert get_backend("auto") is cpu
 
 
+def test_auto_leaves_small_grids_on_the_cpu(monkeypatch, rng):
+    """A cuda solve's fixed cost loses to the host's cores below about 700^2 (an H200 host): auto
+    takes the cpu there, and cuda from AUTO_GPU_MIN_NODES nodes on."""
+    from clothgrid.backends import AUTO_GPU_MIN_NODES
+
+    monkeypatch.setattr(cuda, "on_gpu", lambda: True)
+    assert get_backend("auto", "multigrid", AUTO_GPU_MIN_NODES - 1) is cpu
+    assert get_backend("auto", "multigrid", AUTO_GPU_MIN_NODES) is cuda
+    assert get_backend("auto", "fdm", 33 * 33) is cpu
+    g = clothgrid.generate(quad(rng, 17, 17))           # a small piece with a GPU found: the cpu
+    assert g.info["backend"] == "cpu"
+    from clothgrid.generate import check_size
+
+    assert check_size((40, 40))[1] > 0                   # planned on the cpu: no device asked
+
+
 # --- without a GPU: why not -------------------------------------------------------------------------------
 
 @without_gpu

@@ -481,7 +481,8 @@ def _add_grid_arguments(p: argparse.ArgumentParser) -> None:
                    help="where the solver runs: cpu; gl (OpenGL through headless EGL: the GPU's "
                         "driver, or Mesa's llvmpipe without one; solvers multigrid and jacobi); or cuda "
                         "(an NVIDIA GPU through CuPy, pip install 'clothgrid[cuda]'; solvers multigrid "
-                        "and fdm) (default: auto, cuda where it finds a GPU, else the CPU)")
+                        "and fdm) (default: auto, cuda where it finds a GPU and the grid has at least 2^19 "
+                        "nodes, else the CPU)")
     p.add_argument("--tol", type=parse_tol, default=2.0**-12, metavar="T",
                    help="tolerance relative to the bounding-box diagonal, e.g. 1e-4 or 2**-12 "
                         "(default: 2**-12)")

@@ -102,7 +102,8 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
         :class:`~clothgrid.errors.BackendUnavailableError` with the reason when
         the device cannot be used; the grid's info then records
         ``gl_renderer`` or ``cuda_device``. ``auto`` is ``cuda`` where it finds
-        a GPU and runs ``solver``, else ``cpu``.
+        a GPU and runs ``solver`` and the grid has at least
+        :data:`~clothgrid.backends.AUTO_GPU_MIN_NODES` nodes (about 724^2), else ``cpu``.
     tol : float
         Required accuracy: every node within ``tol`` times the boundary's
         bounding-box diagonal of the exact solution (default ``2**-12``).
@@ -159,10 +160,12 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     _check_options(init, solver, stop, tol, max_iter)
     if not isinstance(functional, str) or functional not in FUNCTIONALS:
         raise InputError(f"unknown functional {functional!r}: use one of {', '.join(FUNCTIONALS)}")
-    be = get_backend(backend, solver)
     if nodes is not None:
         nu, nv = parse_nodes(nodes)
+        be = get_backend(backend, solver, nu * nv)   # before the resampling: an unavailable backend says so first
         boundary = boundary.resampled(nu, nv)
+    else:
+        be = get_backend(backend, solver, boundary.shape[0] * boundary.shape[1])
     nu, nv = boundary.shape
     if nu < 3 or nv < 3:
         raise InputError(f"a {nu}x{nv} grid has no interior nodes to place: use at least 3x3 nodes")
@@ -289,7 +292,7 @@ def check_size(nodes, *, solver: str = "auto", backend: str = "auto", weights="p
     """
     nu, nv = parse_nodes(nodes)
     _check_options("tfi", solver, stop, 0.5, None)
-    be = get_backend(backend, solver)
+    be = get_backend(backend, solver, nu * nv)
     name, need, _ = _plan(be, nu, nv, solver, weights, stop, dim, kept=kept, what=what)
     return name, need
 

@@ -11,7 +11,8 @@ device_bytes/check_size, array_module, residual/max_step, and the factories
 :data:`REGISTRY` maps each name to its module, imported only when asked for
 (:func:`load_backend`), so that ``import clothgrid`` imports neither moderngl
 nor CuPy nor numba.cuda. ``get_backend("auto")`` is the cuda backend where it
-finds a GPU (for the solvers it runs), else the CPU backend.
+finds a GPU (for the solvers it runs, and grids of at least :data:`AUTO_GPU_MIN_NODES`
+nodes), else the CPU backend.
 """
 
 from __future__ import annotations
@@ -55,12 +56,21 @@ def load_backend(name: str) -> Backend:
     return import_module(path, __name__)
 
 
-def get_backend(name: str, solver: str = "auto") -> Backend:
+#: ``backend="auto"`` runs grids of fewer nodes than this on the cpu even where a GPU is found: a
+#: cuda solve's fixed cost (launches, transfers, about 20-30 ms) loses to the host's cores on small
+#: grids. Measured on an H200 host with 16 cores (2026-11-27, docs/performance.md "Fourth loan"),
+#: paper weights, whole solve: 32^2 cpu 2.2 ms / cuda 31 ms, 256^2 11 / 43 ms, 512^2 37 / 52 ms,
+#: 1024^2 97 / 65 ms: the two cross near 700^2.
+AUTO_GPU_MIN_NODES = 1 << 19
+
+
+def get_backend(name: str, solver: str = "auto", nodes: int | None = None) -> Backend:
     """The backend module for ``name`` (``"auto"`` or a key of :data:`REGISTRY`: ``"cpu"``, ``"gl"``, ``"cuda"``).
 
-    ``"auto"`` is ``cuda`` when it has a GPU (not Numba's simulator) and runs
-    ``solver`` (``"auto"``: any), else ``cpu``; without CuPy the check costs
-    one package lookup, and its answer is remembered.
+    ``"auto"`` is ``cuda`` when it has a GPU (not Numba's simulator), runs
+    ``solver`` (``"auto"``: any) and the grid has at least :data:`AUTO_GPU_MIN_NODES`
+    nodes (or ``nodes`` is not given), else ``cpu``; without CuPy the check
+    costs one package lookup, and its answer is remembered.
 
     Parameters
     ----------
@@ -68,6 +78,8 @@ def get_backend(name: str, solver: str = "auto") -> Backend:
         ``"auto"`` or a registered backend's name.
     solver : str, optional
         The solver that will run (for ``"auto"``).
+    nodes : int, optional
+        The grid's nodes (for ``"auto"``: smaller grids run on the cpu).
 
     Returns
     -------
@@ -84,7 +96,8 @@ def get_backend(name: str, solver: str = "auto") -> Backend:
     """
     if name == "auto":
         cuda = load_backend("cuda")   # on_gpu: the cuda module's own, beyond the protocol
-        if cuda.on_gpu() and (solver == "auto" or solver in cuda.solvers):
+        if (cuda.on_gpu() and (solver == "auto" or solver in cuda.solvers)
+                and (nodes is None or nodes >= AUTO_GPU_MIN_NODES)):
             return cuda
         return load_backend("cpu")
     backend = load_backend(name)
