@@ -172,6 +172,40 @@ def test_upload_and_solution_through_strided_views_in_chunks(rng, monkeypatch, r
     assert np.array_equal(out, x0)
 
 
+def test_transfers_from_several_threads_at_once(rng, monkeypatch):
+    """The staging buffers are the process's: transfers from several Python threads take turns."""
+    import threading
+
+    monkeypatch.setattr(_transfer, "CHUNK_BYTES", 2 * 40 * 3 * 8)      # two rows a chunk
+    monkeypatch.setattr(_transfer, "MIN_ROWS_PER_THREAD", 1)
+    monkeypatch.setattr(_transfer, "_STAGING", [])
+    grids = [rng.standard_normal((30, 40, 3)) for _ in range(4)]
+    got = [None] * len(grids)
+
+    def work(n):
+        for _ in range(5):
+            dev = _transfer.upload(grids[n][..., :2], np)
+            out = np.zeros((30, 40, 2))
+            _transfer.download(dev, out)
+            got[n] = out if got[n] is None or np.array_equal(got[n], out) else "differs"
+
+    threads = [threading.Thread(target=work, args=(n,)) for n in range(len(grids))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(isinstance(g, np.ndarray) and np.array_equal(g, grid[..., :2]) for g, grid in zip(got, grids))
+
+
+def test_a_row_longer_than_the_staging_buffers(rng, monkeypatch):
+    monkeypatch.setattr(_transfer, "CHUNK_BYTES", 64)                  # less than one row (5 x 2 floats)
+    monkeypatch.setattr(_transfer, "_STAGING", [])
+    x = rng.standard_normal((7, 5, 2))
+    out = np.zeros_like(x)
+    _transfer.download(_transfer.upload(x, np), out)
+    assert np.array_equal(out, x)
+
+
 @pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((12, 17), 3, "uniform"), ((17, 13), 2, "random")])
 def test_fmg_and_one_vcycle_match_cpu(rng, shape, dim, kind):
     nu, nv = shape

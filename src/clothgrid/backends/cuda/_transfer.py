@@ -37,6 +37,9 @@ MAX_COPY_THREADS = 8
 MIN_ROWS_PER_THREAD = 8
 
 _LOCK = threading.Lock()
+#: Held for a whole upload or download: the staging buffers are the process's, one transfer at a
+#: time (``generate`` may run in several Python threads at once).
+_TRANSFER = threading.Lock()
 _STAGING: list[np.ndarray] = []
 _POOL: ThreadPoolExecutor | None = None
 _THREADS = 0
@@ -44,19 +47,22 @@ _THREADS = 0
 
 def _forget() -> None:
     """In a forked child: the parent's copy threads, lock and pinned memory are not this process's."""
-    global _LOCK, _POOL, _THREADS
-    _LOCK, _POOL, _THREADS = threading.Lock(), None, 0
+    global _LOCK, _TRANSFER, _POOL, _THREADS
+    _LOCK, _TRANSFER, _POOL, _THREADS = threading.Lock(), threading.Lock(), None, 0
     _STAGING.clear()
 
 
 os.register_at_fork(after_in_child=_forget)
 
 
-def _buffers() -> list[np.ndarray]:
-    """The two staging buffers (flat float64), pinned on a GPU; made at the first transfer."""
+def _buffers(row_bytes: int) -> list[np.ndarray]:
+    """The two staging buffers (flat float64), pinned on a GPU, of :data:`CHUNK_BYTES` or one row of
+    ``row_bytes`` if larger; made at the first transfer (and again for a larger row)."""
     with _LOCK:
+        n = max(CHUNK_BYTES, row_bytes) // 8
+        if _STAGING and _STAGING[0].size < n:
+            _STAGING.clear()
         if not _STAGING:
-            n = CHUNK_BYTES // 8
             if _sim.active():
                 _STAGING.extend(np.empty(n) for _ in range(2))
             else:
@@ -147,15 +153,16 @@ def upload(host: np.ndarray, xp: Any) -> Any:
     nu = host.shape[0]
     dev = xp.empty(host.shape, dtype=np.float64)
     rows = _rows(host.shape)
-    bufs, s = _buffers(), _Stream()
-    for n, i in enumerate(range(0, nu, rows)):
-        r = min(rows, nu - i)
-        slot = n % 2
-        s.wait(slot)                          # the buffer's previous chunk is on the device
-        buf = _staged(bufs[slot], r, host.shape)
-        _host_copy(buf, host[i:i + r])
-        s.to_device(dev[i:i + r], buf, slot)
-    s.finish()
+    with _TRANSFER:
+        bufs, s = _buffers(8 * host[0].size), _Stream()
+        for n, i in enumerate(range(0, nu, rows)):
+            r = min(rows, nu - i)
+            slot = n % 2
+            s.wait(slot)                      # the buffer's previous chunk is on the device
+            buf = _staged(bufs[slot], r, host.shape)
+            _host_copy(buf, host[i:i + r])
+            s.to_device(dev[i:i + r], buf, slot)
+        s.finish()
     return dev
 
 
@@ -166,18 +173,19 @@ def download(dev: Any, host: np.ndarray) -> None:
     """
     nu = host.shape[0]
     rows = _rows(host.shape)
-    bufs, s = _buffers(), _Stream()
     chunks = [(i, min(rows, nu - i)) for i in range(0, nu, rows)]
+    with _TRANSFER:
+        bufs, s = _buffers(8 * host[0].size), _Stream()
 
-    def staged(n: int) -> np.ndarray:
-        return _staged(bufs[n % 2], chunks[n][1], host.shape)
+        def staged(n: int) -> np.ndarray:
+            return _staged(bufs[n % 2], chunks[n][1], host.shape)
 
-    s.to_host(staged(0), dev[0:chunks[0][1]], 0)
-    for n in range(len(chunks)):
-        if n + 1 < len(chunks):               # the next chunk's DMA runs while this one is copied out
-            i, r = chunks[n + 1]
-            s.to_host(staged(n + 1), dev[i:i + r], (n + 1) % 2)
-        s.wait(n % 2)
-        i, r = chunks[n]
-        _host_copy(host[i:i + r], staged(n))
-    s.finish()
+        s.to_host(staged(0), dev[0:chunks[0][1]], 0)
+        for n in range(len(chunks)):
+            if n + 1 < len(chunks):           # the next chunk's DMA runs while this one is copied out
+                i, r = chunks[n + 1]
+                s.to_host(staged(n + 1), dev[i:i + r], (n + 1) % 2)
+            s.wait(n % 2)
+            i, r = chunks[n]
+            _host_copy(host[i:i + r], staged(n))
+        s.finish()
