@@ -150,6 +150,9 @@ def test_the_fused_line_solve_where_line_blocks_are_short(rng):
     assert _multigrid.CudaMultigrid(levels, x0, block=_multigrid.FUSED_MAX_BLOCK - 20).fuses()
     assert not _multigrid.CudaMultigrid(levels, x0, block=_multigrid.FUSED_MAX_BLOCK - 20, fused=False).fuses()
     assert not _multigrid.CudaMultigrid(levels, x0, block=_multigrid.FUSED_MAX_BLOCK + 1).fuses()
+    long = build_hierarchy(make_weights("paper", 1100, 5))     # 548 blocks a line: more threads than fit
+    assert not _multigrid.CudaMultigrid(long, np.zeros((1100, 5, 1)), block=1).fuses()
+    assert _multigrid.CudaMultigrid(long, np.zeros((1100, 5, 1)), block=3).fuses()   # 274 blocks
 
 
 @pytest.mark.parametrize("rows_per_chunk", [3, 4, 100])

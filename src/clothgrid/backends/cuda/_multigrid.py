@@ -113,8 +113,9 @@ class CudaMultigrid:
         self.nv = [lv.shape[1] for lv in levels]
         self.block = block or line_block(nu)
         self.nsep = max(0, (nu - 3) // (self.block + 1))
-        # one launch a colour where a thread block holds a whole line's blocks (CUDA: 1024 threads)
-        self.fused = (FUSED_LINE_SOLVE if fused is None else fused) and 0 < self.nsep < 1024
+        # one launch a colour where a thread block holds a whole line's blocks: at most 512 threads
+        # (the kernel's 82-86 registers a thread: 1024 threads do not launch on an H200)
+        self.fused = (FUSED_LINE_SOLVE if fused is None else fused) and 0 < self.nsep < 512
         self.x = [self._split(x0)]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
