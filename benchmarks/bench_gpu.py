@@ -247,7 +247,8 @@ def child(label: str, sizes: list[int], tmp: Path) -> None:
                 run = {"wall": wall, "solve": info["solve_seconds"], "cycles": info.get("cycle_seconds"),
                        "setup": info.get("setup_seconds"), "download": info.get("download_seconds"),
                        "iterations": info["iterations"], "bound": info["error_estimate"],
-                       "converged": info["converged"], "peak_dev": watch.bytes}
+                       "converged": info["converged"], "peak_dev": watch.bytes,
+                       **{k: v for k, v in info.items() if k.startswith("cuda_") and k.endswith("_seconds")}}
                 if best is None or run["solve"] < best["solve"]:
                     best = run
             row.update(best, estimate=estimate,

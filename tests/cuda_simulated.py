@@ -240,6 +240,9 @@ def test_multigrid_within_tol_of_the_reference(rng, monkeypatch, shape, dim, kin
     assert g.info["solver"] == "multigrid" and g.info["backend"] == "cuda" and g.info["converged"]
     assert err <= TOL and err <= g.info["error_estimate"] * (1 + 1e-9) + 1e-14
     assert g.info["cuda_simulator"] is True and g.info["cuda_device"] == "Numba CUDA simulator"
+    # where the set-up and the download go: the grid's transfers, within the solve's own figures
+    assert 0 < g.info["cuda_upload_seconds"] <= g.info["setup_seconds"]
+    assert 0 < g.info["cuda_merge_seconds"] + g.info["cuda_download_seconds"] <= g.info["download_seconds"]
 
 
 @pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((14, 11), 3, "uniform")])

@@ -13,6 +13,7 @@ reads back one float, :meth:`solution_into` the grid, once.
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -116,6 +117,8 @@ class CudaMultigrid:
         # one launch a colour where a thread block holds a whole line's blocks: at most 512 threads
         # (the kernel's 82-86 registers a thread: 1024 threads do not launch on an H200)
         self.fused = (FUSED_LINE_SOLVE if fused is None else fused) and 0 < self.nsep < 512
+        #: seconds of the grid's transfers (extra(): where a solve's set-up and download go)
+        self.seconds = {"upload": 0.0, "merge": 0.0, "download": 0.0}
         self.x = [self._split(x0)]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
@@ -148,7 +151,9 @@ class CudaMultigrid:
     def _split(self, grid: np.ndarray):
         """Upload an ``(nu, nv, k)`` float64 grid as parity planes."""
         nu, nv, k = grid.shape
+        t = time.perf_counter()
         full = kernel_array(upload(grid, self._xp))   # any strides: chunks through pinned buffers
+        self.seconds["upload"] += time.perf_counter() - t
         planes = tuple(self._zeros((k, nu, n)) for n in _planes(nv))
         blocks, threads = launch(nv, nu, NODE_THREADS)
         K.split_grid[blocks, threads, self.stream](full, *planes)
@@ -369,12 +374,19 @@ class CudaMultigrid:
         chunks of rows ``i`` through pinned buffers (:mod:`._transfer`).
         """
         nu, nv, k = self._shape
+        t = time.perf_counter()
         grid = self._xp.empty(self._shape)
         blocks, threads = launch(nv, nu, NODE_THREADS)
         K.merge_grid[blocks, threads, self.stream](*self.x[0], kernel_array(grid))
         self.synchronize()   # the copies run on a stream of their own
+        t1 = time.perf_counter()
         download(grid, out)
+        self.seconds["merge"] += t1 - t
+        self.seconds["download"] += time.perf_counter() - t1
 
     def extra(self) -> dict[str, Any]:
-        """No keys for the result's info: ``{}`` (the backend's ``describe`` adds the ``cuda_*`` keys)."""
-        return {}
+        """The grid's transfers for the result's info: ``cuda_upload_seconds`` (host view to device
+        grid, in the solve's set-up), ``cuda_merge_seconds`` (parity planes to a device grid) and
+        ``cuda_download_seconds`` (device grid to the host view), both in its download; the
+        backend's ``describe`` adds the device's ``cuda_*`` keys."""
+        return {f"cuda_{k}_seconds": v for k, v in self.seconds.items()}
