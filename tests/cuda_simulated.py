@@ -245,6 +245,19 @@ def test_multigrid_within_tol_of_the_reference(rng, monkeypatch, shape, dim, kin
     assert 0 < g.info["cuda_merge_seconds"] + g.info["cuda_download_seconds"] <= g.info["download_seconds"]
 
 
+def test_verbose_command_says_what_the_transfers_took(capsys, tmp_path):
+    from pathlib import Path
+
+    from clothgrid.cli import main
+
+    piece = Path(clothgrid.__file__).parent / "data" / "tshirt_front.json"
+    assert main(["generate", str(piece), "--nodes", "9x9", "--backend", "cuda", "--functional", "length",
+                 "-o", str(tmp_path / "g.npz"), "-v"]) == 0
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if "time: generate" in x)
+    assert "of which set-up" in line and "(upload " in line and "download " in line, line
+
+
 @pytest.mark.parametrize("shape, dim, kind", [((9, 7), 2, "paper"), ((14, 11), 3, "uniform")])
 def test_fdm_matches_cpu_and_the_reference(rng, shape, dim, kind):
     nu, nv = shape

@@ -819,6 +819,9 @@ def timing_lines(startup: float | None, imports: float, read: float, results: Se
         # start-up (importing it and its first cached kernels: about 0.4 s of a 1024^2 command)
         setup = (f" of which set-up {info['setup_seconds']:.3f} s" if isinstance(info.get("setup_seconds"), float)
                  else "")
+        if isinstance(info.get("cuda_upload_seconds"), float):   # a GPU's share: the grid over the bus
+            setup += (f" (upload {info['cuda_upload_seconds']:.3f} s), download "
+                      f"{info['cuda_merge_seconds'] + info['cuda_download_seconds']:.3f} s")
         lines.append(f"time: {name}generate {r.seconds:.3f} s (solve {_fmt(info.get('solve_seconds'), '.3f')} s"
                      f"{setup}, fold-free {_fmt(ff.get('seconds', 0.0), '.3f')} s), quality {r.quality_seconds:.3f} s")
     lines.append(f"time: write {write:.3f} s")
