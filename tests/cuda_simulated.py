@@ -200,6 +200,26 @@ def test_transfers_from_several_threads_at_once(rng, monkeypatch):
     assert all(isinstance(g, np.ndarray) and np.array_equal(g, grid[..., :2]) for g, grid in zip(got, grids))
 
 
+def test_a_forked_process_makes_its_own_staging_buffers_and_copy_threads(rng, monkeypatch):
+    """Pinned memory and a thread pool are the parent's: a forked child drops both (at fork) and
+    makes its own at its first transfer (a pool whose threads the child lacks would wait for ever)."""
+    from conftest import in_forked_child
+
+    monkeypatch.setattr(_transfer, "MIN_ROWS_PER_THREAD", 1)
+    x = rng.standard_normal((12, 5, 2))
+    out = np.zeros_like(x)
+    _transfer.download(_transfer.upload(x, np), out)      # the parent's buffers and pool exist now
+    assert _transfer._STAGING and _transfer._THREADS
+
+    def child():
+        fresh = not _transfer._STAGING and _transfer._POOL is None and _transfer._THREADS == 0
+        y = np.zeros_like(x)
+        _transfer.download(_transfer.upload(x, np), y)
+        return f"{fresh} {np.array_equal(y, x)}"
+
+    assert in_forked_child(child) == "True True"
+
+
 def test_a_row_longer_than_the_staging_buffers(rng, monkeypatch):
     monkeypatch.setattr(_transfer, "CHUNK_BYTES", 64)                  # less than one row (5 x 2 floats)
     monkeypatch.setattr(_transfer, "_STAGING", [])
