@@ -79,11 +79,12 @@ def main(sizes):
         def both(fn, reps=10):
             """(fused, three kernels) median seconds of fn(), whatever FUSED_MAX_BLOCK would pick."""
             out = []
-            keep, _multigrid.FUSED_MAX_BLOCK = _multigrid.FUSED_MAX_BLOCK, 1 << 30
+            allowed, block = ops.fused, _multigrid.FUSED_MAX_BLOCK   # the thread-block cap still holds
+            _multigrid.FUSED_MAX_BLOCK = 1 << 30
             for fused in (True, False):
-                ops.fused = fused and ops.nsep > 0
+                ops.fused = fused and allowed
                 out.append(timed(fn, sync, reps))
-            ops.fused, _multigrid.FUSED_MAX_BLOCK = ops.nsep > 0, keep
+            ops.fused, _multigrid.FUSED_MAX_BLOCK = allowed, block
             return out
 
         for what, fn, reps in (("V-cycle", lambda: vcycle(ops), 10), ("full-multigrid start", lambda: fmg(ops), 3)):

@@ -160,13 +160,10 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     _check_options(init, solver, stop, tol, max_iter)
     if not isinstance(functional, str) or functional not in FUNCTIONALS:
         raise InputError(f"unknown functional {functional!r}: use one of {', '.join(FUNCTIONALS)}")
+    nu, nv = boundary.shape if nodes is None else parse_nodes(nodes)
+    be = get_backend(backend, solver, nu * nv)   # before the resampling: an unavailable backend says so first
     if nodes is not None:
-        nu, nv = parse_nodes(nodes)
-        be = get_backend(backend, solver, nu * nv)   # before the resampling: an unavailable backend says so first
         boundary = boundary.resampled(nu, nv)
-    else:
-        be = get_backend(backend, solver, boundary.shape[0] * boundary.shape[1])
-    nu, nv = boundary.shape
     if nu < 3 or nv < 3:
         raise InputError(f"a {nu}x{nv} grid has no interior nodes to place: use at least 3x3 nodes")
     if functional == "foldfree" and not boundary.planar:

@@ -140,12 +140,19 @@ def _scaled_step2(x, t, b, E, No, Nt, i, m, ob, ei, nm, has_b):
 # --- zebra line relaxation ------------------------------------------------------------------------------
 
 @cuda.jit(device=True)
+def _block_span(kb, L, nsep, nu):
+    """Columns ``a .. z`` of block ``kb`` of a line of ``nu`` nodes: ``L`` after separator ``kb (L+1)``,
+    the last block up to the last interior column."""
+    a = kb * (L + 1) + 1
+    return a, (nu - 2 if kb == nsep else a + L - 1)
+
+
+@cuda.jit(device=True)
 def _solve_block(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr, q, m, kb, L, nsep, ob, ei, nm,
                  has_b, nine):
     """Thomas solve of block ``kb`` of own-parity line ``m`` (scratch column ``q``): see :func:`line_blocks`."""
     k, nu = xo.shape[0], xo.shape[1]
-    a = kb * (L + 1) + 1
-    z = nu - 2 if kb == nsep else a + L - 1
+    a, z = _block_span(kb, L, nsep, nu)
     xc = cuda.local.array(MAX_COORDS, xo.dtype)   # x[i-1] going forward, x[i+1] going back
     sc = cuda.local.array(3, g.dtype)             # g[i-1], the inverse pivot, yl[i-1] (level precision)
     for c in range(k):
@@ -303,8 +310,7 @@ def line_solve(xo, xt, bo, Co, Eo, No, Nt, NEo, NEt, NWo, NWt, g, yl, yr,
         _solve_separators(xo, Eo, g, yl, yr, q, m, L, nsep, ei)
     cuda.syncthreads()                        # the separators' values are written
     if live:
-        a = kb * (L + 1) + 1
-        z = xo.shape[1] - 2 if kb == nsep else a + L - 1
+        a, z = _block_span(kb, L, nsep, xo.shape[1])
         for i in range(a, z + 1):
             _spread(xo, yl, yr, q, m, i, kb, L, nsep)
 
