@@ -46,7 +46,8 @@ DATA_MEMBERS = {"name", "solvers"}
 def test_the_protocol_names_what_the_solvers_use():
     assert {"name", "solvers", "require", "available", "describe", "summary", "check_size", "device_bytes",
             "array_module", "residual", "max_step", "multigrid", "jacobi_sweeper", "heat_ops"} == set(BACKEND_MEMBERS)
-    assert {"smooth", "restrict", "prolong", "restrict_full", "prolong_full", "max_step", "band_steps", "solution",
+    assert {"smooth", "restrict", "prolong", "restrict_full", "prolong_full", "max_step", "band_steps", "residual_solve",
+            "relative_residual", "solution",
             "solution_into", "solution_max", "vector", "residual", "apply", "dot", "axpy", "xpay", "bind", "synchronize",
             "spare", "extra"} == set(MULTIGRID_OPERATIONS)
     assert {"sweeps", "result", "extra", "close"} == set(JACOBI_OPERATIONS)

@@ -641,6 +641,65 @@ def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
     return np.sqrt(rowmax.max())
 
 
+# The residual solve's bound (clothgrid.solvers.multigrid._residual_solve_bound): the right-hand side
+# ``q = |b - A x| + eps D`` of a solve's iterate, and the solved ``y``'s largest relative residual.
+
+
+@fork_safe
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _norm_rhs5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, eps, qe, qo):
+    """``q = |b - A x| + eps D`` (Euclidean over the coordinates) of a per-edge level 0 on its interior
+    nodes, into the one-coordinate parity planes ``qe``, ``qo`` (their boundary ring zero); returns
+    ``max |D^-1 (b - A x)|`` (:func:`_max_step5`)."""
+    nu = xe.shape[1]
+    rowmax = np.zeros(nu)
+    for i in numba.prange(nu):
+        qe[0, i, :] = 0.0
+        qo[0, i, :] = 0.0
+        if i == 0 or i == nu - 1:
+            continue
+        best = 0.0
+        r, s2 = np.empty(nv // 2 + 1), np.empty(nv // 2 + 1)
+        for p in range(2):
+            m_lo, n = _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2)
+            if n <= 0:
+                continue
+            ob = 0 if p == 1 else -1
+            Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
+            a, z, ta, tz = m_lo, m_lo + n, m_lo + ob, m_lo + n + ob
+            elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
+            out = (qe if p == 0 else qo)[0, i, a:z]
+            for q in range(n):
+                d = elo[q] + ehi[q] + nlo[q] + nhi[q]
+                v = s2[q] / (d * d)
+                if v > best:
+                    best = v
+                out[q] = np.sqrt(s2[q]) + eps * d
+        rowmax[i] = best
+    return np.sqrt(rowmax.max())
+
+
+@fork_safe
+@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
+def _relative_residual5(xe, xo, be, bo, Ee, Eo, Ne, No, nv):
+    """``max (b - A x) / b`` over the interior nodes of a one-coordinate per-edge level 0 whose
+    right-hand side is positive there (signed: the largest shortfall of ``A x`` below ``b``)."""
+    nu = xe.shape[1]
+    rowmax = np.full(nu, -np.inf)
+    for i in numba.prange(1, nu - 1):
+        best = -np.inf
+        r = np.empty(nv // 2 + 1)
+        for p in range(2):
+            m_lo, n = _residual_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, True, i, p, 0, r)
+            bb = (be if p == 0 else bo)[0, i, m_lo:m_lo + n]
+            for q in range(n):
+                v = r[q] / bb[q]
+                if v > best:
+                    best = v
+        rowmax[i] = best
+    return rowmax.max()
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _unit_steps2(xe, xo, be, bo, ee, eo, nn, nv, has_b, i, p, s2):
     """Squared Jacobi steps ``|D^-1 (b - A x)|^2`` of a unit-stencil level 0 on line ``i``, rows of
@@ -1037,7 +1096,7 @@ _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, err
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
                          "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict5u_full",
                          "_restrict_rhs",
-                         "_prolong_full", "_merge_grid", "_band_steps5u", "_band_steps5", "_apply5", "_dot", "_axpy", "_xpay")}
+                         "_prolong_full", "_norm_rhs5", "_relative_residual5", "_merge_grid", "_band_steps5u", "_band_steps5", "_apply5", "_dot", "_axpy", "_xpay")}
 
 
 def _pick(name: str, nodes: int, finest: int):
@@ -1092,6 +1151,7 @@ class CpuMultigrid:
     def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
                  spare: np.ndarray | None = None):
         self.levels = len(levels)
+        self._hierarchy = levels
         self._shape = x0.shape
         k = x0.shape[2]
         self._has_b = rhs is not None
@@ -1312,6 +1372,27 @@ class CpuMultigrid:
                                                      barriers.kv[1::2].copy(), barriers.cost,
                                                      float(barriers.zmax), float(barriers.reference) ** 2,
                                                      barriers.buckets)
+
+    def residual_solve(self, eps: float, spare: np.ndarray | None = None) -> tuple["CpuMultigrid", float] | None:
+        """Operations for ``A y = q``, ``q = |b - A x| + eps D`` of this iterate (Euclidean over the
+        coordinates), ``y`` zero, on the same hierarchy, and this iterate's :meth:`max_step`; None for a
+        unit-stencil or 9-point level 0 (their bound is the band barriers'). ``spare`` as for the
+        constructor (this solve's own :meth:`spare`)."""
+        if self.nine0 or self.unit0 is not None or self._shape[0] < 3 or self._shape[1] < 3:
+            return None
+        nu, nv = self._shape[:2]
+        ops = CpuMultigrid(self._hierarchy, np.zeros((nu, nv, 1)), None, spare)
+        qe, qo = (ops._arena.empty(a.shape, np.float64) for a in ops.x[0])
+        (xe, xo), (be, bo) = self.x[0], self.b[0]
+        step = self._kernel("_norm_rhs5", 0)(xe, xo, be, bo, *self.st[0], self.nv[0], self._has_b, float(eps),
+                                             qe, qo)
+        ops.b[0], ops._has_b = (qe, qo), True
+        return ops, float(step)
+
+    def relative_residual(self) -> float:
+        """``max (b - A x) / b`` over level 0's interior nodes of a :meth:`residual_solve`'s operations."""
+        (xe, xo), (be, bo) = self.x[0], self.b[0]
+        return float(self._kernel("_relative_residual5", 0)(xe, xo, be, bo, *self.st[0], self.nv[0]))
 
     # ---- conjugate gradients around the V-cycle (clothgrid.solvers.multigrid.ConjugateGradients)
 

@@ -276,6 +276,14 @@ class CudaMultigrid:
         """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
         return None
 
+    def residual_solve(self, eps: float, spare: Any = None) -> None:
+        """Not on this backend: per-edge weights take the barrier solve and ``max_step() * max z``."""
+        return None
+
+    def relative_residual(self) -> float:
+        """Not on this backend (no :meth:`residual_solve`)."""
+        raise NotImplementedError("relative_residual: this backend has no residual_solve")
+
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
         (xe, xo), (be, bo) = self.x[0], self.b[0]

@@ -239,6 +239,14 @@ class GLMultigrid(NoVectors):
         """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
         return None
 
+    def residual_solve(self, eps: float, spare: Any = None) -> None:
+        """Not on this backend: per-edge weights take the barrier solve and ``max_step() * max z``."""
+        return None
+
+    def relative_residual(self) -> float:
+        """Not on this backend (no :meth:`residual_solve`)."""
+        raise NotImplementedError("relative_residual: this backend has no residual_solve")
+
     def max_step(self) -> float:
         """Fold level 0's correction into the float64 iterate; ``max |D^-1 (b - A x)|`` in float64."""
         t0 = time.perf_counter()
