@@ -198,7 +198,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     info.update(be.describe())  # e.g. the GL renderer: EGL falls back to llvmpipe silently ({} on the cpu)
     flip = boundary.dim == 2 and boundary.orientation < 0
     grid = Grid.from_points(res.points, info=info, dim=boundary.dim, flip=flip)
-    how = f" by {info['bound_method']}" if info.get("bound_method") == "band barriers" else ""
+    how = f" by {info['bound_method']}" if info.get("bound_method") in ("band barriers", "residual solve") else ""
     say(f"{name}: {res.iterations} iterations, error bound{how} {res.error_estimate:.3g} (tol {tol:.3g}), "
         f"{seconds:.3f} s")
     _check_finite(res.points, f"solver '{name}'")
