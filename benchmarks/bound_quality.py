@@ -91,7 +91,7 @@ def main() -> int:
                     ops = cpu.multigrid(multigrid.build_hierarchy(w), np.ascontiguousarray(res.points))
                     # asked to reach a tenth of the band bound: its floor eps D then adds about 1 % of that
                     _, bound = multigrid._residual_solve_bound(ops, 0.1 * row["band barriers"][1] * b.size,
-                                                               _analytic_barrier_max(n, n), None)
+                                                               _analytic_barrier_max(n, n))
                     bound /= b.size
                     if err > bound:
                         print(f"{path.stem} {weights} {cycles}: residual solve bound {bound:.3g} below the true "

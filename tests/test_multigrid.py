@@ -1050,7 +1050,7 @@ def test_residual_solve_bound_holds_on_fresh_inputs(seed):
         err = max_rel_error(ops.solution(), ref, b.size) * b.size
         for factor in (2.0, 20.0):
             limit = err * factor * float(np.exp(rng.uniform(0, 1)))
-            step, bound = multigrid._residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv), None)
+            step, bound = multigrid._residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv))
             assert step == pytest.approx(ops.max_step(), rel=1e-12)
             if bound <= limit:
                 met += 1
@@ -1078,7 +1078,7 @@ def test_residual_solve_falls_back_to_the_barrier_solve(monkeypatch):
     assert len(tries) == 1 and tries[0][1] > TOL * b.size
     assert g.info["bound_method"] in ("band barriers", "max step") and g.info["iterations"] > 1
     assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"] <= TOL
-    monkeypatch.setattr(CpuMultigrid, "residual_solve", lambda self, eps, spare=None: None)
+    monkeypatch.setattr(CpuMultigrid, "residual_solve", lambda self, eps: None)
     plain = clothgrid.generate(b, weights=(w.wu, w.wv), solver="multigrid", tol=TOL)
     assert len(tries) == 2 and tries[1] is None
     np.testing.assert_array_equal(plain.points, g.points)

@@ -1152,10 +1152,13 @@ class CpuMultigrid:
         it): the line solves' scratch and the coarse levels are carved out of it
         (:class:`~clothgrid.memory.Arena`) as far as they fit. Its contents are undefined
         afterwards.
+    scratch : CpuMultigrid, optional
+        Operations on a grid of the same size whose line-solve scratch these share (never used
+        at the same time: :meth:`residual_solve`'s).
     """
 
     def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
-                 spare: np.ndarray | None = None):
+                 spare: np.ndarray | None = None, scratch: "CpuMultigrid | None" = None):
         self.levels = len(levels)
         self._hierarchy = levels
         self._shape = x0.shape
@@ -1219,9 +1222,15 @@ class CpuMultigrid:
         # Every operation writes a coarse level's iterate and right-hand side (boundary rows
         # included) before it reads them, and the line solves their scratch rows, so neither
         # needs a first value (a test runs a solve in a spare full of NaN).
-        self._scr = {np.dtype(t): arena.empty((nthreads, x0.shape[0] + 1, mb), t)
-                     for t in (np.float64, np.float32)}
-        self._rows = arena.empty((nthreads, x0.shape[1] + 2), np.float64)   # restriction's residual rows
+        if scratch is not None and scratch._shape[:2] == x0.shape[:2] and max(scratch.mbs) >= mb:
+            # another solve's on the same grid, never in use at the same time (residual_solve)
+            self._scr, self._rows = scratch._scr, scratch._rows
+        else:
+            self._scr = {np.dtype(t): arena.empty((nthreads, x0.shape[0] + 1, mb), t)
+                         for t in (np.float64, np.float32)}
+            self._rows = arena.empty((nthreads, x0.shape[1] + 2), np.float64)   # restriction's residual rows
+        #: where the coarse levels start in spare's memory: what residual_solve lends (the scratch shared)
+        self._coarse_from = arena.position
         for lv in levels[1:]:
             nu, nv = lv.shape
             self.x.append(tuple(arena.empty((k, nu, n), dt) for n in ((nv + 1) // 2, nv // 2)))
@@ -1379,15 +1388,17 @@ class CpuMultigrid:
                                                      float(barriers.zmax), float(barriers.reference) ** 2,
                                                      barriers.buckets)
 
-    def residual_solve(self, eps: float, spare: np.ndarray | None = None) -> tuple["CpuMultigrid", float] | None:
+    def residual_solve(self, eps: float) -> tuple["CpuMultigrid", float] | None:
         """Operations for ``A y = q``, ``q = |b - A x| + eps D`` of this iterate (Euclidean over the
         coordinates), ``y`` zero, on the same hierarchy, and this iterate's :meth:`max_step`; None for a
-        unit-stencil or 9-point level 0 (their bound is the band barriers'). ``spare`` as for the
-        constructor (this solve's own :meth:`spare`)."""
+        unit-stencil or 9-point level 0 (their bound is the band barriers'). They share this solve's
+        line-solve scratch and live in the memory of its coarse levels (dead between cycles) as far as
+        they fit; fresh memory beyond."""
         if self.nine0 or self.unit0 is not None or self._shape[0] < 3 or self._shape[1] < 3:
             return None
         nu, nv = self._shape[:2]
-        ops = CpuMultigrid(self._hierarchy, np.zeros((nu, nv, 1)), None, spare)
+        ops = CpuMultigrid(self._hierarchy, np.zeros((nu, nv, 1)), None, self._arena.carved_since(self._coarse_from),
+                           scratch=self)
         qe, qo = (ops._arena.empty(a.shape, np.float64) for a in ops.x[0])
         (xe, xo), (be, bo) = self.x[0], self.b[0]
         step = self._kernel("_norm_rhs5", 0)(xe, xo, be, bo, *self.st[0], self.nv[0], self._has_b, float(eps),

@@ -106,14 +106,14 @@ class MultigridOps(Protocol):
         uses :meth:`max_step` times ``max z``, looser by 5-1000x, and so more V-cycles).
         """
 
-    def residual_solve(self, eps: float, spare: np.ndarray | None = None) -> "tuple[MultigridOps, float] | None":
+    def residual_solve(self, eps: float) -> "tuple[MultigridOps, float] | None":
         """For the residual solve's error bound (``solvers.multigrid._residual_solve_bound``, per-edge
         weights): new one-coordinate operations on the same hierarchy for ``A y = q``, ``q = |b - A x| +
         eps D`` of this iterate (Euclidean over the coordinates), ``y`` zero, whose
         ``relative_residual()`` returns ``max (q - A y) / q`` over the interior nodes; with this
-        iterate's :meth:`max_step`. ``spare``: dead memory the new operations may take (this solve's
-        :meth:`spare`). None where the backend does not supply it (the solve then takes the barrier
-        solve's ``max z``).
+        iterate's :meth:`max_step`. The new operations may use this solve's dead memory (its coarse
+        levels between cycles). None where the backend does not supply it (the solve then takes the
+        barrier solve's ``max z``).
         """
 
     def relative_residual(self) -> float:

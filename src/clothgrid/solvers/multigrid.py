@@ -334,7 +334,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
         nonlocal method, bands, residual_try
         if residual_try:
             residual_try = False        # once, after the first iteration
-            got = _residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv), ops.spare())
+            got = _residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv))
             if got is not None and got[1] <= limit:
                 method = "residual solve"
                 return got
@@ -417,8 +417,7 @@ RESIDUAL_SOLVE_BOUND = True
 RESIDUAL_SOLVE_FLOOR = 0.1
 
 
-def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float,
-                          spare: np.ndarray | None) -> tuple[float, float] | None:
+def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float) -> tuple[float, float] | None:
     """An error bound of ``ops``' iterate by one more (scalar) solve: ``(max|D^-1 r|, bound)``, or None
     where the backend does not supply it (``ops.residual_solve``).
 
@@ -434,7 +433,7 @@ def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float,
     limit / zguess``) keeps ``q`` positive and costs about ``eps max z``. The bound is ``inf`` where it
     is not met.
     """
-    got = ops.residual_solve(RESIDUAL_SOLVE_FLOOR * limit / zguess, spare)
+    got = ops.residual_solve(RESIDUAL_SOLVE_FLOOR * limit / zguess)
     if got is None:
         return None
     qops, step = got

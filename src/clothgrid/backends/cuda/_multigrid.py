@@ -276,7 +276,7 @@ class CudaMultigrid:
         """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
         return None
 
-    def residual_solve(self, eps: float, spare: Any = None) -> None:
+    def residual_solve(self, eps: float) -> None:
         """Not on this backend: per-edge weights take the barrier solve and ``max_step() * max z``."""
         return None
 
