@@ -1029,15 +1029,15 @@ def test_residual_solve_kernels_match_numpy(rng, kind, shape):
 
 @pytest.mark.parametrize("seed", range(8))
 def test_residual_solve_bound_holds_on_fresh_inputs(seed):
-    """Fresh boundaries, random sizes and per-edge fields (smooth, rough), limits 2-50x the true
-    error, after one to three V-cycles: the residual solve's bound is never below the true error of an
+    """Fresh boundaries (planar and 3D), random sizes and per-edge fields (smooth, rough), limits 2-50x
+    the true error, after one to three V-cycles: the residual solve's bound is never below the true error of an
     exact sparse solve, and on smooth fields it is met (within a small factor of the true error, where
     max|s| max z is 20-1000x above it)."""
     from clothgrid.solvers.bounds import _analytic_barrier_max
 
     rng = np.random.default_rng([seed, 4242])
     nu, nv = (int(n) for n in rng.integers(40, 220, size=2))
-    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv, dim=2 + (seed // 2) % 2))   # 3D: x, y, z
     kind = ("smooth", "rough")[seed % 2]
     w = per_edge_weights(rng, kind, nu, nv)
     x0 = boundary_grid(b)

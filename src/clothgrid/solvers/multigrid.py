@@ -391,7 +391,7 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     if cg is not None:          # the iterations after the first V-cycles were conjugate gradients'
         extra.update(cg_iterations=cg.iterations, cg_restarts=cg.restarts)
     extra.update(ops.extra())   # e.g. the gl backend's pass counts and timings ({} on the cpu)
-    extra["bound_method"] = method      # "band barriers" or "max step" (max|D^-1 r| max z)
+    extra["bound_method"] = method      # "residual solve", "band barriers" or "max step" (max|D^-1 r| max z)
     if zmax is None and stop != "error":
         barriers()
     estimate = figure if stop == "error" else (steps[-1] * zmax if steps else math.inf)
@@ -430,8 +430,8 @@ def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float) -> tup
     barriers are 20-100x above it: per-edge weights then stop one or two V-cycles sooner, without the
     barrier solve. ``y``: a full-multigrid start, then V-cycles until the bound is met (at most
     :data:`RESIDUAL_SOLVE_MAX_CYCLES`; fewer where it cannot be). ``eps`` (``RESIDUAL_SOLVE_FLOOR *
-    limit / zguess``) keeps ``q`` positive and costs about ``eps max z``. The bound is ``inf`` where it
-    is not met.
+    limit / zguess``) keeps ``q`` positive and costs about ``eps max z``. Where the bound is not met,
+    the one returned is above ``limit`` (``inf`` where no ``y`` had ``delta < 1``); it holds still.
     """
     got = ops.residual_solve(RESIDUAL_SOLVE_FLOOR * limit / zguess)
     if got is None:
