@@ -334,7 +334,9 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
         nonlocal method, bands, residual_try
         if residual_try:
             residual_try = False        # once, after the first iteration
-            got = _residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv))
+            r0 = problem.r0
+            xmax = float(np.abs(np.concatenate([r0[0], r0[-1], r0[:, 0], r0[:, -1]])).max())
+            got = _residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv), xmax)
             if got is not None and got[1] <= limit:
                 method = "residual solve"
                 return got
@@ -417,7 +419,8 @@ RESIDUAL_SOLVE_BOUND = True
 RESIDUAL_SOLVE_FLOOR = 0.1
 
 
-def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float) -> tuple[float, float] | None:
+def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float,
+                          xmax: float = 0.0) -> tuple[float, float] | None:
     """An error bound of ``ops``' iterate by one more (scalar) solve: ``(max|D^-1 r|, bound)``, or None
     where the backend does not supply it (``ops.residual_solve``).
 
@@ -430,10 +433,14 @@ def _residual_solve_bound(ops: MultigridOps, limit: float, zguess: float) -> tup
     barriers are 20-100x above it: per-edge weights then stop one or two V-cycles sooner, without the
     barrier solve. ``y``: a full-multigrid start, then V-cycles until the bound is met (at most
     :data:`RESIDUAL_SOLVE_MAX_CYCLES`; fewer where it cannot be). ``eps`` (``RESIDUAL_SOLVE_FLOOR *
-    limit / zguess``) keeps ``q`` positive and costs about ``eps max z``. Where the bound is not met,
-    the one returned is above ``limit`` (``inf`` where no ``y`` had ``delta < 1``); it holds still.
+    limit / zguess``) keeps ``q`` positive and costs about ``eps max z``; it is at least
+    ``64 u xmax`` (``xmax`` the boundary's largest coordinate), so that ``eps D`` also covers the
+    float64 rounding of ``r`` (at most ``16 u |A| |x| <= 32 u D max|x|``, the iterate within twice the
+    boundary's range), which keeps the bound rigorous where ``|r|`` is at its rounding floor. Where the
+    bound is not met, the one returned is above ``limit`` (``inf`` where no ``y`` had ``delta < 1``); it
+    holds still.
     """
-    got = ops.residual_solve(RESIDUAL_SOLVE_FLOOR * limit / zguess)
+    got = ops.residual_solve(max(RESIDUAL_SOLVE_FLOOR * limit / zguess, 64 * 2.0 ** -53 * xmax))
     if got is None:
         return None
     qops, step = got
