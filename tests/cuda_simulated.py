@@ -357,6 +357,57 @@ def test_vector_operations_match_cpu(rng, shape, kind, k, with_rhs):
         assert np.abs(a - b).max() <= F32 * max(np.abs(a).max(), 1e-300), "the preconditioner"
 
 
+def smooth_field(nu, nv, a=6.0, c=5.0):
+    """The paper's weights times ``exp(sin(a u) cos(c v))`` (per-edge: ``bench_speed.py``'s smooth field)."""
+    wu, wv = paper_weights(nu, nv)
+    u, v = np.arange(nu)[:, None] / nu, np.arange(nv)[None, :] / nv
+    f = np.exp(np.sin(a * u) * np.cos(c * v))
+    return wu * 0.5 * (f[:-1] + f[1:]), wv * 0.5 * (f[:, :-1] + f[:, 1:])
+
+
+@pytest.mark.parametrize("shape, dim", [((17, 13), 2), ((20, 25), 3)])
+def test_residual_solve_matches_cpu(rng, shape, dim):
+    """The residual solve's operations on the device: the same rhs |r| + eps D and max|D^-1 r| as the
+    cpu's, and after its start and a V-cycle the same relative residual and max y (float32 coarse
+    levels); none for a unit stencil."""
+    nu, nv = shape
+    b = quad(rng, nu, nv, dim)
+    levels = build_hierarchy(clothgrid.weights.Weights(*smooth_field(nu, nv)))
+    x0 = initial_grid(b, "tfi")[..., :dim]
+    cpu, gpu = _cpu_multigrid.CpuMultigrid(levels, x0), _multigrid.CudaMultigrid(levels, x0)
+    for ops in (cpu, gpu):
+        fmg(ops)
+        vcycle(ops)
+    eps = 1e-9 * b.size
+    (qc, sc), (qg, sg) = cpu.residual_solve(eps), gpu.residual_solve(eps)
+    assert sg == pytest.approx(sc, rel=1e-3) and sg == pytest.approx(gpu.max_step(), rel=1e-12)
+    for a, c in zip(qc.b[0], qg.b[0]):
+        np.testing.assert_allclose(read(c), a, rtol=1e-3, atol=1e-12 * np.abs(a).max())
+    assert qg.relative_residual() == pytest.approx(1.0, rel=1e-12)      # y = 0
+    for ops in (qc, qg):
+        fmg(ops, 0)
+        vcycle(ops)
+    assert qg.relative_residual() == pytest.approx(qc.relative_residual(), rel=1e-2, abs=1e-4)
+    assert qg.solution_max() == pytest.approx(qc.solution_max(), rel=1e-4)
+    unit = _multigrid.CudaMultigrid(build_hierarchy(make_weights("paper", nu, nv)), x0)
+    assert unit.residual_solve(eps) is None
+
+
+def test_per_edge_solve_stops_on_the_residual_solve(rng):
+    """A smooth per-edge field through generate() on the device: the solve stops on the residual solve's
+    bound as the cpu's does, after as many iterations, and its bound holds against the exact solution."""
+    nu, nv = 65, 57     # at 33 x 29 the bound after one iteration is 2x the tolerance on both: the barrier solve
+    b = quad(rng, nu, nv, 2)
+    w = smooth_field(nu, nv)
+    g = clothgrid.generate(b, weights=w, solver="multigrid", backend="cuda")
+    c = clothgrid.generate(b, weights=w, solver="multigrid", backend="cpu")
+    assert g.info["bound_method"] == c.info["bound_method"] == "residual solve"
+    assert g.info["iterations"] == c.info["iterations"]
+    assert g.info["error_estimate"] == pytest.approx(c.info["error_estimate"], rel=1e-3)
+    err = max_rel_error(g.points, exact_solution(boundary_grid(b), *w), b.size)
+    assert err <= g.info["error_estimate"] <= TOL
+
+
 def test_jumps_solve_with_conjugate_gradients_on_the_device(rng):
     """100:1 blocks: the device solve goes on with conjugate gradients as the CPU's does, and meets
     the tolerance against the exact solution."""

@@ -101,7 +101,7 @@ class CudaMultigrid:
     """
 
     def __init__(self, levels: list[Level], x0: np.ndarray, rhs: np.ndarray | None = None,
-                 block: int | None = None, fused: bool | None = None):
+                 block: int | None = None, fused: bool | None = None, share: "CudaMultigrid | None" = None):
         nu, nv, k = x0.shape
         if k > K.MAX_COORDS:
             raise ValueError(f"the cuda multigrid solves at most {K.MAX_COORDS} coordinates, not {k}")
@@ -109,7 +109,9 @@ class CudaMultigrid:
         #: Stream of every kernel launch (0: the default stream; a capture can set its own).
         self.stream = 0
         self.levels = len(levels)
+        self._hierarchy = levels
         self._shape = x0.shape
+        self._diag: tuple | None = None   # level 0's diagonal as parity planes (residual_solve), on first use
         self._has_b = rhs is not None
         self.nv = [lv.shape[1] for lv in levels]
         self.block = block or line_block(nu)
@@ -119,25 +121,34 @@ class CudaMultigrid:
         self.fused = (FUSED_LINE_SOLVE if fused is None else fused) and 0 < self.nsep < 512
         #: seconds of the grid's transfers (extra(): where a solve's set-up and download go)
         self.seconds = {"upload": 0.0, "merge": 0.0, "download": 0.0}
-        self.x = [self._split(x0)]
+        # share: another solve's operations on the same hierarchy (residual_solve): its stencils and
+        # scratch, never in use at the same time; the iterate starts at zero without an upload
+        self.x = [self._split(x0) if share is None else tuple(self._zeros((k, nu, n)) for n in _planes(nv))]
         if rhs is not None:
             b0 = np.zeros(x0.shape)
             b0[1:-1, 1:-1] = rhs
             self.b = [self._split(b0)]
         else:
             self.b = [tuple(self._zeros((k, 1, 1)) for _ in range(2))]   # never read (has_b False)
-        self.st = [self._fine_stencil(levels[0])]
+        if share is not None:
+            self.st, self.ei, self.nm = share.st, share.ei, share.nm
+        else:
+            self.st = [self._fine_stencil(levels[0])]
         for n_rows in self.nv[1:]:
             self.x.append(tuple(self._zeros((k, nu, n), np.float32) for n in _planes(n_rows)))
             self.b.append(tuple(self._zeros((k, nu, n), np.float32) for n in _planes(n_rows)))
-        for lv in levels[1:]:   # C, E, N, NE, NW: even and odd rows of each
-            even, odd = (_coarse_stencil(lv, self._xp, p) for p in (0, 1))
-            self.st.append(tuple(kernel_array(a) for pair in zip(even, odd) for a in pair))
-        # Thomas scratch per precision, as wide as the widest level's lines; 5-point-only arguments.
-        self.scratch = {np.float64: self._scratch(nu, self.nv[0], np.float64)}
-        if self.levels > 1:
-            self.scratch[np.float32] = self._scratch(nu, self.nv[1], np.float32)
-        self.unused = {dt: self._zeros((1, 1), dt) for dt in self.scratch}
+        if share is None:
+            for lv in levels[1:]:   # C, E, N, NE, NW: even and odd rows of each
+                even, odd = (_coarse_stencil(lv, self._xp, p) for p in (0, 1))
+                self.st.append(tuple(kernel_array(a) for pair in zip(even, odd) for a in pair))
+        if share is not None:
+            self.scratch, self.unused = share.scratch, share.unused
+        else:
+            # Thomas scratch per precision, as wide as the widest level's lines; 5-point-only arguments.
+            self.scratch = {np.float64: self._scratch(nu, self.nv[0], np.float64)}
+            if self.levels > 1:
+                self.scratch[np.float32] = self._scratch(nu, self.nv[1], np.float32)
+            self.unused = {dt: self._zeros((1, 1), dt) for dt in self.scratch}
         #: the iterate, its right-hand side and has_b while conjugate gradients bind others (bind)
         self._own: tuple | None = None
         self._partial = self._xp.zeros((-(-(nu - 2) // MAX_STEP_ROWS), _planes(nv)[0]))
@@ -276,13 +287,43 @@ class CudaMultigrid:
         """Not computed on this backend: the solve bounds the error by ``max_step() * max z``."""
         return None
 
-    def residual_solve(self, eps: float) -> None:
-        """Not on this backend: per-edge weights take the barrier solve and ``max_step() * max z``."""
-        return None
+    def _interior(self, planes: tuple) -> list:
+        """The interior nodes' parts of one-coordinate parity planes (device views)."""
+        nu, nv = self._shape[:2]
+        return [self._xp.asarray(a)[0, 1:-1, slice(*line_range(nv, p))] for p, a in enumerate(planes)]
+
+    def residual_solve(self, eps: float) -> "tuple[CudaMultigrid, float] | None":
+        """Operations for ``A y = q``, ``q = |b - A x| + eps D`` of this iterate (Euclidean over the
+        coordinates), ``y`` zero, sharing this solve's stencils and scratch, and this iterate's
+        :meth:`max_step`; None for a unit-stencil level 0 (the analytic ``max z`` and its bound). The
+        norms and ``D`` are array operations on the device; ``D`` is uploaded once."""
+        nu, nv, k = self._shape
+        if self.ei == 0 or self.nm == 0 or nu < 3 or nv < 3:
+            return None
+        xp = self._xp
+        if self._diag is None:
+            from ...weights import interior_diagonal
+
+            fine = self._hierarchy[0]
+            grid = np.zeros((nu, nv, 1))
+            grid[1:-1, 1:-1, 0] = interior_diagonal(fine.E, fine.N)
+            self._diag = self._split(grid)
+        r = self.vector()
+        self.residual(r)
+        q = tuple(kernel_array(xp.sqrt((xp.asarray(a) ** 2).sum(axis=0, keepdims=True))) for a in r)
+        step = max(float((n / d).max()) for n, d in zip(self._interior(q), self._interior(self._diag)) if n.size)
+        for q_, d_ in zip(q, self._diag):
+            xp.asarray(q_)[...] += eps * xp.asarray(d_)          # the ring stays zero (D is zero there)
+        ops = CudaMultigrid(self._hierarchy, np.zeros((nu, nv, 1)), block=self.block, fused=self.fused, share=self)
+        ops.stream = self.stream
+        ops.b[0], ops._has_b = q, True
+        return ops, step
 
     def relative_residual(self) -> float:
-        """Not on this backend (no :meth:`residual_solve`)."""
-        raise NotImplementedError("relative_residual: this backend has no residual_solve")
+        """``max (b - A x) / b`` over level 0's interior nodes of :meth:`residual_solve`'s operations."""
+        s = self.vector()
+        self.residual(s)
+        return max(float((a / c).max()) for a, c in zip(self._interior(s), self._interior(self.b[0])) if a.size)
 
     def max_step(self) -> float:
         """``max |D^-1 (b - A x)|`` over level 0's interior nodes (Euclidean per node)."""
