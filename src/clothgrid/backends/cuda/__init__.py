@@ -99,7 +99,9 @@ def device_bytes(solver: str, nu: int, nv: int, coords: int = 3, separable: bool
     stencils (8); and 32 MiB whatever the size (the pool's rounding, the
     kernels' modules). Per-edge weights add level 0's edge weights split by parity
     (16), a second hierarchy for the barrier solve of the error bound, one
-    coordinate with a right-hand side (83), and conjugate gradients' three float64
+    coordinate with a right-hand side (83; the residual solve's operations tried before it share
+    the stencils and take less, about 40 + 16 k, returned to CuPy's pool before the barrier solve
+    would take it), and conjugate gradients' three float64
     vectors and one array temporary (``32 k``: where V-cycles stall on jumps). Measured on an H100 (NVML, the
     T-shirt front, two coordinates, paper weights): 84-86 bytes a node from
     1024^2 to 16384^2 against the 91 counted here. ``fdm``: the two eigenvector
