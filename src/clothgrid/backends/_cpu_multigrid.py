@@ -617,45 +617,17 @@ def _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2):
 
 @fork_safe
 @numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b):
-    """``max |D^-1 (b - A x)|`` (Euclidean per node) on level 0."""
-    nu = xe.shape[1]
-    rowmax = np.zeros(nu)
-    for i in numba.prange(1, nu - 1):
-        best = 0.0
-        r, s2 = np.empty(nv // 2 + 1), np.empty(nv // 2 + 1)
-        for p in range(2):
-            m_lo, n = _residual2_line5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, i, p, r, s2)
-            if n <= 0:
-                continue
-            ob = 0 if p == 1 else -1
-            Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
-            a, z, ta, tz = m_lo, m_lo + n, m_lo + ob, m_lo + n + ob
-            elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
-            for q in range(n):
-                d = elo[q] + ehi[q] + nlo[q] + nhi[q]
-                v = s2[q] / (d * d)
-                if v > best:
-                    best = v
-        rowmax[i] = best
-    return np.sqrt(rowmax.max())
-
-
-# The residual solve's bound (clothgrid.solvers.multigrid._residual_solve_bound): the right-hand side
-# ``q = |b - A x| + eps D`` of a solve's iterate, and the solved ``y``'s largest relative residual.
-
-
-@fork_safe
-@numba.njit(parallel=True, cache=True, nogil=True, error_model="numpy")
-def _norm_rhs5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, eps, qe, qo):
-    """``q = |b - A x| + eps D`` (Euclidean over the coordinates) of a per-edge level 0 on its interior
-    nodes, into the one-coordinate parity planes ``qe``, ``qo`` (their boundary ring zero); returns
-    ``max |D^-1 (b - A x)|`` (:func:`_max_step5`)."""
+def _max_step5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, eps, qe, qo, write):
+    """``max |D^-1 (b - A x)|`` (Euclidean per node) on a per-edge level 0. With ``write``, also the
+    residual solve's right-hand side (``clothgrid.solvers.multigrid._residual_solve_bound``) ``q =
+    |b - A x| + eps D`` on the interior nodes, into the one-coordinate parity planes ``qe``, ``qo``
+    (their boundary ring zero); without, those are not touched."""
     nu = xe.shape[1]
     rowmax = np.zeros(nu)
     for i in numba.prange(nu):
-        qe[0, i, :] = 0.0
-        qo[0, i, :] = 0.0
+        if write:
+            qe[0, i, :] = 0.0
+            qo[0, i, :] = 0.0
         if i == 0 or i == nu - 1:
             continue
         best = 0.0
@@ -668,13 +640,15 @@ def _norm_rhs5(xe, xo, be, bo, Ee, Eo, Ne, No, nv, has_b, eps, qe, qo):
             Eown, Nown, Noth = (Ee, Ne, No) if p == 0 else (Eo, No, Ne)
             a, z, ta, tz = m_lo, m_lo + n, m_lo + ob, m_lo + n + ob
             elo, ehi, nlo, nhi = Eown[i - 1, a:z], Eown[i, a:z], Noth[i, ta:tz], Nown[i, a:z]
-            out = (qe if p == 0 else qo)[0, i, a:z]
             for q in range(n):
                 d = elo[q] + ehi[q] + nlo[q] + nhi[q]
                 v = s2[q] / (d * d)
                 if v > best:
                     best = v
-                out[q] = np.sqrt(s2[q]) + eps * d
+            if write:
+                out = (qe if p == 0 else qo)[0, i, a:z]
+                for q in range(n):
+                    out[q] = np.sqrt(s2[q]) + eps * (elo[q] + ehi[q] + nlo[q] + nhi[q])
         rowmax[i] = best
     return np.sqrt(rowmax.max())
 
@@ -1102,7 +1076,7 @@ _KERNELS = {name: (globals()[name], serial_twin(globals()[name], nogil=True, err
             for name in ("_relax5", "_relax5u", "_relax9", "_relax9s", "_restrict5", "_restrict5u", "_restrict9",
                          "_restrict9s", "_prolong", "_max_step5", "_max_step5u", "_restrict5_full", "_restrict5u_full",
                          "_restrict_rhs",
-                         "_prolong_full", "_norm_rhs5", "_relative_residual5", "_merge_grid", "_band_steps5u", "_band_steps5", "_apply5", "_dot", "_axpy", "_xpay")}
+                         "_prolong_full", "_relative_residual5", "_merge_grid", "_band_steps5u", "_band_steps5", "_apply5", "_dot", "_axpy", "_xpay")}
 
 
 def _pick(name: str, nodes: int, finest: int):
@@ -1161,6 +1135,8 @@ class CpuMultigrid:
                  spare: np.ndarray | None = None, scratch: "CpuMultigrid | None" = None):
         self.levels = len(levels)
         self._hierarchy = levels
+        #: what _max_step5 is given for the planes it does not write
+        self._no_planes = np.zeros((1, 1, 1))
         self._shape = x0.shape
         k = x0.shape[2]
         self._has_b = rhs is not None
@@ -1353,8 +1329,8 @@ class CpuMultigrid:
             ee, eo, nn = self.unit0
             return float(self._kernel("_max_step5u", 0)(xe, xo, be, bo, ee, eo, nn, self.nv[0], self._has_b,
                                                              self._rows))
-        Ee, Eo, Ne, No = self.st[0]
-        return float(self._kernel("_max_step5", 0)(xe, xo, be, bo, Ee, Eo, Ne, No, self.nv[0], self._has_b))
+        return float(self._kernel("_max_step5", 0)(xe, xo, be, bo, *self.st[0], self.nv[0], self._has_b, 0.0,
+                                                   self._no_planes, self._no_planes, False))
 
     def band_steps(self, barriers: Any) -> np.ndarray | None:
         """:func:`~clothgrid.solvers.bounds.band_steps` of level 0's iterate (its right-hand side
@@ -1401,8 +1377,8 @@ class CpuMultigrid:
                            scratch=self)
         qe, qo = (ops._arena.empty(a.shape, np.float64) for a in ops.x[0])
         (xe, xo), (be, bo) = self.x[0], self.b[0]
-        step = self._kernel("_norm_rhs5", 0)(xe, xo, be, bo, *self.st[0], self.nv[0], self._has_b, float(eps),
-                                             qe, qo)
+        step = self._kernel("_max_step5", 0)(xe, xo, be, bo, *self.st[0], self.nv[0], self._has_b, float(eps),
+                                             qe, qo, True)
         ops.b[0], ops._has_b = (qe, qo), True
         return ops, float(step)
 
