@@ -292,7 +292,8 @@ def _add_heat_parser(sub: Any) -> None:
     h.add_argument("--max-iter", type=_positive_int, default=500, metavar="N",
                    help="most conjugate-gradient iterations per solve (default 500)")
     h.add_argument("--error-bound", action="store_true",
-                   help="steady: also compute a guaranteed bound on the temperature error (one more solve)")
+                   help="steady: also compute a guaranteed bound on the temperature error (three more solves; "
+                        "within a few per cent of the true error above float64's rounding, docs/heat.md)")
     h.add_argument("--backend", choices=BACKENDS, default="cpu",
                    help="where the V-cycle and CG run: cpu (Numba, float64; auto is the cpu), gl (OpenGL "
                         "shaders through headless EGL, float32, refined until the float64 residual on the host "

@@ -866,7 +866,8 @@ def solve_steady(problem: HeatProblem, *, backend: str = "cpu", tol: float = 1e-
         Most conjugate-gradient iterations.
     error_bound : bool
         Also compute a guaranteed bound on the largest temperature error
-        (kelvin; one more solve, to 1e-3).
+        (kelvin; three more solves: the barrier, the error itself and a remainder,
+        :func:`_error_bound`; within a few per cent of the true error above float64's rounding).
     allow_unconverged : bool
         Return the result instead of raising :class:`~clothgrid.errors.NotConvergedError`.
     progress : callable, optional
