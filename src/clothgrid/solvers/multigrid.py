@@ -307,6 +307,9 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
     # levels there, already resident) or give its pages back (400 MB at 4096^2).
     spare = problem.r0 if problem.overwrite and problem.r0.flags.c_contiguous else None
     ring = _ring(problem.r0) if spare is not None else None
+    # the boundary's largest coordinate (the residual solve's rounding allowance), read while r0 holds it
+    r0 = problem.r0
+    xmax = float(np.abs(np.concatenate([r0[0], r0[-1], r0[:, 0], r0[:, -1]])).max())
     ops = backend.multigrid(levels, x0, spare=spare)
     ops.synchronize()   # on a device: the upload has finished (a no-op on the cpu)
     setup = time.perf_counter() - t0
@@ -334,8 +337,6 @@ def solve_multigrid(problem: Problem, *, backend: Backend, tol: float, stop: str
         nonlocal method, bands, residual_try
         if residual_try:
             residual_try = False        # once, after the first iteration
-            r0 = problem.r0
-            xmax = float(np.abs(np.concatenate([r0[0], r0[-1], r0[:, 0], r0[:, -1]])).max())
             got = _residual_solve_bound(ops, limit, _analytic_barrier_max(nu, nv), xmax)
             if got is not None and got[1] <= limit:
                 method = "residual solve"
