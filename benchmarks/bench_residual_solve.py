@@ -3,6 +3,7 @@
     python benchmarks/bench_residual_solve.py                       # 1024^2, smooth field and 10:1 blocks
     python benchmarks/bench_residual_solve.py --sizes 1024 2048 --repeat 7
     python benchmarks/bench_residual_solve.py --sizes 4096 --repeat 1 --kinds smooth
+    python benchmarks/bench_residual_solve.py --backend cuda --sizes 1024 2048 4096 --kinds smooth   # on a GPU
 
 For each size (the bundled T-shirt front resampled to ``n x n``, ``tol = 2^-12``) and per-edge field
 (``bench_speed.field_weights``: the paper's weights times ``e^(sin 6u cos 5v)``, or 8 x 8 blocks of
@@ -10,6 +11,8 @@ For each size (the bundled T-shirt front resampled to ``n x n``, ``tol = 2^-12``
 ``solvers.multigrid.RESIDUAL_SOLVE_BOUND`` on and off, alternating, in this one process; each column
 is the best ``info["solve_seconds"]`` of ``--repeat``, and the ratio is on / off, so the baseline is
 measured in the same run as the figure. Also the iterations, the bound and the method it stopped on.
+``--backend`` (default cpu) picks where the solves run: the cpu and cuda backends have the residual
+solve.
 """
 
 from __future__ import annotations
@@ -31,9 +34,12 @@ def main() -> int:
     ap.add_argument("--sizes", type=int, nargs="+", default=[1024])
     ap.add_argument("--kinds", nargs="+", default=["smooth", "blocks"], choices=["smooth", "blocks"])
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--backend", default="cpu", choices=["cpu", "cuda", "gl"])
     args = ap.parse_args()
     base = clothgrid.load_boundary(B.PIECE)
-    clothgrid.generate(base.resampled(65, 65), solver="multigrid", weights=B.field_weights(65, "smooth"))  # warm
+    clothgrid.generate(base.resampled(65, 65), solver="multigrid", weights=B.field_weights(65, "smooth"),
+                       backend=args.backend)  # warm
+    print(f"backend {args.backend}")
     print("| nodes | field | barrier solve + band barriers (s) | residual solve (s) | ratio |")
     print("|---|---|---|---|---|")
     saved = mg.RESIDUAL_SOLVE_BOUND
@@ -46,7 +52,7 @@ def main() -> int:
                 for _ in range(args.repeat):
                     for flag in (True, False):
                         mg.RESIDUAL_SOLVE_BOUND = flag
-                        g = clothgrid.generate(b, solver="multigrid", weights=w)
+                        g = clothgrid.generate(b, solver="multigrid", weights=w, backend=args.backend)
                         s = g.info["solve_seconds"]
                         if flag not in best or s < best[flag][0]:
                             best[flag] = (s, g.info)

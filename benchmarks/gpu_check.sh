@@ -5,9 +5,9 @@
 #   bash benchmarks/gpu_check.sh            # OUT defaults to /tmp/clothgrid-gpu
 #   STEPS="tests bench" MAX=4096 METHODS="cpu multigrid;cuda multigrid;gl multigrid" bash benchmarks/gpu_check.sh
 #
-# STEPS picks the checks and their order (default: tests weights heat ops bench); METHODS (';'-separated) and MAX the
-# solvers and the largest side of the bench step; WEIGHT_SIZES and OPS_SIZES the sides of the weights
-# and ops steps.
+# STEPS picks the checks and their order (default: tests weights heat ops bench; also residual); METHODS
+# (';'-separated) and MAX the solvers and the largest side of the bench step; WEIGHT_SIZES, OPS_SIZES and
+# RESIDUAL_SIZES the sides of the weights, ops and residual steps.
 #
 # On the project's device machines the Python packages the image lacks travel as wheels in .whl/
 # and the GL loader libraries as Debian packages in .gl/ (both git-ignored; see the device tool's
@@ -64,7 +64,10 @@ for s in $STEPS; do   # in the order STEPS names them
     bench) step 180 bench.txt python3 benchmarks/bench_gpu.py --min 32 --max "$MAX" --ref-max 1024 --timeout 60 \
         --out "$OUT/gpu" --methods "${methods[@]}"
         rm -f "$OUT/gpu/gpu.csv" "$OUT/gpu/gpu_fig5.png" ;;   # made again from rows.jsonl by --render
-    *) echo "unknown step $s (tests weights heat ops bench)" >>"$log" ;;
+    # per-edge weights on cuda: the residual solve's bound against the barrier solve, alternating (not in the default STEPS)
+    residual) step 120 residual.txt python3 benchmarks/bench_residual_solve.py --backend cuda \
+        --sizes ${RESIDUAL_SIZES:-1024 2048 4096} --kinds smooth blocks --repeat 3 ;;
+    *) echo "unknown step $s (tests weights heat ops bench residual)" >>"$log" ;;
     esac
 done
 cat "$log"
