@@ -346,6 +346,33 @@ def test_auto_picks_by_size_and_weights():
     assert choose_solver(True, 513, 512) == "multigrid"
     assert choose_solver(False, 33, 33) == "direct"
     assert choose_solver(False, 1025, 1025) == "multigrid"
+    # per-edge weights: smooth ones (neighbouring edges within 20x) take multigrid from 64^2, jumps direct to 128^2
+    assert choose_solver(False, 64, 64, contrast=8.0) == "direct"
+    assert choose_solver(False, 65, 65, contrast=8.0) == "multigrid"
+    assert choose_solver(False, 65, 65, contrast=64.0) == choose_solver(False, 65, 65) == "direct"
+    assert choose_solver(False, 128, 128, contrast=1e4) == "direct"
+    assert choose_solver(False, 129, 128, contrast=1e4) == "multigrid"
+
+
+def test_edge_contrast_and_auto_on_per_edge_weights(rng):
+    """The contrast is the largest ratio of neighbouring edges' weights; generate's auto picks multigrid
+    for a smooth per-edge field on a 97 x 90 grid (and meets the tolerance) and the direct solve for 10^3:1
+    blocks of the same size."""
+    from clothgrid.weights import edge_contrast
+
+    wu, wv = np.ones((4, 5)), np.ones((5, 4))
+    assert edge_contrast(wu, wv) == 1.0
+    wu[2, 3] = 7.0
+    wv[1, 1] = 1 / 9.0
+    assert edge_contrast(wu, wv) == pytest.approx(9.0)
+    nu, nv = 97, 90
+    b = clothgrid.Boundary.from_sides(*smooth_quad_sides(rng, nu, nv))
+    for kind, solver in (("smooth", "multigrid"), ("blocks", "direct")):
+        w = per_edge_weights(rng, kind, nu, nv)
+        g = clothgrid.generate(b, weights=(w.wu, w.wv))
+        assert g.info["solver"] == solver and g.info["converged"]
+        ref = exact_solution(boundary_grid(b), w.wu, w.wv)
+        assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"] <= TOL
 
 
 def test_auto_uses_multigrid_on_large_grids(rng, monkeypatch):

@@ -96,6 +96,19 @@ def interior_diagonal(wu: np.ndarray, wv: np.ndarray) -> np.ndarray:
     return wu[:-1, 1:-1] + wu[1:, 1:-1] + wv[1:-1, :-1] + wv[1:-1, 1:]
 
 
+def edge_contrast(wu: np.ndarray, wv: np.ndarray) -> float:
+    """The largest ratio between two neighbouring edges' weights (u-edges with u-edges, v-edges with
+    v-edges, along either direction): 5-9 for the paper's weights and smooth fields times them, the
+    jump itself (and more) for blocks. :func:`clothgrid.solvers.choose_solver` reads it."""
+    r = 1.0
+    for w in (np.asarray(wu, dtype=np.float64), np.asarray(wv, dtype=np.float64)):
+        for a, b in ((w[1:], w[:-1]), (w[:, 1:], w[:, :-1])):
+            if a.size:
+                q = a / b
+                r = max(r, float(q.max()), float(1.0 / q.min()))
+    return r
+
+
 def paper_lengths(n: int, k: float = 1.0) -> np.ndarray:
     """The paper's ``L`` of eq. (2), 0-based: ``0.01 + k (0.5 (n-1) - i)^2 / n``."""
     i = np.arange(n, dtype=np.float64)
