@@ -877,6 +877,26 @@ def test_band_bound_holds_on_random_sizes_and_k(seed):
         assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"]
 
 
+@pytest.mark.parametrize("kind", ["paper", "uniform"])
+@pytest.mark.parametrize("shift", [0.0, 1e3, 1e6])
+def test_bound_holds_at_the_rounding_floor_far_from_the_origin(rng, kind, shift):
+    """A piece moved far from the origin, solved to a tolerance below float64's reach: the reported
+    bound holds against the exact solution of the unmoved piece moved back (the solution moves with its
+    boundary), and counts the residual's rounding (64 u max|x| max z at least)."""
+    from clothgrid.solvers.bounds import _analytic_barrier_max
+
+    nu, nv = 41, 37
+    sides = smooth_quad_sides(rng, nu, nv)
+    b0 = clothgrid.Boundary.from_sides(*sides)
+    b = clothgrid.Boundary.from_sides(*[side + shift for side in sides])
+    w = make_weights(kind, nu, nv)
+    ref = exact_solution(boundary_grid(b0), w.wu, w.wv) + np.array([shift, shift, 0.0])
+    g = clothgrid.generate(b, weights=kind, solver="multigrid", tol=1e-16, max_iter=25, allow_unconverged=True)
+    assert max_rel_error(g.points, ref, b.size) <= g.info["error_estimate"]
+    xmax = float(np.abs(boundary_grid(b)).max())
+    assert g.info["error_estimate"] * b.size >= 64 * 2.0**-53 * xmax * _analytic_barrier_max(nu, nv)
+
+
 # --- the band barriers for per-edge weights --------------------------------------------------------------
 
 def per_edge_weights(rng, kind, nu, nv):
