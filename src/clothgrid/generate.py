@@ -17,7 +17,7 @@ from .initial import INITS, boundary_grid, initial_grid
 from .memory import check_memory, estimate_bytes, format_bytes
 from .blas_threads import one_blas_thread
 from .pages import small_pages
-from .solvers import DIRECT_MAX_NODES, SOLVERS, Problem, choose_solver, solve
+from .solvers import SOLVERS, Problem, choose_solver, solve
 from .weights import Weights, edge_contrast, make_weights
 
 __all__ = ["generate", "parse_nodes", "check_size"]
@@ -255,12 +255,11 @@ def _plan(be, nu: int, nv: int, solver: str, weights, stop: str, dim: int, *, ke
     elif on_device:  # the paper's rule is Jacobi's: on a device, auto with stop="paper" is the paper's method
         name = "jacobi" if stop == "paper" and "jacobi" in on_device else on_device[0]
     else:
-        contrast = None
-        if not separable and not isinstance(weights, str) and nu * nv <= DIRECT_MAX_NODES:
-            # per-edge arrays on a grid the direct solve may take: the jumps' size picks too
-            w = weights if isinstance(weights, Weights) else make_weights(weights, nu, nv)
-            contrast = edge_contrast(w.wu, w.wv)
-        name = choose_solver(separable, nu, nv, contrast)
+        def contrast() -> float:   # per-edge arrays: the size of their jumps may pick too (read where it does)
+            w = make_weights(weights, nu, nv)
+            return edge_contrast(w.wu, w.wv)
+
+        name = choose_solver(separable, nu, nv, None if isinstance(weights, str) else contrast)
     device_need = 0
     if on_device:  # the device's texture size and memory, before anything is allocated (SizeError)
         device_need = be.check_size(nu, nv, name, estimate_bytes(name, nu, nv),

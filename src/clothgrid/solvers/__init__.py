@@ -15,6 +15,8 @@ dispatches by name and resolves ``"auto"``.
 
 from __future__ import annotations
 
+from typing import Callable
+
 from ..errors import InputError
 from ..weights import edge_contrast
 from .direct import solve_direct
@@ -46,27 +48,33 @@ SMOOTH_CONTRAST = 20.0
 DIRECT_MAX_NODES_SMOOTH = 64 * 64
 
 
-def choose_solver(separable: bool, nu: int, nv: int, contrast: float | None = None) -> str:
+def choose_solver(separable: bool, nu: int, nv: int,
+                  contrast: float | Callable[[], float] | None = None) -> str:
     """The fastest CPU solver that meets the tolerance, by size and weights.
 
     Fast diagonalisation (separable weights) and the sparse direct solve win
     on small grids; multigrid's O(n) cycles win above ``FDM_MAX_NODES`` and
     ``DIRECT_MAX_NODES`` nodes, and for per-edge weights whose ``contrast``
     (:func:`clothgrid.weights.edge_contrast`) is at most ``SMOOTH_CONTRAST``
-    above ``DIRECT_MAX_NODES_SMOOTH``.
+    above ``DIRECT_MAX_NODES_SMOOTH``. ``contrast`` may be a function giving it:
+    it is then called only on grids where it changes the answer (a pass over
+    the weights that larger grids would pay for nothing).
     """
     if separable:
         return "fdm" if nu * nv <= FDM_MAX_NODES else "multigrid"
-    smooth = contrast is not None and contrast <= SMOOTH_CONTRAST
-    return "direct" if nu * nv <= (DIRECT_MAX_NODES_SMOOTH if smooth else DIRECT_MAX_NODES) else "multigrid"
+    if nu * nv <= DIRECT_MAX_NODES_SMOOTH:
+        return "direct"
+    if nu * nv > DIRECT_MAX_NODES:
+        return "multigrid"
+    c = contrast() if callable(contrast) else contrast
+    return "multigrid" if c is not None and c <= SMOOTH_CONTRAST else "direct"
 
 
 def solve(problem: Problem, solver: str = "auto", **options) -> tuple[str, SolveResult]:
     """Solve ``problem`` with the named solver; returns ``(name used, result)``."""
     if solver == "auto":
         w = problem.weights
-        separable = w.factors is not None
-        solver = choose_solver(separable, *problem.shape, None if separable else edge_contrast(w.wu, w.wv))
+        solver = choose_solver(w.factors is not None, *problem.shape, lambda: edge_contrast(w.wu, w.wv))
     try:
         func = SOLVERS[solver]
     except KeyError:

@@ -288,7 +288,8 @@ class CudaMultigrid:
         return None
 
     def _interior(self, planes: tuple) -> list:
-        """The interior nodes' parts of one-coordinate parity planes (device views)."""
+        """The interior nodes' parts of parity planes, first coordinate (CuPy or NumPy views: a Numba
+        device array has no max())."""
         nu, nv = self._shape[:2]
         return [self._xp.asarray(a)[0, 1:-1, slice(*line_range(nv, p))] for p, a in enumerate(planes)]
 
@@ -409,12 +410,10 @@ class CudaMultigrid:
     def solution_max(self) -> float:
         """The largest interior value of level 0's iterate, first coordinate: a reduction over its
         parity planes on the device (no grid crosses the bus)."""
-        xe, xo = self._views(self.x[0])   # CuPy (or NumPy) views: a Numba device array has no max()
         nu, nv = self._shape[:2]
         if nu < 3 or nv < 3:
             return -math.inf
-        parts = [(xe if p == 0 else xo)[0, 1:-1, slice(*line_range(nv, p))] for p in (0, 1)]
-        return float(max(float(a.max()) for a in parts if a.size))
+        return float(max(float(a.max()) for a in self._interior(self.x[0]) if a.size))
 
     def solution_into(self, out: np.ndarray) -> None:
         """Write level 0's iterate into the host array ``out`` (``(nu, nv, k)``, any strides).
