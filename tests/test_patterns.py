@@ -350,6 +350,11 @@ def test_outer_loops_trace_the_boundary_around_forked_chains(rng):
     b = [_line((5, 0), (6, 0)), _line((6, 0), (6, 1)), _line((6, 1), (5, 1)), _line((5, 1), (5, 0))]
     assert outer_loops(a + b + [_line((1, 0), (5, 0))], 1e-6) == []
     assert outer_loops(a, 1e-6) == []                  # no fork: chain_loops' case
+    # a line from a corner to the middle of the opposite side (not a node there): left out, and
+    # the loop it forked from is the outline
+    (prims, used, inner), = outer_loops(a + [_line((0, 0), (0.5, 1))], 1e-6)
+    assert sorted(used) == [0, 1, 2, 3] and inner == []
+    assert abs(abs(signed_area(np.array([p.start for p in prims]))) - 1.0) < 1e-12
 
 
 def test_svg_panel_drawn_as_edges_with_a_waist_line(tmp_path):
@@ -988,11 +993,14 @@ def test_open_paths_joined_only_where_two_ends_meet(tmp_path):
                           '<path id="q" d="M 0,0 L 0,100 L 100,100"/></g>')
     got = read_pieces(path)
     assert [p.name for p in got] == ["panel"] and got[0].area == pytest.approx(10000)
-    # a third path from a shared end (a fork): which way the outline goes is a guess, so none
+    # a third path from a shared end (a fork) whose other end meets nothing (a mark drawn from a
+    # corner): it is left out and the outline is the two halves'
     path = _svg(tmp_path, '<g id="panel"><path id="p" d="M 0,0 L 100,0 L 100,100"/>'
                           '<path id="q" d="M 0,0 L 0,100 L 100,100"/><path id="r" d="M 0,0 L -9,-9"/></g>'
                           '<path id="s" d="M 150,0 L 250,0 L 250,100 Z"/>')
-    assert [p.name for p in read_pieces(path)] == ["s"]
+    got = {p.name: p for p in read_pieces(path)}
+    assert sorted(got) == ["panel", "s"] and got["panel"].area == pytest.approx(10000)
+    assert sorted(got["panel"].meta["joined"]) == ["p", "q"] and "inner_lines" not in got["panel"].meta
     # paths of different classes (a sew line and a seam allowance) are not joined
     path = _svg(tmp_path, '<g id="panel"><path class="fabric" d="M 0,0 L 100,0 L 100,100"/>'
                           '<path class="fabric sa" d="M 0,0 L 0,100 L 100,100"/></g>'
@@ -1025,6 +1033,77 @@ def test_lines_and_open_polylines_meeting_end_to_end_are_an_outline(tmp_path):
     assert any("joined from 4 open paths" in n for n in got["panel"].notes)
     bad = read_pieces(_svg(tmp_path, '<line x1="0" y1="0" x2="1em" y2="5"/><path d="M0,0 L90,0 L90,90 Z"/>'))
     assert len(bad) == 1 and len(bad.failed) == 1 and "expected a number" in bad.failed[0].reason
+
+
+def _hand_drawn_sleeve(gap_px: float = 0.5) -> str:
+    """A sleeve block as Adobe Illustrator exports a hand-drawn one (72 px an inch): its cap as two
+    open curves, its sides, hem, bicep and elbow lines as separate ``<line>``s, the upper ends
+    ``gap_px`` apart (the lower part closes exactly, by the elbow line), a centre line from the
+    cap's top to the middle of the hem, and a grain-line arrowhead as a small closed path."""
+    g = gap_px
+    return ('<?xml version="1.0" encoding="utf-8"?>\n'
+            '<!-- Generator: Adobe Illustrator 15.0.0, SVG Export Plug-In -->\n'
+            '<svg xmlns="http://www.w3.org/2000/svg" width="1000px" height="1300px" viewBox="0 0 1000 1300"><g>'
+            '<path fill="none" stroke="#000" d="M500,100 c-150,0 -200,200 -300,250"/>'
+            '<path fill="none" stroke="#000" d="M500,100 c150,0 200,200 300,250"/>'
+            f'<line fill="none" stroke="#000" x1="{200 + g}" y1="{350 - g / 2}" x2="280" y2="800"/>'
+            f'<line fill="none" stroke="#000" x1="{800 - g}" y1="{350 + g / 2}" x2="720" y2="800"/>'
+            '<line fill="none" stroke="#000" x1="280" y1="800" x2="350" y2="1200"/>'
+            '<line fill="none" stroke="#000" x1="720" y1="800" x2="650" y2="1200"/>'
+            '<line fill="none" stroke="#000" x1="350" y1="1200" x2="650" y2="1200"/>'
+            f'<line fill="none" stroke="#000" x1="{200 + g}" y1="350" x2="{800 - g / 2}" y2="350"/>'
+            '<line fill="none" stroke="#000" x1="280" y1="800" x2="720" y2="800"/>'
+            f'<line fill="none" stroke="#000" x1="500" y1="{100 + g}" x2="500" y2="1200"/>'
+            '<path d="M490,600 L510,600 L500,570 Z"/></g></svg>')
+
+
+def test_svg_block_drawn_by_hand_as_lines_with_gaps(tmp_path):
+    """A block drawn by hand in Illustrator (BCSizing's sleeve and bodice blocks): separate lines and
+    curves whose ends miss each other by up to 0.2 mm are one piece, across construction lines (the
+    bicep and elbow lines are inner lines; the elbow line closes the lower part exactly, which is
+    part of the sleeve, not a piece), the centre line ending on the hem is left out, and the
+    arrowhead is a mark drawn on the piece. Ends 2 mm apart are not joined."""
+    path = tmp_path / "sleeve.svg"
+    path.write_text(_hand_drawn_sleeve(0.5))
+    got = read_pieces(path)
+    assert len(got) == 1
+    (piece,) = got
+    mm = 25.4 / 72
+    assert piece.extent == pytest.approx((600 * mm, 1100 * mm), abs=0.3)
+    assert len(piece.meta["joined"]) == 7 and len(piece.meta["inner_lines"]) == 2
+    assert piece.meta["gap_mm"] == pytest.approx(np.hypot(0.5, 0.25) * mm, rel=0.05)
+    gap = f"across gaps of up to {piece.meta['gap_mm']:.3g} mm"
+    assert any(gap in n and "around 2 inner lines" in n for n in piece.notes)
+    assert [(k.kind, k.of) for k in got.skipped] == [("inside", piece.name)]
+    # the sleeve grids without a fold
+    from clothgrid.quality import quality
+
+    assert quality(generate_piece(piece, (17, 31))).folded == 0
+    path.write_text(_hand_drawn_sleeve(6.0))    # 2.1 mm: not a gap in the line, so not joined
+    pieces = read_pieces(path)
+    assert all(p.area < 0.5 * piece.area for p in pieces)
+
+
+def test_dashed_outline_across_a_piece_is_a_construction_line(tmp_path):
+    """A dashed closed outline reaching over a larger solid piece's outline (a bust radius drawn
+    around the bust point) is skipped; a dashed one inside a piece is a mark drawn on it; one that
+    touches no piece stays a piece (programs that draw every line dashed)."""
+    from clothgrid.patterns.annotations import dashed
+
+    assert not dashed(None) and not dashed("") and not dashed(";none;#000;")
+    assert not dashed(";none;#000;none") and not dashed(";none;#000;0,0") and not dashed("c;none;#000; 0 ")
+    assert dashed(";none;#000;0.567,0.567") and dashed("a;none;#000;5 2") and dashed(";none;;.5")
+    body = ('<path id="front" fill="none" stroke="#000" d="M 0,0 L 100,0 L 100,150 L 0,150 Z"/>'
+            '<ellipse id="radius" fill="none" stroke="#000" stroke-dasharray="2,1" cx="95" cy="75" rx="30" ry="30"/>'
+            '<rect id="pocket" fill="none" stroke="#000" style="stroke-dasharray: 3 1" x="20" y="20" width="30" height="30"/>'
+            '<rect id="apart" fill="none" stroke="#000" stroke-dasharray="2,1" x="200" y="0" width="80" height="120"/>')
+    got = read_pieces(_svg(tmp_path, body))
+    assert sorted(p.name for p in got) == ["apart", "front"]
+    kinds = {k.name: (k.kind, k.of) for k in got.skipped}
+    assert kinds == {"radius": ("dashed line", "front"), "pocket": ("inside", "front")}
+    # drawn solid, the circle across the outline is a piece of its own
+    got = read_pieces(_svg(tmp_path, body.replace('stroke-dasharray="2,1" cx', 'cx')))
+    assert "radius" in [p.name for p in got]
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -8,8 +8,9 @@ each with a reason, using the structure the file gives first (SVG classes,
 ids and labels such as FreeSewing's ``fabric``, ``sa``, ``note``, ``mark``,
 ``help``; text groups; DXF layer names) and geometry second (outlines inside
 other outlines, outlines of nearly the same shape around another, relative
-size, circles, arrows). The readers return a :class:`~.piece.Pieces` list: the
-pieces, with the skipped outlines in :attr:`Pieces.skipped` and the pieces that
+size, circles, arrows, dashed outlines across a piece). The readers return a
+:class:`~.piece.Pieces` list: the pieces, with the skipped outlines in
+:attr:`Pieces.skipped` and the pieces that
 could not be made in :attr:`Pieces.failed`; a skipped outline is gridded when
 asked for by name (:meth:`Pieces.including`, ``--include NAME`` or ``--piece NAME``).
 
@@ -230,6 +231,16 @@ def _fmt_pct(x: float) -> str:
     return f"{100 * x:.2g} %" if x < 0.01 else f"{100 * x:.1f} %"
 
 
+def dashed(look: str | None) -> bool:
+    """Whether an outline's ``meta["look"]`` (``class;fill;stroke;stroke-dasharray``, the SVG
+    reader's) draws it dashed."""
+    if not look:
+        return False
+    dashes = look.rsplit(";", 1)[-1].strip().lower()
+    return dashes not in ("", "none") and any(float(v) > 0 for v in re.findall(r"[0-9.]+(?:e-?[0-9]+)?", dashes)
+                                               if v.strip(".") != "")
+
+
 def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]] = (), *,
              line: str = "sew", marked: Sequence[Skipped] = ()) -> Pieces:
     """Sort closed outlines into pieces and skipped annotations.
@@ -353,8 +364,28 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     else:
         largest = max((it.piece.area for it in items), default=0.0)
 
-    # 3. small outlines across a piece's outline: notches
     partner = {**paired, **{v: k for k, v in paired.items()}}
+
+    # 3. dashed outlines across the outline of a larger piece drawn solid: construction, fold or
+    # stitch lines (a bust radius drawn as a dashed circle around the bust point reaches over the
+    # dart's mouth). One inside a piece is a mark drawn on it (5.).
+    for j in cand:
+        it = items[j]
+        if (it.kind is not None or j in partner or is_piece_class[j] or containers[j]
+                or not dashed(it.piece.meta.get("look"))):
+            continue
+        for i in order:                            # the largest host first
+            h = items[i]
+            if (i == j or h.kind is not None or h.piece.area < it.piece.area or dashed(h.piece.meta.get("look"))
+                    or not same_part(i, j) or np.any(it.hi < h.lo) or np.any(it.lo > h.hi)):
+                continue
+            if _inside(it.sub, h.poly).any():
+                it.kind, it.of = "dashed line", h.piece.name
+                it.reason = (f"dashed outline across the outline of piece {h.piece.name!r} (a construction, fold or "
+                             "stitch line)")
+                break
+
+    # 4. small outlines across a piece's outline: notches
     alive = [i for i in cand if items[i].kind is None or i in paired]
     al = np.array(alive, dtype=np.int64)
     a_area = np.array([items[i].piece.area for i in alive])
@@ -393,12 +424,12 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
                     a_free[a_pos[j]] = False
                 break
 
-    # 4. outlines inside a piece: marks drawn on it
+    # 5. outlines inside a piece: marks drawn on it
     for j in cand:
         it = items[j]
         if it.kind is not None or j in partner:
             continue
-        hosts = [i for i in containers[j] if partner.get(j) != i]
+        hosts = [i for i in containers[j] if partner.get(j) != i and items[i].kind != "dashed line"]
         if not hosts:
             continue
         host = hosts[-1]                          # the smallest outline around it
@@ -429,7 +460,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             it.kind, it.reason = "inside", f"{where} (a mark drawn on it, {_fmt_pct(frac)} of its area)"
         it.of = name
 
-    # 5. free-standing outlines: circles, arrows, glyph groups, too small
+    # 6. free-standing outlines: circles, arrows, glyph groups, too small
     alive = [i for i in cand if items[i].kind is None]
     largest = max((items[i].piece.area for i in alive), default=largest)
     small = [i for i in alive if not is_piece_class[i] and items[i].piece.area < 0.02 * largest]

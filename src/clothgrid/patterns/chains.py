@@ -129,12 +129,13 @@ def outer_loops(pieces: list[list[Primitive]], tol: float
 
     Ends within ``tol`` are one node. Chains with an end no other chain meets are left out,
     repeatedly (lines that only touch the outline). In each connected set of the rest that has a
-    node where more than two chain ends meet, the faces of the drawing are traced (at each node
-    the chains in the order of the directions they leave it in) and the one of largest area, the
-    outer boundary, is returned: ``(its primitives in order, the chains it runs along, the chains
-    of that set inside it)``. Sets without a fork are :func:`chain_loops`'; so are self-crossing
-    drawings, for which no face is trustworthy: a set whose outer boundary runs along a chain
-    twice is left out.
+    node where more than two chain ends met (before any was left out: a construction line drawn
+    from a corner of the outline to the middle of a side leaves a plain loop), the faces of the
+    drawing are traced (at each node the chains in the order of the directions they leave it in)
+    and the one of largest area, the outer boundary, is returned: ``(its primitives in order, the
+    chains it runs along, the chains of that set inside it)``. Sets that never forked are
+    :func:`chain_loops`'; so are self-crossing drawings, for which no face is trustworthy: a set
+    whose outer boundary runs along a chain twice is left out.
     """
     n = len(pieces)
     if n < 3 or not tol > 0:
@@ -162,12 +163,15 @@ def outer_loops(pieces: list[list[Primitive]], tol: float
     node = [find(e) for e in range(2 * n)]
     alive = [node[2 * k] != node[2 * k + 1] for k in range(n)]       # a chain from a point to itself: a loop
     # chains with a free end are left out, again and again
+    forked: set[int] = set()        # nodes where more than two chain ends meet, before any is left out
     while True:
         degree: dict[int, int] = {}
         for k in range(n):
             if alive[k]:
                 for v in (node[2 * k], node[2 * k + 1]):
                     degree[v] = degree.get(v, 0) + 1
+        if not forked:
+            forked = {v for v, d in degree.items() if d > 2}
         free = [k for k in range(n) if alive[k] and (degree[node[2 * k]] < 2 or degree[node[2 * k + 1]] < 2)]
         if not free:
             break
@@ -191,8 +195,8 @@ def outer_loops(pieces: list[list[Primitive]], tol: float
             sets.setdefault(root(node[2 * k]), []).append(k)
     out = []
     for members in sets.values():
-        if not any(degree[node[2 * k + s]] > 2 for k in members for s in (0, 1)):
-            continue                                  # no fork: chain_loops' case
+        if not any(node[2 * k + s] in forked for k in members for s in (0, 1)):
+            continue                                  # never a fork: chain_loops' case
         # half-edges (k, forward): leaving node[2k] forwards, or node[2k+1] backwards
         around: dict[int, list[tuple[float, int, bool]]] = {}
         for k in members:

@@ -624,14 +624,17 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group, use)
 
     visit(root, view)
-    for name, prims, meta, members, inner in _joined(opened):
+    for name, prims, meta, members, inner, gap in _joined(opened):
         name = unique(name)
         around = f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ({_names(inner)})" if inner else ""
+        bridged = f", across gaps of up to {gap:.3g} mm" if gap > JOIN_MM else ""
+        if gap > JOIN_MM:
+            meta["gap_mm"] = gap
         try:
             pieces.append(piece_from_primitives(
                 name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
                 notes=(f"units: {how}", f"joined from {len(members)} open paths ({_names(members)}) that meet "
-                       f"end to end{around}"), meta=meta))
+                       f"end to end{bridged}{around}"), meta=meta))
         except InputError as exc:
             unmade.append((piece_failure(name, exc, where), meta))
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
@@ -667,7 +670,7 @@ def _drawn_line(prims: list[Primitive], size: float) -> bool:
     return len(np.unique(np.round(ends / (1e-9 * size)), axis=0)) <= 2
 
 
-def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[str]]]:
+def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[str], list[str], float]]:
     """Closed outlines made of open subpaths that meet end to end, each group on its own.
 
     A pattern program may draw a piece as several open paths (FreeSewing draws a
@@ -679,11 +682,17 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
     point where more than two path ends meet (a fork). Where paths fork (a panel
     drawn as its edges and a waist line across it), the outline is the boundary
     around them (:func:`~clothgrid.patterns.chains.outer_loops`), and the paths
-    inside it are inner lines. The subpaths used are marked ``joined``. Returns
-    ``(name, primitives, meta, member names, inner line names)`` per outline.
-    """
-    from .chains import chain_loops, outer_loops
+    inside it are inner lines.
 
+    Where subpaths of a group are left over, the group's subpaths are tried again with ends up to
+    :data:`GAP_MM` apart (and at most :data:`GAP_REL` of the group's extent): a block drawn by hand
+    as separate lines and curves (Adobe Illustrator) has its ends a fraction of a millimetre apart.
+    An outline found so takes the place of those found before whose subpaths it runs along or
+    encloses (a sleeve's lower part, closed by its elbow line, in the whole sleeve), and is dropped
+    where it takes only part of one, or none of the subpaths left over. The subpaths used are
+    marked ``joined``. Returns ``(name, primitives, meta, member names, inner line names, the
+    largest gap bridged)`` per outline (the gap in the drawing's units, 0 where the ends meet).
+    """
     groups: dict[tuple[str, str], list[_Open]] = {}
     for o in opened:
         groups.setdefault((o.group, o.el.get("class") or ""), []).append(o)
@@ -695,28 +704,60 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
             continue
         ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
         extent = float(np.hypot(*np.ptp(ends.reshape(-1, 2), axis=0)))
-        tol = max(1e-6 * extent, JOIN_MM)
         if not np.isfinite(extent) or not extent > 0:
             continue
-        # a point where more than two path ends meet is a fork: which way an outline goes
-        # there is a guess, so no outline is joined through one
-        keys = np.floor(ends / tol).astype(np.int64).reshape(-1, 2)
-        _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-        fork = (counts[inverse.ravel()] > 2).reshape(-1, 2).any(axis=1)
-        members: list[list[int]] = []
-        loops, _ = chain_loops([o.prims for o in paths], tol, members)
-        for prims, mem in zip(loops, members):
-            if len(mem) < 2 or fork[mem].any():
-                continue
-            out.append(_joined_outline(group, paths, prims, mem, []))
-        rest = [k for k, o in enumerate(paths) if not o.joined]
-        for prims, mem, inner in outer_loops([paths[k].prims for k in rest], tol):
-            out.append(_joined_outline(group, paths, prims, [rest[k] for k in mem], [rest[k] for k in inner]))
+        tol = max(1e-6 * extent, JOIN_MM)
+        found = _join_group(paths, tol)
+        used = {k for _, mem, inner in found for k in mem + inner}
+        gap = min(GAP_MM, GAP_REL * extent)
+        if gap > tol and len(paths) - len(used) >= 2:
+            for prims, mem, inner in _join_group(paths, gap):
+                takes = set(mem + inner)
+                if not set(mem) - used:
+                    continue                      # nothing left over: found before
+                touched = [f for f in found if takes & set(f[1] + f[2])]
+                if any(set(f[1] + f[2]) - takes for f in touched):
+                    continue                      # part of an outline found before
+                found = [f for f in found if not any(f is t for t in touched)] + [(prims, mem, inner)]
+                used |= takes
+        out += [_joined_outline(group, paths, prims, mem, inner) for prims, mem, inner in found]
     return out
 
 
+def _join_group(paths: list[_Open], tol: float) -> list[tuple[list[Primitive], list[int], list[int]]]:
+    """:func:`_joined` for the open subpaths ``paths`` of one group, with ends within ``tol`` meeting:
+    ``(primitives, member indices, inner line indices)`` per outline."""
+    from .chains import chain_loops, outer_loops
+
+    ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
+    # a point where more than two path ends meet is a fork: which way an outline goes
+    # there is a guess, so no outline is joined through one
+    keys = np.floor(ends / tol).astype(np.int64).reshape(-1, 2)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    fork = (counts[inverse.ravel()] > 2).reshape(-1, 2).any(axis=1)
+    members: list[list[int]] = []
+    out = []
+    loops, _ = chain_loops([o.prims for o in paths], tol, members)
+    for prims, mem in zip(loops, members):
+        if len(mem) < 2 or fork[mem].any():
+            continue
+        out.append((prims, mem, []))
+    used = {k for _, mem, _ in out for k in mem}
+    rest = [k for k in range(len(paths)) if k not in used]
+    for prims, mem, inner in outer_loops([paths[k].prims for k in rest], tol):
+        out.append((prims, [rest[k] for k in mem], [rest[k] for k in inner]))
+    return out
+
+
+def _largest_gap(prims: list[Primitive]) -> float:
+    """The largest distance from a primitive's end to the next one's start, around the loop."""
+    ends = np.array([p.end for p in prims])
+    starts = np.array([p.start for p in prims[1:]] + [prims[0].start])
+    return float(np.max(np.hypot(*(ends - starts).T)))
+
+
 def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], mem: list[int],
-                    inner: list[int]) -> tuple[str, list[Primitive], dict, list[str], list[str]]:
+                    inner: list[int]) -> tuple[str, list[Primitive], dict, list[str], list[str], float]:
     """:func:`_joined`'s answer for an outline of ``prims`` joined from ``paths[mem]`` (around the
     inner lines ``paths[inner]``), which are marked ``joined``: named after its group (else its
     first path), its class the first path's, its structure from the paths' classes and groups."""
@@ -726,13 +767,14 @@ def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], me
     classes = [paths[k].el.get("class") for k in mem]
     hint = structure_hint([c for c in classes if c][:1], first.around, any(paths[k].text for k in mem))
     key = group.rsplit("/", 1)[-1] if group else ""
-    name = key if key and key != "g" else first.base
+    # unnamed <line>s all fall back to "line": the first member with a name of its own, or a shape's
+    name = key if key and key != "g" else next((paths[k].base for k in mem if paths[k].base != "line"), "outline")
     meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
             "group": group or None, "structure": hint, "look": _look(first.el),
             "part": group or None, "joined": [paths[k].base for k in mem]}
     if inner:
         meta["inner_lines"] = [paths[k].base for k in inner]
-    return name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner]
+    return name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner], _largest_gap(prims)
 
 
 def _names(names: list[str], most: int = 10) -> str:
@@ -744,4 +786,10 @@ def _names(names: list[str], most: int = 10) -> str:
 #: Open SVG paths whose ends are this close (in mm) meet, whatever the drawing's size: a hand-drawn
 #: corset panel's edges (Inkscape) end up to a micrometre apart.
 JOIN_MM = 0.01
+#: Open SVG paths left over once those within :data:`JOIN_MM` are joined are tried again with their
+#: ends this far apart (in mm): a block drawn by hand in Adobe Illustrator as separate lines and curves
+#: has its ends 0.2-0.4 mm apart (BCSizing's sleeve and bodice blocks), less than a line's width on paper.
+GAP_MM = 1.0
+#: ... but at most this share of the group's extent (a small drawing's ends are not bridged across it)
+GAP_REL = 0.01
 
