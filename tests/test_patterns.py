@@ -408,6 +408,47 @@ def _plain_dxf(path: Path, units: int = 5) -> dict:
     return {"scale": {4: 1.0, 5: 10.0}[units]}
 
 
+def test_plain_dxf_drawn_by_hand_with_gaps_and_construction_lines(tmp_path):
+    """A plain DXF panel drawn as LINEs and an ARC whose ends miss each other by up to 0.4 mm, with
+    a waist line across it and a grain line touching nothing: one piece, the boundary around them,
+    the gaps and the inner line in its note. Ends 3 mm apart join nothing."""
+
+    def draw(g: float) -> Path:
+        doc = ezdxf.new("R2010")
+        doc.units = 4                                   # mm
+        msp = doc.modelspace()
+        msp.add_line((0, 0), (200, 0))
+        msp.add_line((200 + g, 0.1), (200, 140))
+        msp.add_arc(center=(100, 140 + g / 2), radius=100, start_angle=0, end_angle=180)
+        msp.add_line((0, 140), (0, g))
+        msp.add_line((0, 70), (200, 70))                # a waist line ending on the sides (not at their ends)
+        msp.add_line((100, 20), (100, 120))             # a grain line, meeting nothing
+        path = tmp_path / f"hand{g}.dxf"
+        doc.saveas(path)
+        return path
+
+    # the waist line ends on the sides' middles (not at ends): left out, like the grain line
+    (piece,) = read_pieces(draw(0.4))
+    area = 200 * 140 + math.pi * 100 ** 2 / 2
+    assert piece.area == pytest.approx(area, rel=2e-3)
+    assert piece.meta["gap_mm"] == pytest.approx(0.4, abs=0.05)
+    assert any("joined from 4 lines and curves" in n and "across gaps of up to" in n for n in piece.notes)
+    assert any("2 open line(s) and curves were ignored" in n for n in piece.notes)
+    with pytest.raises(InputError, match="no closed polyline"):
+        read_pieces(draw(3.0))
+    # a waist line from end to end of split sides is an inner line of the outline around them
+    doc = ezdxf.new("R2010")
+    doc.units = 4
+    msp = doc.modelspace()
+    for a, b in [((0, 0), (200, 0)), ((200.3, 0), (200, 70)), ((200, 70.2), (200, 140)), ((200, 140), (0, 140)),
+                 ((0, 140), (0, 70.3)), ((0, 70), (0, 0.2)), ((0.1, 70), (200.2, 70))]:
+        msp.add_line(a, b)
+    doc.saveas(tmp_path / "waist.dxf")
+    (piece,) = read_pieces(tmp_path / "waist.dxf")
+    assert piece.area == pytest.approx(200 * 140, rel=1e-3)
+    assert any("joined from 6 lines and curves" in n and "around 1 inner line" in n for n in piece.notes)
+
+
 def test_plain_dxf_pieces_and_accuracy(tmp_path):
     from ezdxf.math import bulge_to_arc
 

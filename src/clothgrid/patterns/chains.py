@@ -15,7 +15,16 @@ import numpy as np
 
 from .sampling import Bezier, EllipseArc, Primitive
 
-__all__ = ["chain_loops", "outer_loops", "reverse"]
+__all__ = ["chain_loops", "outer_loops", "join_outlines", "largest_gap", "reverse", "GAP_MM", "GAP_REL"]
+
+#: Open lines and curves left over once those whose ends meet are joined are tried again with
+#: their ends this far apart (in mm): a block drawn by hand in Adobe Illustrator as separate lines
+#: and curves has its ends 0.1-0.4 mm apart (BCSizing's sleeve and bodice blocks), less than a
+#: line's width on paper.
+GAP_MM = 1.0
+#: ... but at most this share of the drawing's extent (a small drawing's ends are not bridged
+#: across it)
+GAP_REL = 0.01
 
 
 def reverse(p: Primitive) -> Primitive:
@@ -246,3 +255,64 @@ def outer_loops(pieces: list[list[Primitive]], tol: float
         used = [k for k, _ in best]
         out.append((prims, used, sorted(set(members) - set(used))))
     return out
+
+
+def _joined_at(pieces: list[list[Primitive]], tol: float) -> list[tuple[list[Primitive], list[int], list[int]]]:
+    """:func:`join_outlines`' outlines with ends within ``tol`` meeting: :func:`chain_loops`' loops
+    that pass no fork, then :func:`outer_loops` of the chains left."""
+    ends = np.array([[p[0].start, p[-1].end] for p in pieces])     # (n, 2, 2)
+    # a point where more than two chain ends meet is a fork: which way an outline goes there is
+    # a guess, so chain_loops joins no outline through one
+    keys = np.floor(ends / tol).astype(np.int64).reshape(-1, 2)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    fork = (counts[inverse.ravel()] > 2).reshape(-1, 2).any(axis=1)
+    members: list[list[int]] = []
+    out = []
+    loops, _ = chain_loops(pieces, tol, members)
+    for prims, mem in zip(loops, members):
+        if len(mem) < 2 or fork[mem].any():
+            continue
+        out.append((prims, mem, []))
+    used = {k for _, mem, _ in out for k in mem}
+    rest = [k for k in range(len(pieces)) if k not in used]
+    for prims, mem, inner in outer_loops([pieces[k] for k in rest], tol):
+        out.append((prims, [rest[k] for k in mem], [rest[k] for k in inner]))
+    return out
+
+
+def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
+                  ) -> list[tuple[list[Primitive], list[int], list[int]]]:
+    """Closed outlines of open chains (each non-empty, finite ends) that meet end to end:
+    ``(primitives, the chains it runs along, the chains inside it)`` per outline.
+
+    Chains whose ends are within ``tol`` meet. A chain of them that closes without passing a fork
+    (more than two chain ends at a point) is an outline (:func:`chain_loops`); where chains fork, the
+    outline is the boundary around them (:func:`outer_loops`), and the chains inside it are inner
+    lines. Where chains are left over and ``gap > tol``, all are joined again with ends up to
+    ``gap`` apart (a drawing made by hand, its ends a fraction of a millimetre apart): an outline
+    found so takes the place of those found before whose chains it runs along or encloses (a
+    sleeve's lower part, which its elbow line closes exactly, in the whole sleeve), and is dropped
+    where it takes only part of one, or none of the chains left over.
+    """
+    if len(pieces) < 2:
+        return []
+    found = _joined_at(pieces, tol)
+    used = {k for _, mem, inner in found for k in mem + inner}
+    if gap > tol and len(pieces) - len(used) >= 2:
+        for prims, mem, inner in _joined_at(pieces, gap):
+            takes = set(mem + inner)
+            if not set(mem) - used:
+                continue                      # nothing left over: found before
+            touched = [f for f in found if takes & set(f[1] + f[2])]
+            if any(set(f[1] + f[2]) - takes for f in touched):
+                continue                      # part of an outline found before
+            found = [f for f in found if not any(f is t for t in touched)] + [(prims, mem, inner)]
+            used |= takes
+    return found
+
+
+def largest_gap(prims: list[Primitive]) -> float:
+    """The largest distance from a primitive's end to the next one's start, around the loop."""
+    ends = np.array([p.end for p in prims])
+    starts = np.array([p.start for p in prims[1:]] + [prims[0].start])
+    return float(np.max(np.hypot(*(ends - starts).T)))

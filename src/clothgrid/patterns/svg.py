@@ -43,6 +43,7 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
+from .chains import GAP_MM, GAP_REL, join_outlines, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, Skipped, outline_box, piece_failure, piece_from_points,
                     piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
@@ -675,23 +676,20 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
 
     A pattern program may draw a piece as several open paths (FreeSewing draws a
     cap brim as its two curves and the two short lines between them). Within
-    one group (``<g>``) and of one ``class``, subpaths whose ends meet
-    (within ``1e-6`` of their extent, or :data:`JOIN_MM`) are chained
-    (:func:`~clothgrid.patterns.chains.chain_loops`); a chain that closes is an
-    outline, named after its group (else its first path), unless it passes a
-    point where more than two path ends meet (a fork). Where paths fork (a panel
-    drawn as its edges and a waist line across it), the outline is the boundary
-    around them (:func:`~clothgrid.patterns.chains.outer_loops`), and the paths
-    inside it are inner lines.
-
-    Where subpaths of a group are left over, the group's subpaths are tried again with ends up to
-    :data:`GAP_MM` apart (and at most :data:`GAP_REL` of the group's extent): a block drawn by hand
-    as separate lines and curves (Adobe Illustrator) has its ends a fraction of a millimetre apart.
-    An outline found so takes the place of those found before whose subpaths it runs along or
-    encloses (a sleeve's lower part, closed by its elbow line, in the whole sleeve), and is dropped
-    where it takes only part of one, or none of the subpaths left over. The subpaths used are
-    marked ``joined``. Returns ``(name, primitives, meta, member names, inner line names, the
-    largest gap bridged)`` per outline (the gap in the drawing's units, 0 where the ends meet).
+    one group (``<g>``) and of one ``class``, subpaths whose ends meet (within
+    ``1e-6`` of their extent, or :data:`JOIN_MM`) are joined
+    (:func:`~clothgrid.patterns.chains.join_outlines`): a chain of them that
+    closes without a fork is an outline, named after its group (else its first
+    named path); where paths fork (a panel drawn as its edges and a waist line
+    across it), the outline is the boundary around them, and the paths inside
+    it are inner lines. Where subpaths are left over, the group is joined again
+    with ends up to :data:`~clothgrid.patterns.chains.GAP_MM` apart (and at most
+    :data:`~clothgrid.patterns.chains.GAP_REL` of its
+    extent): a block drawn by hand in Adobe Illustrator as separate lines and
+    curves has its ends a fraction of a millimetre apart. The subpaths used are
+    marked ``joined``. Returns ``(name, primitives, meta, member names, inner
+    line names, the largest gap bridged)`` per outline (the gap in the
+    drawing's units, 0 where the ends meet).
     """
     groups: dict[tuple[str, str], list[_Open]] = {}
     for o in opened:
@@ -706,54 +704,9 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
         extent = float(np.hypot(*np.ptp(ends.reshape(-1, 2), axis=0)))
         if not np.isfinite(extent) or not extent > 0:
             continue
-        tol = max(1e-6 * extent, JOIN_MM)
-        found = _join_group(paths, tol)
-        used = {k for _, mem, inner in found for k in mem + inner}
-        gap = min(GAP_MM, GAP_REL * extent)
-        if gap > tol and len(paths) - len(used) >= 2:
-            for prims, mem, inner in _join_group(paths, gap):
-                takes = set(mem + inner)
-                if not set(mem) - used:
-                    continue                      # nothing left over: found before
-                touched = [f for f in found if takes & set(f[1] + f[2])]
-                if any(set(f[1] + f[2]) - takes for f in touched):
-                    continue                      # part of an outline found before
-                found = [f for f in found if not any(f is t for t in touched)] + [(prims, mem, inner)]
-                used |= takes
+        found = join_outlines([o.prims for o in paths], max(1e-6 * extent, JOIN_MM), min(GAP_MM, GAP_REL * extent))
         out += [_joined_outline(group, paths, prims, mem, inner) for prims, mem, inner in found]
     return out
-
-
-def _join_group(paths: list[_Open], tol: float) -> list[tuple[list[Primitive], list[int], list[int]]]:
-    """:func:`_joined` for the open subpaths ``paths`` of one group, with ends within ``tol`` meeting:
-    ``(primitives, member indices, inner line indices)`` per outline."""
-    from .chains import chain_loops, outer_loops
-
-    ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
-    # a point where more than two path ends meet is a fork: which way an outline goes
-    # there is a guess, so no outline is joined through one
-    keys = np.floor(ends / tol).astype(np.int64).reshape(-1, 2)
-    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    fork = (counts[inverse.ravel()] > 2).reshape(-1, 2).any(axis=1)
-    members: list[list[int]] = []
-    out = []
-    loops, _ = chain_loops([o.prims for o in paths], tol, members)
-    for prims, mem in zip(loops, members):
-        if len(mem) < 2 or fork[mem].any():
-            continue
-        out.append((prims, mem, []))
-    used = {k for _, mem, _ in out for k in mem}
-    rest = [k for k in range(len(paths)) if k not in used]
-    for prims, mem, inner in outer_loops([paths[k].prims for k in rest], tol):
-        out.append((prims, [rest[k] for k in mem], [rest[k] for k in inner]))
-    return out
-
-
-def _largest_gap(prims: list[Primitive]) -> float:
-    """The largest distance from a primitive's end to the next one's start, around the loop."""
-    ends = np.array([p.end for p in prims])
-    starts = np.array([p.start for p in prims[1:]] + [prims[0].start])
-    return float(np.max(np.hypot(*(ends - starts).T)))
 
 
 def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], mem: list[int],
@@ -774,7 +727,7 @@ def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], me
             "part": group or None, "joined": [paths[k].base for k in mem]}
     if inner:
         meta["inner_lines"] = [paths[k].base for k in inner]
-    return name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner], _largest_gap(prims)
+    return name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner], largest_gap(prims)
 
 
 def _names(names: list[str], most: int = 10) -> str:
@@ -786,10 +739,4 @@ def _names(names: list[str], most: int = 10) -> str:
 #: Open SVG paths whose ends are this close (in mm) meet, whatever the drawing's size: a hand-drawn
 #: corset panel's edges (Inkscape) end up to a micrometre apart.
 JOIN_MM = 0.01
-#: Open SVG paths left over once those within :data:`JOIN_MM` are joined are tried again with their
-#: ends this far apart (in mm): a block drawn by hand in Adobe Illustrator as separate lines and curves
-#: has its ends 0.2-0.4 mm apart (BCSizing's sleeve and bodice blocks), less than a line's width on paper.
-GAP_MM = 1.0
-#: ... but at most this share of the group's extent (a small drawing's ends are not bridged across it)
-GAP_REL = 0.01
 
