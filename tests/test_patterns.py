@@ -1049,6 +1049,15 @@ def test_open_paths_joined_only_where_two_ends_meet(tmp_path):
     assert [p.name for p in read_pieces(path)] == ["s"]
 
 
+def test_svg_piece_named_by_its_name_attribute(tmp_path):
+    """A pattern program's ``name="sleeve-front-left"`` on a piece's path (not SVG, but written)
+    names the piece where it has no ``inkscape:label`` or ``id``; an ``id`` wins over it."""
+    path = _svg(tmp_path, '<path name="sleeve-front-left" d="M 0,0 L 100,0 L 100,80 Z"/>'
+                          '<path id="cuff" name="sleeve-cuff" d="M 150,0 L 250,0 L 250,30 Z"/>'
+                          '<path d="M 0,100 L 100,100 L 100,180 Z"/>')
+    assert [p.name for p in read_pieces(path)] == ["sleeve-front-left", "cuff", "piece3"]
+
+
 def test_open_paths_polylines_and_lines_are_all_counted_in_the_error(tmp_path):
     path = _svg(tmp_path, '<polyline points="0,0 50,0 50,50"/><path d="M 10 10 L 20 20"/>'
                           '<line x1="60" y1="0" x2="90" y2="10"/>')

@@ -361,7 +361,9 @@ def _segment_prims(seg, m: np.ndarray) -> Primitive:
 
 
 def _name(el: ET.Element, fallback: str) -> str:
-    return (el.get(_INKSCAPE_LABEL) or el.get("id") or fallback).strip() or fallback
+    """The element's name: its ``inkscape:label``, ``id`` or (not SVG, but what some pattern programs
+    write on each piece's path: ``name="sleeve-front-left"``) ``name``, else ``fallback``."""
+    return (el.get(_INKSCAPE_LABEL) or el.get("id") or el.get("name") or fallback).strip() or fallback
 
 
 #: A group key a drawing program made up (Inkscape's ``g123`` and ``layer1``, Illustrator's
