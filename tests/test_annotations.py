@@ -202,7 +202,8 @@ def test_a_path_named_as_a_line_is_not_taken_for_its_layers_annotation(tmp_path)
     """TauMeta's pattern files put every piece in a layer labelled 'Label-pattern', each piece's
     seam line and cutting line named by their ids ('A.seamline', 'A.cuttingline'), beside small
     reference circles: the lines are a piece (its sew line, the cutting line its seam allowance),
-    not text because of the layer's word 'label'; the circles stay annotations."""
+    not text because of the layer's word 'label'; the circles stay annotations. The piece is named
+    'A' (its sew line's id without the line's word); its cut line keeps its id."""
     ink = 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"'
     path = tmp_path / "taumeta.svg"
     path.write_text(
@@ -214,8 +215,8 @@ def test_a_path_named_as_a_line_is_not_taken_for_its_layers_annotation(tmp_path)
         '<circle id="A.FNC" cx="50" cy="50" r="1"/><circle id="A.FWC" cx="60" cy="50" r="1"/>'
         '</g></g></svg>')
     pieces = read_pieces(path)
-    assert [p.name for p in pieces] == ["A.seamline"]
-    assert pieces[0].meta["line"] == "sew"
+    assert [p.name for p in pieces] == ["A"]
+    assert pieces[0].meta["line"] == "sew" and pieces[0].meta["id"] == "A.seamline"
     assert [p.name for p in read_pieces(path, line="cut")] == ["A.cuttingline"]
 
 

@@ -1058,6 +1058,16 @@ def test_svg_piece_named_by_its_name_attribute(tmp_path):
     assert [p.name for p in read_pieces(path)] == ["sleeve-front-left", "cuff", "piece3"]
 
 
+def test_without_word_drops_the_line_word_from_a_name():
+    from clothgrid.patterns.svg import _without_word
+
+    assert _without_word("A.seamline", "seamline") == "A"
+    assert _without_word("Front_SEW_line", "sew") == "Front_line"
+    assert _without_word("seamline", "seamline") == "seamline"        # nothing else left
+    assert _without_word("--sew--", "sew") == "--sew--"
+    assert _without_word("Back piece", "sew") == "Back piece"
+
+
 def test_open_paths_polylines_and_lines_are_all_counted_in_the_error(tmp_path):
     path = _svg(tmp_path, '<polyline points="0,0 50,0 50,50"/><path d="M 10 10 L 20 20"/>'
                           '<line x1="60" y1="0" x2="90" y2="10"/>')

@@ -360,6 +360,17 @@ def _segment_prims(seg, m: np.ndarray) -> Primitive:
     raise InputError(f"unsupported path segment {type(seg).__name__}")
 
 
+def _without_word(name: str, word: str) -> str:
+    """``name`` without its word ``word`` (any case; words split at anything but letters and
+    digits) and the separators left at its ends: ``A.seamline`` -> ``A``; ``name`` itself where
+    nothing else is left."""
+    parts = re.split(r"([^A-Za-z0-9]+)", name)      # word, separator, word, ...
+    pairs = [("" if k == 0 else parts[k - 1], parts[k]) for k in range(0, len(parts), 2)]
+    kept = [(sep, w) for sep, w in pairs if w and w.lower() != word]
+    out = "".join(w if k == 0 else sep + w for k, (sep, w) in enumerate(kept))
+    return out if out and len(kept) < len([w for _, w in pairs if w]) else name
+
+
 def _name(el: ET.Element, fallback: str) -> str:
     """The element's name: its ``inkscape:label``, ``id`` or (not SVG, but what some pattern programs
     write on each piece's path: ``name="sleeve-front-left"``) ``name``, else ``fallback``."""
@@ -596,6 +607,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
                                {"element": tag, "id": el.get("id")}))
                 return
             hint = structure_hint([el.get("class")], around, text, (el.get("id"), el.get(_INKSCAPE_LABEL)))
+            if hint.get("hint") == "sew" and loops:
+                # TauMeta's "A.seamline" is piece "A" (its cut line keeps "A.cuttingline")
+                base = _without_word(base, hint["why"])
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
                 meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
