@@ -297,17 +297,22 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
     if len(pieces) < 2:
         return []
     found = _joined_at(pieces, tol)
-    used = {k for _, mem, inner in found for k in mem + inner}
-    if gap > tol and len(pieces) - len(used) >= 2:
+    owner = {k: i for i, (_, mem, inner) in enumerate(found) for k in mem + inner}   # chain -> outline
+    if gap > tol and len(pieces) - len(owner) >= 2:
+        alive = [True] * len(found)
         for prims, mem, inner in _joined_at(pieces, gap):
             takes = set(mem + inner)
-            if not set(mem) - used:
+            if all(k in owner for k in mem):
                 continue                      # nothing left over: found before
-            touched = [f for f in found if takes & set(f[1] + f[2])]
-            if any(set(f[1] + f[2]) - takes for f in touched):
+            touched = {owner[k] for k in takes if k in owner}
+            if any(set(found[i][1] + found[i][2]) - takes for i in touched):
                 continue                      # part of an outline found before
-            found = [f for f in found if not any(f is t for t in touched)] + [(prims, mem, inner)]
-            used |= takes
+            for i in touched:
+                alive[i] = False
+            found.append((prims, mem, inner))
+            alive.append(True)
+            owner.update((k, len(found) - 1) for k in takes)
+        found = [f for f, a in zip(found, alive) if a]
     return found
 
 
