@@ -1058,6 +1058,30 @@ def test_svg_piece_named_by_its_name_attribute(tmp_path):
     assert [p.name for p in read_pieces(path)] == ["sleeve-front-left", "cuff", "piece3"]
 
 
+def test_unnamed_svg_pieces_are_named_after_the_text_drawn_on_them(tmp_path):
+    """Pieces without an id, label or group name (Illustrator's hand-drawn blocks) take the text
+    drawn on them that names a garment piece (a part word beats a garment word, then the shorter):
+    "SLEEVE" over "WOVEN BODICE BLOCK", a rotated label split into tspans read whole; a piece
+    with an id keeps it; a text naming nothing (a size, a brand) names nothing; an arrowhead drawn
+    closed on a piece takes no label; two pieces with one label get unique names."""
+    body = ('<path d="M 0,0 L 100,0 L 100,150 L 0,150 Z"/>'
+            '<text x="20" y="40">SLEEVE</text><text x="20" y="60">WOVEN BODICE BLOCK</text>'
+            '<path d="M 48,70 L 52,70 L 50,64 Z"/>'
+            '<path d="M 120,0 L 220,0 L 220,150 L 120,150 Z"/>'
+            '<text transform="matrix(0 -1 1 0 150 120)"><tspan x="0" y="0">B</tspan>'
+            '<tspan x="12" y="0">ACK BODICE B</tspan><tspan x="150" y="0">LOCK</tspan></text>'
+            '<text x="130" y="20">MRUK10F - MREU36F</text>'
+            '<path id="yoke" d="M 240,0 L 290,0 L 290,40 L 240,40 Z"/><text x="250" y="20">BACK YOKE</text>'
+            '<path d="M 0,160 L 60,160 L 60,195 L 0,195 Z"/><text x="5" y="180">UK 10</text>'
+            '<path d="M 100,160 L 160,160 L 160,195 L 100,195 Z"/><text x="105" y="190">Cuff</text>'
+            '<path d="M 200,160 L 260,160 L 260,195 L 200,195 Z"/><text x="205" y="190">Cuff</text>')
+    got = read_pieces(_svg(tmp_path, body))
+    assert [p.name for p in got] == ["SLEEVE", "BACK BODICE BLOCK", "yoke", "piece5", "Cuff", "Cuff-2"]
+    assert got[0].meta["label"] == "SLEEVE" and any("named after the text 'SLEEVE'" in n for n in got[0].notes)
+    assert "label" not in got[2].meta
+    assert [(k.kind, k.of) for k in got.skipped] == [("inside", "SLEEVE")]
+
+
 def test_without_word_drops_the_line_word_from_a_name():
     from clothgrid.patterns.svg import _without_word
 

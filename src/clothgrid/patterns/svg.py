@@ -360,6 +360,82 @@ def _segment_prims(seg, m: np.ndarray) -> Primitive:
     raise InputError(f"unsupported path segment {type(seg).__name__}")
 
 
+#: Words that name a part of a garment (a piece), and words that name a garment: a text drawn on an
+#: unnamed piece names it when it holds one (:func:`_label_score`); part words count double, so that a
+#: sleeve labelled "SLEEVE" and "WOVEN BODICE BLOCK" is the sleeve.
+_PART_WORDS = frozenset(
+    "front back sleeve collar cuff yoke pocket facing waistband gusset hood placket leg bib strap flap "
+    "lapel panel dos devant manche col poignet ceinture empiècement poche".split())
+_GARMENT_WORDS = frozenset(
+    "bodice skirt trouser trousers pants dress shirt blouse jacket coat vest corset hoodie jumpsuit shorts top "
+    "tee tshirt jupe pantalon robe chemise veste".split())
+
+
+def _label_score(text: str) -> int:
+    """How strongly a text names a garment piece: 2 a part word, 1 a garment word (module data)."""
+    words = re.findall(r"[^\W\d_]+", text.lower())
+    return 2 * sum(w in _PART_WORDS for w in words) + sum(w in _GARMENT_WORDS for w in words)
+
+
+def _text_label(el: ET.Element, m: np.ndarray, where: str) -> tuple[str, np.ndarray] | None:
+    """A ``<text>`` element's words (its ``<tspan>`` elements' too, spaces collapsed) and its anchor point
+    (its own ``x``, ``y``, else its first ``<tspan>``'s, transformed), or None where it has no words,
+    more than 80 characters, or no readable place."""
+    content = " ".join("".join(el.itertext()).split())
+    if not content or len(content) > 80 or not _label_score(content):
+        return None
+    place = el
+    if el.get("x") is None and el.get("y") is None:
+        place = next((t for t in el.iter() if _local(t.tag) == "tspan" and (t.get("x") or t.get("y"))), el)
+    try:
+        mt = m @ _transform(el, where)
+        xy = [float(v[0]) if (v := _NUMBER.findall(place.get(k) or "0")) else 0.0 for k in ("x", "y")]
+    except (InputError, ValueError):
+        return None
+    point = mt[:2, :2] @ xy + mt[:2, 2]
+    return (content, point) if np.isfinite(point).all() else None
+
+
+def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[str, np.ndarray]],
+                     unique) -> list[Piece]:
+    """``pieces`` with those of ``unnamed`` names (no id, label or group name) renamed after the text
+    drawn on them that names a garment piece best (:func:`_label_score`, then the shorter): a
+    text belongs to the smallest piece around its anchor among those of at least 5 % of the largest's
+    area (an arrowhead or a dart drawn closed takes none)."""
+    if not unnamed or not labels or not pieces:
+        return pieces
+    from dataclasses import replace
+
+    from .annotations import _inside
+
+    largest = max(p.area for p in pieces)
+    big = sorted((k for k, p in enumerate(pieces) if p.area >= 0.05 * largest), key=lambda k: pieces[k].area)
+    if not any(pieces[k].name in unnamed for k in big):
+        return pieces
+    points = np.array([pt for _, pt in labels])
+    owner = np.full(len(labels), -1)
+    for k in big:                                   # smallest first: a text takes the first around it
+        free = owner < 0
+        if not free.any():
+            break
+        inside = np.zeros(len(labels), dtype=bool)
+        inside[free] = _inside(points[free], pieces[k].outline)
+        owner[inside] = k
+    out = list(pieces)
+    for k in big:
+        if pieces[k].name not in unnamed:
+            continue
+        texts = [labels[i][0] for i in np.flatnonzero(owner == k)]
+        if not texts:
+            continue
+        best = min(texts, key=lambda t: (-_label_score(t), len(t)))
+        out[k] = replace(pieces[k], name=unique(best),
+                         notes=pieces[k].notes + (f"named after the text {best!r} drawn on it "
+                                                  f"(it had no id or label: {pieces[k].name})",),
+                         meta={**pieces[k].meta, "label": best})
+    return out
+
+
 def _without_word(name: str, word: str) -> str:
     """``name`` without its word ``word`` (any case; words split at anything but letters and
     digits) and the separators left at its ends: ``A.seamline`` -> ``A``; ``name`` itself where
@@ -504,6 +580,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
     opened: list[_Open] = []                         # open subpaths (and lines drawn closed)
     marked: list[Skipped] = []                       # outlines the structure marks as annotations
     drawn: dict[int, _Open] = {}                     # lines drawn closed, by their subpath
+    labels: list[tuple[str, np.ndarray]] = []        # texts that may name a piece, and their places
+    unnamed: set[str] = set()                        # pieces named by a fallback (piece3, outline)
 
     def unique(name: str) -> str:
         if name not in names:
@@ -526,6 +604,11 @@ def read_svg(path: str | Path, *, units: str | None = None,
               group: str = "", use: str | None = None, ref: bool = False) -> None:
         nonlocal open_paths, counter, drawn_uses
         tag = _local(el.tag)
+        if tag == "text" and not _hidden(el):       # a label, perhaps a piece's name (_named_by_labels)
+            got = _text_label(el, m, where)
+            if got is not None:
+                labels.append(got)
+            return
         if (tag in _SKIP and not (ref and tag == "symbol")) or _hidden(el):
             return
         m = m @ _transform(el, where)
@@ -553,6 +636,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 fallback = f"piece{counter}"
             base = _name(el, _group_name(group) or fallback)
             label = f"<{tag}> {base!r}"
+            nameless = base == fallback
             loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
             try:
                 if tag in ("polygon", "polyline"):
@@ -560,11 +644,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
                     if poly is not None and poly[1]:
                         loops.append(poly[0])
                     elif poly is not None:           # open: joined with others end to end, if they meet
-                        opened.append(_Open(_straight_prims(poly[0]), base, el, around, text, group))
+                        opened.append(_Open(_straight_prims(poly[0]), base, el, around, text, group,
+                                            nameless=nameless))
                 elif tag == "line":
                     ends = _line_ends(el, m, f"{where}: {label}")
                     if ends is not None:
-                        opened.append(_Open(_straight_prims(ends), base, el, around, text, group))
+                        opened.append(_Open(_straight_prims(ends), base, el, around, text, group, nameless=nameless))
                 elif tag == "rect" and (quad := _rect_corners(el, m, f"{where}: {label}")) is not None:
                     loops.append(quad)
                 elif tag in ("circle", "ellipse"):
@@ -595,7 +680,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             size = float(np.hypot(*np.ptp(ends, axis=0)))
                             gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
                             if not size > 0 or gap > 1e-9 * size:      # counted once joined
-                                opened.append(_Open(prims, base, el, around, text, group))
+                                opened.append(_Open(prims, base, el, around, text, group, nameless=nameless))
                                 continue
                             if _drawn_line(prims, size):       # M a L b z: a line, drawn closed
                                 # a failed piece, unless it joins open paths into an outline
@@ -612,6 +697,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 base = _without_word(base, hint["why"])
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
+                if nameless:
+                    unnamed.add(name)
                 meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
                         "group": group or None, "structure": hint, "look": _look(el),
                         "part": group or None, **({"use": use} if use else {})}
@@ -641,8 +728,10 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group, use)
 
     visit(root, view)
-    for name, prims, meta, members, inner, gap in _joined(opened):
+    for name, prims, meta, members, inner, gap, nameless in _joined(opened):
         name = unique(name)
+        if nameless:
+            unnamed.add(name)
         around = f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ({_names(inner)})" if inner else ""
         bridged = f", across gaps of up to {gap:.3g} mm" if gap > JOIN_MM else ""
         if gap > JOIN_MM:
@@ -660,6 +749,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
+    pieces = _named_by_labels(pieces, unnamed, labels, unique)
     return classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
                       line=line, marked=marked)
 
@@ -677,6 +767,7 @@ class _Open:
     line: bool = False                        # a line drawn closed (also tried as a piece)
     joined: bool = False
     failure: tuple | None = None              # that piece's failure, dropped if joined
+    nameless: bool = False                    # base is the element's fallback name (no id, label, group)
 
 
 def _drawn_line(prims: list[Primitive], size: float) -> bool:
@@ -687,7 +778,7 @@ def _drawn_line(prims: list[Primitive], size: float) -> bool:
     return len(np.unique(np.round(ends / (1e-9 * size)), axis=0)) <= 2
 
 
-def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[str], list[str], float]]:
+def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[str], list[str], float, bool]]:
     """Closed outlines made of open subpaths that meet end to end, each group on its own.
 
     A pattern program may draw a piece as several open paths (FreeSewing draws a
@@ -726,7 +817,7 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
 
 
 def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], mem: list[int],
-                    inner: list[int]) -> tuple[str, list[Primitive], dict, list[str], list[str], float]:
+                    inner: list[int]) -> tuple[str, list[Primitive], dict, list[str], list[str], float, bool]:
     """:func:`_joined`'s answer for an outline of ``prims`` joined from ``paths[mem]`` (around the
     inner lines ``paths[inner]``), which are marked ``joined``: named after its group (else its
     first path), its class the first path's, its structure from the paths' classes and groups."""
@@ -738,12 +829,14 @@ def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], me
     key = group.rsplit("/", 1)[-1] if group else ""
     # unnamed <line>s all fall back to "line": the first member with a name of its own, or a shape's
     name = key if key and key != "g" else next((paths[k].base for k in mem if paths[k].base != "line"), "outline")
+    nameless = not (key and key != "g") and all(paths[k].nameless for k in mem)
     meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
             "group": group or None, "structure": hint, "look": _look(first.el),
             "part": group or None, "joined": [paths[k].base for k in mem]}
     if inner:
         meta["inner_lines"] = [paths[k].base for k in inner]
-    return name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner], largest_gap(prims)
+    return (name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner], largest_gap(prims),
+            nameless)
 
 
 def _names(names: list[str], most: int = 10) -> str:
