@@ -371,6 +371,11 @@ _GARMENT_WORDS = frozenset(
     "tee tshirt jupe pantalon robe chemise veste".split())
 
 
+#: More texts naming garment pieces than this in one file, and no piece is named after one (a sheet of
+#: lettering, not labels): each text is tested against the outlines of the pieces around it.
+MAX_LABELS = 2000
+
+
 def _label_score(text: str) -> int:
     """How strongly a text names a garment piece: 2 a part word, 1 a garment word (module data)."""
     words = re.findall(r"[^\W\d_]+", text.lower())
@@ -402,7 +407,7 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
     drawn on them that names a garment piece best (:func:`_label_score`, then the shorter): a
     text belongs to the smallest piece around its anchor among those of at least 5 % of the largest's
     area (an arrowhead or a dart drawn closed takes none)."""
-    if not unnamed or not labels or not pieces:
+    if not unnamed or not labels or not pieces or len(labels) > MAX_LABELS:
         return pieces
     from dataclasses import replace
 
@@ -419,7 +424,10 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
         if not free.any():
             break
         inside = np.zeros(len(labels), dtype=bool)
-        inside[free] = _inside(points[free], pieces[k].outline)
+        todo = np.flatnonzero(free)
+        for c in range(0, len(todo), 256):           # points x edges at a time: bounded memory
+            part = todo[c:c + 256]
+            inside[part] = _inside(points[part], pieces[k].outline)
         owner[inside] = k
     out = list(pieces)
     for k in big:
