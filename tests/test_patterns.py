@@ -1082,6 +1082,39 @@ def test_unnamed_svg_pieces_are_named_after_the_text_drawn_on_them(tmp_path):
     assert [(k.kind, k.of) for k in got.skipped] == [("inside", "SLEEVE")]
 
 
+def test_nested_svg_viewports_place_their_content(tmp_path):
+    """A nested ``<svg>`` is a viewport (SVG 1.1): its content is moved by ``x``, ``y`` and its
+    ``viewBox`` fitted into ``width`` x ``height`` (numbers, absolute lengths, percentages of the
+    parent's viewport; ``preserveAspectRatio`` meet by default, none, slice); without a viewBox it
+    only shifts. Checked against the same rectangles drawn in the outer user units."""
+    body = ('<svg x="10" y="10" width="50" height="50" viewBox="0 0 100 100">'
+            '<rect id="fit" x="0" y="0" width="100" height="100"/></svg>'
+            '<svg x="100" y="0" width="50%" height="25%" viewBox="0 0 10 10" preserveAspectRatio="none">'
+            '<rect id="stretch" x="0" y="0" width="10" height="10"/></svg>'
+            '<svg x="0" y="100" width="60" height="30" viewBox="0 0 10 10">'
+            '<rect id="meet" x="0" y="0" width="10" height="10"/></svg>'
+            '<svg x="100" y="100"><rect id="shift" x="5" y="5" width="20" height="20"/>'
+            '<svg x="40" y="0" width="10mm" height="10mm" viewBox="0 0 1 1"><rect id="mm" width="1" height="1"/></svg></svg>')
+    got = {p.name: p for p in read_pieces(_svg(tmp_path, body))}
+
+    def box(p):                     # x range and y range back in the outer user units (y down, 200 high)
+        lo, hi = p.outline.min(axis=0), p.outline.max(axis=0)
+        return (lo[0], hi[0], 200 - hi[1], 200 - lo[1])
+
+    assert box(got["fit"]) == pytest.approx((10, 60, 10, 60))
+    assert box(got["stretch"]) == pytest.approx((100, 250, 0, 50))        # 50 % of 300, 25 % of 200
+    assert box(got["meet"]) == pytest.approx((15, 45, 100, 130))          # 30 x 30, centred in 60 x 30
+    assert box(got["shift"]) == pytest.approx((105, 125, 105, 125))
+    mm = 10 * 96 / 25.4                                                   # 10 mm in user units
+    assert box(got["mm"]) == pytest.approx((140, 140 + mm, 100, 100 + mm))
+    with pytest.raises(InputError, match="viewBox"):
+        read_pieces(_svg(tmp_path, '<svg width="10" height="10" viewBox="0 0 0 1"><rect width="1" height="1"/></svg>'))
+    with pytest.raises(InputError, match="positive width and height"):
+        read_pieces(_svg(tmp_path, '<svg width="0" height="10" viewBox="0 0 1 1"><rect width="1" height="1"/></svg>'))
+    with pytest.raises(InputError, match="nested <svg>"):
+        read_pieces(_svg(tmp_path, '<svg width="1em" height="10"><rect width="1" height="1"/></svg>'))
+
+
 def test_without_word_drops_the_line_word_from_a_name():
     from clothgrid.patterns.svg import _without_word
 

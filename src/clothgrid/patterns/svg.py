@@ -189,6 +189,68 @@ def _viewport(root: ET.Element, where: str, units: str | None, head: bytes = b""
     return m, unit, how
 
 
+def _inner_length(text: str | None, whole: float, what: str, where: str) -> float:
+    """A nested ``<svg>``'s ``x``, ``y``, ``width`` or ``height`` in its parent's user units: a number,
+    an absolute length (96 px an inch, one px a user unit), or a percentage of ``whole``."""
+    if text is None or not text.strip():
+        return whole if what in ("width", "height") else 0.0
+    m = _CSS_LENGTH.fullmatch(text)
+    unit = (m.group(2).lower() if m else "") or "px"
+    if m is None or not (unit == "%" or (unit in UNITS and unit not in ("um", "dm", "m", "ft", "yd", "mil"))):
+        raise InputError(f"{where}: invalid {what} {text!r} on a nested <svg> element")
+    value = float(m.group(1))
+    if unit == "%":
+        return value / 100.0 * whole
+    return value if unit == "px" else value * UNITS[unit] * 96.0 / 25.4
+
+
+def _root_size(root: ET.Element, where: str) -> tuple[float, float]:
+    """The outermost viewport's size in its user units (what a nested ``<svg>``'s percentages are of):
+    its ``viewBox``'s, else its ``width`` and ``height`` (100 where absent or a percentage)."""
+    vals = _PLAIN_NUMBERS.fullmatch(root.get("viewBox") or "") and _NUMBER.findall(root.get("viewBox") or "")
+    if vals and len(vals) == 4 and float(vals[2]) > 0 and float(vals[3]) > 0:
+        return float(vals[2]), float(vals[3])
+    out = []
+    for k in ("width", "height"):
+        try:
+            got = _inner_length(root.get(k), 100.0, k, where)
+        except InputError:
+            got = 100.0
+        out.append(got if math.isfinite(got) and got > 0 else 100.0)
+    return out[0], out[1]
+
+
+def _nested_viewport(el: ET.Element, size: tuple[float, float], where: str
+                     ) -> tuple[np.ndarray, tuple[float, float]]:
+    """A nested ``<svg>``: the 3x3 map from its user units to its parent's (its ``x``, ``y``, and its
+    ``viewBox`` fitted into its ``width`` x ``height`` as ``preserveAspectRatio`` says; no ``viewBox``:
+    a shift), and its viewport's size in its own user units. ``size``: the parent's viewport."""
+    x = _inner_length(el.get("x"), size[0], "x", where)
+    y = _inner_length(el.get("y"), size[1], "y", where)
+    w = _inner_length(el.get("width"), size[0], "width", where)
+    h = _inner_length(el.get("height"), size[1], "height", where)
+    shift = np.array([[1.0, 0.0, x], [0.0, 1.0, y], [0.0, 0.0, 1.0]])
+    vb_text = el.get("viewBox")
+    if vb_text is None or not vb_text.strip():
+        return shift, (w, h)
+    vb = _numbers(vb_text, "viewBox", where)
+    if len(vb) != 4 or not all(math.isfinite(v) for v in vb) or vb[2] <= 0 or vb[3] <= 0:
+        raise InputError(f"{where}: invalid viewBox {vb_text!r} on a nested <svg>: expected 4 numbers "
+                         "min-x min-y width height, width and height positive")
+    if not (w > 0 and h > 0 and math.isfinite(w) and math.isfinite(h)):
+        raise InputError(f"{where}: a nested <svg> with a viewBox must have a positive width and height")
+    sx, sy = w / vb[2], h / vb[3]
+    tx = ty = 0.0
+    par = [q for q in (el.get("preserveAspectRatio") or "xMidYMid meet").split() if q != "defer"] or ["xMidYMid"]
+    if par[0] != "none":
+        sc = max(sx, sy) if len(par) > 1 and par[1] == "slice" else min(sx, sy)
+        tx = {"xMin": 0.0, "xMid": 0.5, "xMax": 1.0}.get(par[0][:4], 0.5) * (w - vb[2] * sc)
+        ty = {"YMin": 0.0, "YMid": 0.5, "YMax": 1.0}.get(par[0][4:], 0.5) * (h - vb[3] * sc)
+        sx = sy = sc
+    fit = np.array([[sx, 0.0, tx - vb[0] * sx], [0.0, sy, ty - vb[1] * sy], [0.0, 0.0, 1.0]])
+    return shift @ fit, (vb[2], vb[3])
+
+
 def _transform(el: ET.Element, where: str) -> np.ndarray:
     text = el.get("transform")
     if not text:
@@ -578,6 +640,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     with open(path, "rb") as f:
         head = f.read(8192)                  # the comments and root of the file: who wrote it
     view, unit, how = _viewport(root, where, units, head)
+    root_size = _root_size(root, where)
     from svgpathtools import parse_path
 
     pieces: list[Piece] = []
@@ -609,7 +672,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
     drawn_uses = 0
 
     def visit(el: ET.Element, m: np.ndarray, around: tuple[str, ...] = (), text: bool = False,
-              group: str = "", use: str | None = None, ref: bool = False) -> None:
+              group: str = "", use: str | None = None, ref: bool = False,
+              size: tuple[float, float] = root_size) -> None:
         nonlocal open_paths, counter, drawn_uses
         tag = _local(el.tag)
         if tag == "text" and not _hidden(el):       # a label, perhaps a piece's name (_named_by_labels)
@@ -620,6 +684,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
         if (tag in _SKIP and not (ref and tag == "symbol")) or _hidden(el):
             return
         m = m @ _transform(el, where)
+        if tag == "svg" and el is not root:         # a nested viewport: its x, y, width, height, viewBox
+            inner, size = _nested_viewport(el, size, where)
+            m = m @ inner
         text = text or _text_cue(el)
         if tag == "use":        # draws the element it names (in <defs>, or anywhere), moved by x, y
             name = (el.get("href") or el.get(_XLINK_HREF) or "").strip().removeprefix("#")
@@ -633,7 +700,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                               [0.0, 0.0, 1.0]])
             own = tuple(t for t in (el.get(_INKSCAPE_LABEL), el.get("id"), el.get("class")) if t)
             using.add(id(target))
-            visit(target, m @ shift, around + own, text, group, use or name, ref=True)
+            visit(target, m @ shift, around + own, text, group, use or name, ref=True, size=size)
             using.discard(id(target))
             return
         if tag in _SHAPES:
@@ -733,7 +800,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 key = el.get(_INKSCAPE_LABEL) or el.get("id")
                 group = f"{group}/{key}" if key else f"{group}/g"
         for child in el:
-            visit(child, m, around, text, group, use)
+            visit(child, m, around, text, group, use, size=size)
 
     visit(root, view)
     for name, prims, meta, members, inner, gap, nameless in _joined(opened):
