@@ -183,9 +183,34 @@ def test_jacobi_true_rule_with_per_edge_weights_checks_the_direct_solve_memory(r
     w = (np.ones((8, 9)), np.ones((9, 8)))
     limit = memory.estimate_bytes("direct", 9, 9) - 1            # enough for jacobi, not for direct
     monkeypatch.setattr(memory, "available_bytes", lambda: int(limit / 0.9))
+    monkeypatch.setattr(memory, "SMALL_BYTES", 0)                # a 9 x 9 grid is checked too
     with pytest.raises(clothgrid.SizeError, match="solver 'direct'"):
         clothgrid.generate(b, weights=w, solver="jacobi", stop="error")
     clothgrid.generate(b, weights=w, solver="jacobi", stop="paper")  # no barrier solve: fits
+
+
+def test_small_grids_do_not_read_the_systems_memory(monkeypatch):
+    """A grid under memory.SMALL_BYTES is not checked against the system (reading /proc and the
+    control group's files costs more than its solve); a larger one, or kept grids that bring it
+    over, or SMALL_BYTES 0, is; an explicit ``available`` always is."""
+    import clothgrid.memory as memory
+
+    def never() -> int:
+        raise AssertionError("the system's memory was read")
+
+    monkeypatch.setattr(memory, "available_bytes", never)
+    small = memory.estimate_bytes("fdm", 100, 100)
+    assert small < memory.SMALL_BYTES
+    assert memory.check_memory("fdm", 100, 100) == small
+    with pytest.raises(AssertionError, match="was read"):
+        memory.check_memory("fdm", 100, 100, kept=memory.SMALL_BYTES)
+    with pytest.raises(AssertionError, match="was read"):
+        memory.check_memory("fdm", 1000, 1000)
+    with pytest.raises(clothgrid.SizeError):
+        memory.check_memory("fdm", 100, 100, available=small)
+    monkeypatch.setattr(memory, "SMALL_BYTES", 0)
+    with pytest.raises(AssertionError, match="was read"):
+        memory.check_memory("fdm", 100, 100)
 
 
 def test_memory_estimate_orders_solvers():

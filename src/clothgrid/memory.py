@@ -45,7 +45,7 @@ from .errors import SizeError
 
 __all__ = ["available_bytes", "system_available_bytes", "limit_headroom", "Headroom", "estimate_bytes", "check_memory",
            "format_bytes", "discard", "release", "Arena", "FIT_FRACTION", "KEPT_BYTES_PER_NODE", "multigrid_bytes",
-           "DISCARD_MIN_BYTES"]
+           "DISCARD_MIN_BYTES", "SMALL_BYTES"]
 
 PIPELINE_BYTES_PER_NODE = 80
 #: what a finished grid holds until it is written: points (24), uv (16) and quads (32 per cell)
@@ -219,6 +219,14 @@ def format_bytes(b: float, digits: int = 3) -> str:
     raise AssertionError
 
 
+#: A grid needing at most this many bytes (with the grids kept before it) is not checked against the
+#: system's memory: reading it (``/proc/meminfo``, the process's limits, its control group's files)
+#: costs 0.3-0.6 ms a check, about a third of a real piece's whole length solve at 10 mm (20-100 nodes a
+#: side, under 4 MiB), and the interpreter with NumPy and Numba holds some ten times this already. 0
+#: checks every grid.
+SMALL_BYTES = 16 * 2**20
+
+
 def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
                  kept: int = 0, what: str = "", coords: int = 3, separable: bool = False) -> int:
     """Raise :class:`SizeError` if the grid would not fit; return the estimate.
@@ -230,13 +238,17 @@ def check_memory(solver: str, nu: int, nv: int, available: int | None = None, *,
     The message gives the numbers of that rule: what is needed, what is
     available and the 90 % of it a solve may take; when a resource limit
     (``ulimit -v``) is what leaves that little, the limit and what the process
-    maps already. ``coords`` and ``separable`` as for :func:`estimate_bytes`.
+    maps already. ``coords`` and ``separable`` as for :func:`estimate_bytes`. A grid of at most
+    :data:`SMALL_BYTES` (with ``kept``) is not checked against the system unless ``available``
+    is given.
     """
     need = estimate_bytes(solver, nu, nv, coords=coords, separable=separable)
-    have = available_bytes() if available is None else available
-    limit = limit_headroom() if available is None else None
     total = need + max(int(kept), 0)
+    if available is None and total <= SMALL_BYTES:
+        return need
+    have = available_bytes() if available is None else available
     if total > FIT_FRACTION * have:
+        limit = limit_headroom() if available is None else None   # which limit binds, for the message
         hint = "use fewer nodes or a longer edge length"
         if solver == "direct":
             hint = "use solver 'fdm' (separable weights) or fewer nodes"
