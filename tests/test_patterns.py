@@ -1115,6 +1115,21 @@ def test_nested_svg_viewports_place_their_content(tmp_path):
         read_pieces(_svg(tmp_path, '<svg width="1em" height="10"><rect width="1" height="1"/></svg>'))
 
 
+def test_made_up_ids_yield_to_group_names_and_labels(tmp_path):
+    """An id a drawing program made up (Inkscape's ``path1234``) names a piece only where nothing
+    better does: its layer's name first, else the garment words drawn on it; a chosen id stays."""
+    ink = 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"'
+    path = tmp_path / "ink.svg"
+    path.write_text(
+        f'<svg xmlns="http://www.w3.org/2000/svg" {ink} width="300mm" height="200mm" viewBox="0 0 300 200">'
+        '<g inkscape:label="Front" id="layer1"><path id="path1234" d="M 0,0 L 80,0 L 80,80 Z"/></g>'
+        '<g id="g77"><path id="path99-3" d="M 100,0 L 180,0 L 180,80 L 100,80 Z"/>'
+        '<text x="120" y="40">Sleeve</text></g>'
+        '<path id="path5" d="M 200,0 L 280,0 L 280,80 L 200,80 Z"/>'
+        '<path id="cuff" d="M 0,100 L 80,100 L 80,180 L 0,180 Z"/><text x="20" y="140">Collar</text></svg>')
+    assert [p.name for p in read_pieces(path)] == ["Front", "Sleeve", "path5", "cuff"]
+
+
 def test_without_word_drops_the_line_word_from_a_name():
     from clothgrid.patterns.svg import _without_word
 

@@ -517,15 +517,28 @@ def _without_word(name: str, word: str) -> str:
     return out if out and len(kept) < len([w for _, w in pairs if w]) else name
 
 
-def _name(el: ET.Element, fallback: str) -> str:
-    """The element's name: its ``inkscape:label``, ``id`` or (not SVG, but what some pattern programs
-    write on each piece's path: ``name="sleeve-front-left"``) ``name``, else ``fallback``."""
-    return (el.get(_INKSCAPE_LABEL) or el.get("id") or el.get("name") or fallback).strip() or fallback
+def _name(el: ET.Element, group: str | None, fallback: str) -> str:
+    """The element's name: its ``inkscape:label``; its ``id``, unless a drawing program made it up
+    (:data:`_MADE_UP_ID`) and its ``group`` has a name; (not SVG, but what some pattern programs write
+    on each piece's path: ``name="sleeve-front-left"``) its ``name``; its group's name; else
+    ``fallback``."""
+    own = (el.get("id") or "").strip()
+    if own and group and _MADE_UP_ID.match(own):
+        own = ""
+    for name in (el.get(_INKSCAPE_LABEL), own, el.get("name"), group):
+        if name and name.strip():
+            return name.strip()
+    return fallback
 
 
 #: A group key a drawing program made up (Inkscape's ``g123`` and ``layer1``, Illustrator's
 #: ``Layer_1``), which names no piece.
 _MADE_UP = re.compile(r"^(g|layer|layer_|group|svg|path)?\d*$", re.IGNORECASE)
+
+
+#: An element id a drawing program made up (Inkscape's ``path1234``, ``rect56-3``): a piece so named
+#: may take the name of the text drawn on it (:func:`_named_by_labels`).
+_MADE_UP_ID = re.compile(r"^(path|rect|circle|ellipse|polygon|polyline|line)\d+(-\d+)*$", re.IGNORECASE)
 
 
 def _group_name(group: str) -> str | None:
@@ -709,9 +722,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
             else:
                 counter += 1
                 fallback = f"piece{counter}"
-            base = _name(el, _group_name(group) or fallback)
+            base = _name(el, _group_name(group), fallback)
             label = f"<{tag}> {base!r}"
-            nameless = base == fallback
+            nameless = base == fallback or bool(_MADE_UP_ID.match(base))
             loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
             try:
                 if tag in ("polygon", "polyline"):
