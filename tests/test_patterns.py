@@ -1216,6 +1216,32 @@ def test_svg_block_drawn_by_hand_as_lines_with_gaps(tmp_path):
     assert all(p.area < 0.5 * piece.area for p in pieces)
 
 
+def test_an_outline_drawn_by_hand_that_stops_short_of_its_start_is_closed(tmp_path):
+    """One open path (SVG) or LWPOLYLINE (plain DXF) whose end stops 0.4 mm short of its start is an
+    outline, with a note; so is an arc drawn almost round. A line drawn back beside itself (a V
+    0.3 mm open) and a grain line are none, and a sliver that only a gap would close is no failed
+    piece either."""
+    body = ('<path id="hand" d="M 10,10 L 110,10 L 110,90 C 80,100 40,100 10,90 L 10,10.4"/>'
+            '<path id="grain" d="M 150,20 L 150,120"/><path id="vee" d="M 200,10 L 250,100 L 200.3,10"/>'
+            '<path id="a" d="M 120,150 L 170,190"/><path id="b" d="M 170,190 L 120.3,150"/>'
+            '<path id="arc" d="M 230,150 A 30 30 0 1 1 230.4,150"/>')
+    got = read_pieces(_svg(tmp_path, body))
+    assert sorted(p.name for p in got) == ["arc", "hand"] and not got.failed
+    hand = {p.name: p for p in got}["hand"]
+    assert hand.area == pytest.approx(100 * 80 + 510, rel=1e-3)      # the cubic's cap: 90 (3/2 + 8/3 + 3/2)
+    assert any("an open path whose ends are 0.4 mm apart, taken as closed" in n for n in hand.notes)
+    assert {p.name: p for p in got}["arc"].area == pytest.approx(math.pi * 30 ** 2, rel=1e-3)
+    doc = ezdxf.new("R2010")
+    doc.units = 4
+    msp = doc.modelspace()
+    msp.add_lwpolyline([(0, 0), (200, 0), (200, 150), (0, 150), (0, 0.3)])       # not flagged closed
+    msp.add_line((50, 50), (50, 120))
+    doc.saveas(tmp_path / "hand.dxf")
+    (piece,) = read_pieces(tmp_path / "hand.dxf")
+    assert piece.area == pytest.approx(200 * 150, rel=1e-3)
+    assert any("whose ends are 0.3 mm apart, taken as closed" in n for n in piece.notes)
+
+
 def test_dashed_outline_across_a_piece_is_a_construction_line(tmp_path):
     """A dashed closed outline reaching over a larger solid piece's outline (a bust radius drawn
     around the bust point) is skipped; a dashed one inside a piece is a mark drawn on it; one that

@@ -292,11 +292,11 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
     ``gap`` apart (a drawing made by hand, its ends a fraction of a millimetre apart): an outline
     found so takes the place of those found before whose chains it runs along or encloses (a
     sleeve's lower part, which its elbow line closes exactly, in the whole sleeve), and is dropped
-    where it takes only part of one, or none of the chains left over.
+    where it takes only part of one, or none of the chains left over. Last, a chain left whose own
+    end is within ``gap`` (and 1 % of its size) of its start is an outline of its own: drawn by hand,
+    it stops short of where it began.
     """
-    if len(pieces) < 2:
-        return []
-    found = _joined_at(pieces, tol)
+    found = _joined_at(pieces, tol) if len(pieces) >= 2 else []
     owner = {k: i for i, (_, mem, inner) in enumerate(found) for k in mem + inner}   # chain -> outline
     if gap > tol and len(pieces) - len(owner) >= 2:
         alive = [True] * len(found)
@@ -313,7 +313,24 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
             alive.append(True)
             owner.update((k, len(found) - 1) for k in takes)
         found = [f for f, a in zip(found, alive) if a]
+    if gap > tol:                             # a chain left whose own ends are that close: drawn closed
+        found += [(c, [k], []) for k, c in enumerate(pieces) if k not in owner and _nearly_closed(c, gap)]
     return found
+
+
+def _nearly_closed(chain: list[Primitive], gap: float) -> bool:
+    """Whether a chain's end is within ``gap`` of its start and within 1 % of its extent, around an
+    area (its control points' polygon at least 1 % of its extent squared): an outline drawn
+    by hand that stops short of its start, not a line drawn back on itself."""
+    pts = np.concatenate([np.asarray(p.ctrl)[:, :2] if isinstance(p, Bezier)
+                          else p.points(np.linspace(p.t0, p.t1, 9))[:, :2] for p in chain])
+    extent = float(np.hypot(*np.ptp(pts, axis=0)))
+    d = float(np.linalg.norm(chain[-1].end - chain[0].start))
+    if not (np.isfinite(extent) and extent > 0 and d <= min(gap, 0.01 * extent)):
+        return False
+    x, y = pts[:, 0], pts[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
+    return area >= 0.01 * extent * extent
 
 
 def largest_gap(prims: list[Primitive]) -> float:

@@ -533,7 +533,8 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
             n, inner, gap = joined[k - 1]
             bridged = f", across gaps of up to {gap:.3g} mm" if gap > 1e-6 * extent * scale else ""
             around = f"; around {inner} inner line{'s' if inner != 1 else ''}" if inner else ""
-            own.append(f"joined from {n} lines and curves that meet end to end{bridged}{around}")
+            own.append(f"joined from {n} lines and curves that meet end to end{bridged}{around}" if n > 1 else
+                       f"an open line or curve whose ends are {gap:.3g} mm apart, taken as closed")
             if bridged:
                 meta["gap_mm"] = gap
         try:
@@ -542,6 +543,8 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
                 where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + own + ctx.notes),
                 meta=meta))
         except InputError as exc:          # fewer than 3 points, no area: failed or skipped
+            if "gap_mm" in meta:           # a sliver only the gap made: no outline, its lines open ones
+                continue
             unmade.append((piece_failure(name, exc, ctx.where), {**meta, "box": outline_box(_scale(prims, scale))}))
     return classified(pieces, unmade, ctx.where, line=line)
 

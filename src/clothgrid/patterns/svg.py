@@ -32,11 +32,12 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -471,8 +472,6 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
     area (an arrowhead or a dart drawn closed takes none)."""
     if not unnamed or not labels or not pieces or len(labels) > MAX_LABELS:
         return pieces
-    from dataclasses import replace
-
     from .annotations import _inside
 
     largest = max(p.area for p in pieces)
@@ -816,21 +815,26 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group, use, size=size)
 
     visit(root, view)
-    for name, prims, meta, members, inner, gap, nameless in _joined(opened):
-        name = unique(name)
-        if nameless:
-            unnamed.add(name)
+    for name, prims, meta, members, inner, gap, nameless, used_paths in _joined(opened):
         around = f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ({_names(inner)})" if inner else ""
         bridged = f", across gaps of up to {gap:.3g} mm" if gap > JOIN_MM else ""
         if gap > JOIN_MM:
             meta["gap_mm"] = gap
+        joined = (f"joined from {len(members)} open paths ({_names(members)}) that meet end to end{bridged}{around}"
+                  if len(members) > 1 else f"an open path whose ends are {gap:.3g} mm apart, taken as closed")
         try:
-            pieces.append(piece_from_primitives(
-                name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                notes=(f"units: {how}", f"joined from {len(members)} open paths ({_names(members)}) that meet "
-                       f"end to end{bridged}{around}"), meta=meta))
+            piece = piece_from_primitives(name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit,
+                                          source="svg", notes=(f"units: {how}", joined), meta=meta)
         except InputError as exc:
-            unmade.append((piece_failure(name, exc, where), meta))
+            if gap > JOIN_MM:           # a sliver only the gap made: no outline, its paths open ones
+                for o in used_paths:
+                    o.joined = False
+                continue
+            unmade.append((piece_failure(unique(name), exc, where), meta))
+            continue
+        pieces.append(piece if (final := unique(name)) == name else replace(piece, name=final))
+        if nameless:
+            unnamed.add(final)
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
     unmade = [u for u in unmade if id(u) not in used]     # lines drawn closed that close an outline
     open_paths += sum(1 for o in opened if not o.joined and not o.line)
@@ -866,7 +870,7 @@ def _drawn_line(prims: list[Primitive], size: float) -> bool:
     return len(np.unique(np.round(ends / (1e-9 * size)), axis=0)) <= 2
 
 
-def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[str], list[str], float, bool]]:
+def _joined(opened: list[_Open]) -> list["_Outline"]:
     """Closed outlines made of open subpaths that meet end to end, each group on its own.
 
     A pattern program may draw a piece as several open paths (FreeSewing draws a
@@ -882,8 +886,7 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
     :data:`~clothgrid.patterns.chains.GAP_REL` of its
     extent): a block drawn by hand in Adobe Illustrator as separate lines and
     curves has its ends a fraction of a millimetre apart. The subpaths used are
-    marked ``joined``. Returns ``(name, primitives, meta, member names, inner
-    line names, the largest gap bridged)`` per outline (the gap in the
+    marked ``joined``. Returns an :class:`_Outline` each (the gap in the
     drawing's units, 0 where the ends meet).
     """
     groups: dict[tuple[str, str], list[_Open]] = {}
@@ -893,10 +896,10 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
     for (group, _), paths in groups.items():
         # (a path with a non-finite end joins nothing: it would make the tolerance infinite)
         paths = [o for o in paths if np.isfinite(o.prims[0].start).all() and np.isfinite(o.prims[-1].end).all()]
-        if len(paths) < 2:
+        if not paths:
             continue
-        ends = np.array([[o.prims[0].start, o.prims[-1].end] for o in paths])     # (n, 2, 2)
-        extent = float(np.hypot(*np.ptp(ends.reshape(-1, 2), axis=0)))
+        box = control_box([p for o in paths for p in o.prims])       # the group's size (one path's too)
+        extent = float(np.hypot(box[1][0] - box[0][0], box[1][1] - box[0][1])) if box else 0.0
         if not np.isfinite(extent) or not extent > 0:
             continue
         found = join_outlines([o.prims for o in paths], max(1e-6 * extent, JOIN_MM), min(GAP_MM, GAP_REL * extent))
@@ -904,8 +907,21 @@ def _joined(opened: list[_Open]) -> list[tuple[str, list[Primitive], dict, list[
     return out
 
 
+class _Outline(NamedTuple):
+    """An outline :func:`_joined` made of open paths."""
+
+    name: str
+    prims: list[Primitive]
+    meta: dict
+    members: list[str]            # the paths' names, in the outline's order
+    inner: list[str]              # the inner lines' names
+    gap: float                    # the largest gap bridged (mm)
+    nameless: bool                # named by a fallback or a made-up id (may take a label's name)
+    paths: list["_Open"]          # the paths used (members and inner lines)
+
+
 def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], mem: list[int],
-                    inner: list[int]) -> tuple[str, list[Primitive], dict, list[str], list[str], float, bool]:
+                    inner: list[int]) -> _Outline:
     """:func:`_joined`'s answer for an outline of ``prims`` joined from ``paths[mem]`` (around the
     inner lines ``paths[inner]``), which are marked ``joined``: named after its group (else its
     first path), its class the first path's, its structure from the paths' classes and groups."""
@@ -923,8 +939,8 @@ def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], me
             "part": group or None, "joined": [paths[k].base for k in mem]}
     if inner:
         meta["inner_lines"] = [paths[k].base for k in inner]
-    return (name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner], largest_gap(prims),
-            nameless)
+    return _Outline(name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner],
+                    largest_gap(prims), nameless, [paths[k] for k in mem + inner])
 
 
 def _names(names: list[str], most: int = 10) -> str:
