@@ -395,7 +395,13 @@ def test_residual_solve_matches_cpu(rng, shape, dim):
 
 def test_per_edge_solve_stops_on_the_residual_solve(rng):
     """A smooth per-edge field through generate() on the device: the solve stops on the residual solve's
-    bound as the cpu's does, after as many iterations, and its bound holds against the exact solution."""
+    bound as the cpu's does, after as many iterations, and both bounds hold against the exact solution
+    and the tolerance. The bounds themselves are not compared: the residual solve's V-cycles go on
+    until its bound is under the limit, so both end just under it, and where the device's ``y``
+    (its reductions and float32 levels round differently) meets it a cycle sooner or later than the
+    cpu's, they differ by more than rounding (a CI run's fresh quad: 2.425e-4 against 2.431e-4;
+    30 seeds here: at most 2.2e-4 apart, relative). The operations are compared one by one in
+    ``test_residual_solve_matches_cpu``."""
     nu, nv = 65, 57     # at 33 x 29 the bound after one iteration is 2x the tolerance on both: the barrier solve
     b = quad(rng, nu, nv, 2)
     w = smooth_field(nu, nv)
@@ -403,9 +409,9 @@ def test_per_edge_solve_stops_on_the_residual_solve(rng):
     c = clothgrid.generate(b, weights=w, solver="multigrid", backend="cpu")
     assert g.info["bound_method"] == c.info["bound_method"] == "residual solve"
     assert g.info["iterations"] == c.info["iterations"]
-    assert g.info["error_estimate"] == pytest.approx(c.info["error_estimate"], rel=1e-3)
     err = max_rel_error(g.points, exact_solution(boundary_grid(b), *w), b.size)
     assert err <= g.info["error_estimate"] <= TOL
+    assert max_rel_error(c.points, exact_solution(boundary_grid(b), *w), b.size) <= c.info["error_estimate"] <= TOL
 
 
 def test_jumps_solve_with_conjugate_gradients_on_the_device(rng):

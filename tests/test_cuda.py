@@ -53,11 +53,14 @@ def fresh_probe(monkeypatch):
 # --- the kernels, without a GPU ----------------------------------------------------------------------------
 
 def test_kernels_under_the_simulator():
-    """``tests/cuda_simulated.py`` in a subprocess with Numba's CUDA simulator (about 20 s)."""
-    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
+    """``tests/cuda_simulated.py`` in a subprocess with Numba's CUDA simulator (about 20 s), with this
+    run's seed (a failure names it: ``CLOTHGRID_TEST_SEED`` replays the same fresh inputs)."""
+    from conftest import SEED
+
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1", "CLOTHGRID_TEST_SEED": str(SEED)}
     cmd = [sys.executable, "-m", "pytest", str(HERE / "cuda_simulated.py"), "-q", "-p", "no:cacheprovider"]
     p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=HERE.parent)
-    assert p.returncode == 0, p.stdout[-6000:] + p.stderr[-2000:]
+    assert p.returncode == 0, f"CLOTHGRID_TEST_SEED={SEED}\n" + p.stdout[-6000:] + p.stderr[-2000:]
     assert " passed" in p.stdout and "skipped" not in p.stdout
 
 
