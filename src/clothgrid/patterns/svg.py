@@ -69,6 +69,10 @@ def _local(tag: str) -> str:
     return tag.rsplit("}", 1)[-1] if isinstance(tag, str) else ""
 
 
+#: The absolute CSS lengths an SVG may use (the project's units less those CSS does not know)
+_CSS_UNITS = frozenset(UNITS) - {"um", "dm", "m", "ft", "yd", "mil"}
+
+
 def _css_length(text: str | None, what: str, where: str) -> tuple[float, str] | None:
     """``(value, unit)`` of an SVG length; None if absent or a percentage."""
     if text is None or not text.strip():
@@ -79,7 +83,7 @@ def _css_length(text: str | None, what: str, where: str) -> tuple[float, str] | 
     value, unit = float(m.group(1)), m.group(2).lower() or "px"
     if unit == "%":
         return None
-    if unit not in UNITS or unit in ("um", "dm", "m", "ft", "yd", "mil"):
+    if unit not in _CSS_UNITS:
         raise InputError(f"{where}: unknown unit {m.group(2)!r} in the <svg> {what} {text!r}: "
                          "use mm, cm, in, pt, pc, px or Q (an absolute length)")
     if not (math.isfinite(value) and value > 0):
@@ -132,6 +136,32 @@ def _px_per_inch(root: ET.Element, head: bytes) -> tuple[float, str]:
     return 96.0, ""
 
 
+def _view_box(el: ET.Element, where: str) -> list[float] | None:
+    """An ``<svg>`` element's ``viewBox`` (min-x, min-y, width, height), None where it has none."""
+    text = el.get("viewBox")
+    if text is None or not text.strip():
+        return None
+    vb = _numbers(text, "viewBox", where)
+    if len(vb) != 4 or not all(math.isfinite(v) for v in vb) or vb[2] <= 0 or vb[3] <= 0:
+        raise InputError(f"{where}: invalid viewBox {text!r}: expected 4 numbers min-x min-y width height, "
+                         "width and height positive")
+    return vb
+
+
+def _fit(el: ET.Element, vb: list[float], w: float, h: float) -> tuple[float, float, float, float]:
+    """How an ``<svg>`` element's ``preserveAspectRatio`` fits its viewBox ``vb`` into ``w`` x ``h``:
+    ``(sx, sy, tx, ty)``, a point ``(x, y)`` going to ``(tx + (x - vb_x) sx, ty + (y - vb_y) sy)``."""
+    sx, sy = w / vb[2], h / vb[3]
+    tx = ty = 0.0
+    par = [q for q in (el.get("preserveAspectRatio") or "xMidYMid meet").split() if q != "defer"] or ["xMidYMid"]
+    if par[0] != "none":
+        sc = max(sx, sy) if len(par) > 1 and par[1] == "slice" else min(sx, sy)
+        tx = {"xMin": 0.0, "xMid": 0.5, "xMax": 1.0}.get(par[0][:4], 0.5) * (w - vb[2] * sc)
+        ty = {"YMin": 0.0, "YMid": 0.5, "YMax": 1.0}.get(par[0][4:], 0.5) * (h - vb[3] * sc)
+        sx = sy = sc
+    return sx, sy, tx, ty
+
+
 def _viewport(root: ET.Element, where: str, units: str | None, head: bytes = b""
               ) -> tuple[np.ndarray, str, str]:
     """The 3x3 map from user units to mm with y up; the file's unit and how it was found. A px is
@@ -140,14 +170,7 @@ def _viewport(root: ET.Element, where: str, units: str | None, head: bytes = b""
     px_mm = 25.4 / per_inch
     width = _css_length(root.get("width"), "width", where)
     height = _css_length(root.get("height"), "height", where)
-    vb_text = root.get("viewBox")
-    vb = None
-    if vb_text is not None and vb_text.strip():
-        vals = _numbers(vb_text, "viewBox", where)
-        if len(vals) != 4 or not all(math.isfinite(v) for v in vals) or vals[2] <= 0 or vals[3] <= 0:
-            raise InputError(f"{where}: invalid viewBox {vb_text!r}: expected 4 numbers "
-                             "min-x min-y width height, width and height positive")
-        vb = vals
+    vb = _view_box(root, where)
     if vb is not None:
         if width is None and height is not None:
             width = (height[0] * vb[2] / vb[3], height[1])
@@ -172,17 +195,7 @@ def _viewport(root: ET.Element, where: str, units: str | None, head: bytes = b""
     if vb is None:
         s = px_mm                              # no viewBox: a user unit is a px
         return np.array([[s, 0, 0], [0, -s, h_mm], [0, 0, 1.0]]), unit, how
-    sx, sy = w_mm / vb[2], h_mm / vb[3]
-    tx = ty = 0.0
-    par = (root.get("preserveAspectRatio") or "xMidYMid meet").split()
-    par = [p for p in par if p != "defer"] or ["xMidYMid"]
-    align = par[0]
-    if align != "none":
-        s = max(sx, sy) if len(par) > 1 and par[1] == "slice" else min(sx, sy)
-        free_x, free_y = w_mm - vb[2] * s, h_mm - vb[3] * s
-        tx = {"xMin": 0.0, "xMid": 0.5, "xMax": 1.0}.get(align[:4], 0.5) * free_x
-        ty = {"YMin": 0.0, "YMid": 0.5, "YMax": 1.0}.get(align[4:], 0.5) * free_y
-        sx = sy = s
+    sx, sy, tx, ty = _fit(root, vb, w_mm, h_mm)
     # x_mm = tx + (x - vbx) sx;  y_up = h - (ty + (y - vby) sy)
     m = np.array([[sx, 0.0, tx - vb[0] * sx],
                   [0.0, -sy, h_mm - ty + vb[1] * sy],
@@ -197,7 +210,7 @@ def _inner_length(text: str | None, whole: float, what: str, where: str) -> floa
         return whole if what in ("width", "height") else 0.0
     m = _CSS_LENGTH.fullmatch(text)
     unit = (m.group(2).lower() if m else "") or "px"
-    if m is None or not (unit == "%" or (unit in UNITS and unit not in ("um", "dm", "m", "ft", "yd", "mil"))):
+    if m is None or not (unit == "%" or unit in _CSS_UNITS):
         raise InputError(f"{where}: invalid {what} {text!r} on a nested <svg> element")
     value = float(m.group(1))
     if unit == "%":
@@ -208,9 +221,9 @@ def _inner_length(text: str | None, whole: float, what: str, where: str) -> floa
 def _root_size(root: ET.Element, where: str) -> tuple[float, float]:
     """The outermost viewport's size in its user units (what a nested ``<svg>``'s percentages are of):
     its ``viewBox``'s, else its ``width`` and ``height`` (100 where absent or a percentage)."""
-    vals = _PLAIN_NUMBERS.fullmatch(root.get("viewBox") or "") and _NUMBER.findall(root.get("viewBox") or "")
-    if vals and len(vals) == 4 and float(vals[2]) > 0 and float(vals[3]) > 0:
-        return float(vals[2]), float(vals[3])
+    vb = _view_box(root, where)          # (read by _viewport first: valid or absent)
+    if vb is not None:
+        return vb[2], vb[3]
     out = []
     for k in ("width", "height"):
         try:
@@ -231,23 +244,12 @@ def _nested_viewport(el: ET.Element, size: tuple[float, float], where: str
     w = _inner_length(el.get("width"), size[0], "width", where)
     h = _inner_length(el.get("height"), size[1], "height", where)
     shift = np.array([[1.0, 0.0, x], [0.0, 1.0, y], [0.0, 0.0, 1.0]])
-    vb_text = el.get("viewBox")
-    if vb_text is None or not vb_text.strip():
+    vb = _view_box(el, f"{where}: a nested <svg>")
+    if vb is None:
         return shift, (w, h)
-    vb = _numbers(vb_text, "viewBox", where)
-    if len(vb) != 4 or not all(math.isfinite(v) for v in vb) or vb[2] <= 0 or vb[3] <= 0:
-        raise InputError(f"{where}: invalid viewBox {vb_text!r} on a nested <svg>: expected 4 numbers "
-                         "min-x min-y width height, width and height positive")
     if not (w > 0 and h > 0 and math.isfinite(w) and math.isfinite(h)):
         raise InputError(f"{where}: a nested <svg> with a viewBox must have a positive width and height")
-    sx, sy = w / vb[2], h / vb[3]
-    tx = ty = 0.0
-    par = [q for q in (el.get("preserveAspectRatio") or "xMidYMid meet").split() if q != "defer"] or ["xMidYMid"]
-    if par[0] != "none":
-        sc = max(sx, sy) if len(par) > 1 and par[1] == "slice" else min(sx, sy)
-        tx = {"xMin": 0.0, "xMid": 0.5, "xMax": 1.0}.get(par[0][:4], 0.5) * (w - vb[2] * sc)
-        ty = {"YMin": 0.0, "YMid": 0.5, "YMax": 1.0}.get(par[0][4:], 0.5) * (h - vb[3] * sc)
-        sx = sy = sc
+    sx, sy, tx, ty = _fit(el, vb, w, h)
     fit = np.array([[sx, 0.0, tx - vb[0] * sx], [0.0, sy, ty - vb[1] * sy], [0.0, 0.0, 1.0]])
     return shift @ fit, (vb[2], vb[3])
 
