@@ -9,13 +9,14 @@ join in near-linear time.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .sampling import Bezier, EllipseArc, Primitive
 
-__all__ = ["chain_loops", "outer_loops", "join_outlines", "largest_gap", "reverse", "GAP_MM", "GAP_REL"]
+__all__ = ["chain_loops", "outer_loops", "join_outlines", "Joined", "joined_note", "largest_gap", "reverse", "GAP_MM",
+           "GAP_REL"]
 
 #: Open lines and curves left over once those whose ends meet are joined are tried again with
 #: their ends this far apart (in mm): a block drawn by hand in Adobe Illustrator as separate lines
@@ -280,10 +281,18 @@ def _joined_at(pieces: list[list[Primitive]], tol: float) -> list[tuple[list[Pri
     return out
 
 
-def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
-                  ) -> list[tuple[list[Primitive], list[int], list[int]]]:
-    """Closed outlines of open chains (each non-empty, finite ends) that meet end to end:
-    ``(primitives, the chains it runs along, the chains inside it)`` per outline.
+class Joined(NamedTuple):
+    """An outline :func:`join_outlines` made."""
+
+    prims: list[Primitive]
+    members: list[int]        # the chains it runs along, in order
+    inner: list[int]          # the chains inside it
+    bridged: bool             # made only with ends up to ``gap`` apart (the second pass, or a chain closed on itself)
+
+
+def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0) -> list[Joined]:
+    """Closed outlines of open chains (each non-empty, finite ends) that meet end to end, a
+    :class:`Joined` each.
 
     Chains whose ends are within ``tol`` meet. A chain of them that closes without passing a fork
     (more than two chain ends at a point) is an outline (:func:`chain_loops`); where chains fork, the
@@ -296,8 +305,8 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
     end is within ``gap`` (and 1 % of its size) of its start is an outline of its own: drawn by hand,
     it stops short of where it began.
     """
-    found = _joined_at(pieces, tol) if len(pieces) >= 2 else []
-    owner = {k: i for i, (_, mem, inner) in enumerate(found) for k in mem + inner}   # chain -> outline
+    found = [Joined(*f, False) for f in _joined_at(pieces, tol)] if len(pieces) >= 2 else []
+    owner = {k: i for i, f in enumerate(found) for k in f.members + f.inner}   # chain -> outline
     if gap > tol and len(pieces) - len(owner) >= 2:
         alive = [True] * len(found)
         for prims, mem, inner in _joined_at(pieces, gap):
@@ -305,17 +314,30 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0
             if all(k in owner for k in mem):
                 continue                      # nothing left over: found before
             touched = {owner[k] for k in takes if k in owner}
-            if any(set(found[i][1] + found[i][2]) - takes for i in touched):
+            if any(set(found[i].members + found[i].inner) - takes for i in touched):
                 continue                      # part of an outline found before
             for i in touched:
                 alive[i] = False
-            found.append((prims, mem, inner))
+            found.append(Joined(prims, mem, inner, True))
             alive.append(True)
             owner.update((k, len(found) - 1) for k in takes)
         found = [f for f, a in zip(found, alive) if a]
     if gap > tol:                             # a chain left whose own ends are that close: drawn closed
-        found += [(c, [k], []) for k, c in enumerate(pieces) if k not in owner and _nearly_closed(c, gap)]
+        found += [Joined(c, [k], [], True) for k, c in enumerate(pieces) if k not in owner and _nearly_closed(c, gap)]
     return found
+
+
+def joined_note(outline: Joined, gap: float, noun: tuple[str, str], names: str = "", inner_names: str = "") -> str:
+    """The note on a piece made of a :class:`Joined` outline: how many chains (``noun``: one, many;
+    ``names``, ``inner_names`` listed where given), across what gaps (``gap``, its largest, in mm)."""
+    if len(outline.members) == 1:
+        return f"an {noun[0]} whose ends are {gap:.3g} mm apart, taken as closed"
+    listed = f" ({names})" if names else ""
+    bridged = f", across gaps of up to {gap:.3g} mm" if outline.bridged else ""
+    k = len(outline.inner)
+    around = (f"; around {k} inner line{'s' if k != 1 else ''}" + (f" ({inner_names})" if inner_names else "")
+              if k else "")
+    return f"joined from {len(outline.members)} {noun[1]}{listed} that meet end to end{bridged}{around}"
 
 
 def _nearly_closed(chain: list[Primitive], gap: float) -> bool:

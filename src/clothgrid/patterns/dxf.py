@@ -51,7 +51,7 @@ from .. import limits
 from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
 from ..geometry import signed_area
 from .annotations import LINES, classified, structure_hint
-from .chains import GAP_MM, GAP_REL, chain_loops, join_outlines, largest_gap
+from .chains import GAP_MM, GAP_REL, chain_loops, join_outlines, joined_note, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, outline_box, pattern_pieces, piece_failure,
                     piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
@@ -507,8 +507,8 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
     # GAP_MM apart where some are left: a drawing made by hand), around construction lines
     chains = [c for c in chains if np.isfinite(c[0].start).all() and np.isfinite(c[-1].end).all()]
     found = join_outlines(chains, 1e-6 * extent, min(GAP_MM / scale, GAP_REL * extent)) if extent > 0 else []
-    loops = [prims for prims, _, _ in found]
-    left_open = len(chains) - len({k for _, mem, inner in found for k in mem + inner})
+    loops = [f.prims for f in found]
+    left_open = len(chains) - len({k for f in found for k in f.members + f.inner})
     if not closed and not loops:
         extra = (f" ({left_open} open line{'s' if left_open != 1 else ''} and curves did not close)"
                  if left_open else "")
@@ -521,7 +521,7 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
     used: dict[str, int] = {}
     items = [(p, {"layer": e.dxf.get("layer", ""), "handle": e.dxf.handle, "entity": e.dxftype()})
              for p, e in closed] + [(p, {"entity": "chain"}) for p in loops]
-    joined = {len(closed) + k: (len(mem), len(inner), largest_gap(p) * scale) for k, (p, mem, inner) in enumerate(found)}
+    joined = {len(closed) + k: f for k, f in enumerate(found)}
     unmade: list[tuple[PieceFailure, dict]] = []
     for k, (prims, meta) in enumerate(items, start=1):
         layer = meta.get("layer")
@@ -529,13 +529,11 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
             meta.update(group=layer, look=layer, structure=structure_hint([layer]))
         name = _unique(f"piece{k}", used)
         own = []
-        if k - 1 in joined:
-            n, inner, gap = joined[k - 1]
-            bridged = f", across gaps of up to {gap:.3g} mm" if gap > 1e-6 * extent * scale else ""
-            around = f"; around {inner} inner line{'s' if inner != 1 else ''}" if inner else ""
-            own.append(f"joined from {n} lines and curves that meet end to end{bridged}{around}" if n > 1 else
-                       f"an open line or curve whose ends are {gap:.3g} mm apart, taken as closed")
-            if bridged:
+        outline = joined.get(k - 1)
+        if outline is not None:
+            gap = largest_gap(prims) * scale
+            own.append(joined_note(outline, gap, ("open line or curve", "lines and curves")))
+            if outline.bridged:
                 meta["gap_mm"] = gap
         try:
             pieces.append(piece_from_primitives(
@@ -543,7 +541,7 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
                 where=f"{ctx.where}: ", units=unit, source="dxf", notes=tuple(notes + own + ctx.notes),
                 meta=meta))
         except InputError as exc:          # fewer than 3 points, no area: failed or skipped
-            if "gap_mm" in meta:           # a sliver only the gap made: no outline, its lines open ones
+            if outline is not None and outline.bridged:    # a sliver only the gap made: no outline
                 continue
             unmade.append((piece_failure(name, exc, ctx.where), {**meta, "box": outline_box(_scale(prims, scale))}))
     return classified(pieces, unmade, ctx.where, line=line)

@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import InputError
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
-from .chains import GAP_MM, GAP_REL, join_outlines, largest_gap
+from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, Skipped, outline_box, piece_failure, piece_from_points,
                     piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
@@ -817,18 +817,12 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group, use, size=size)
 
     visit(root, view)
-    for name, prims, meta, members, inner, gap, nameless, used_paths in _joined(opened):
-        around = f"; around {len(inner)} inner line{'s' if len(inner) != 1 else ''} ({_names(inner)})" if inner else ""
-        bridged = f", across gaps of up to {gap:.3g} mm" if gap > JOIN_MM else ""
-        if gap > JOIN_MM:
-            meta["gap_mm"] = gap
-        joined = (f"joined from {len(members)} open paths ({_names(members)}) that meet end to end{bridged}{around}"
-                  if len(members) > 1 else f"an open path whose ends are {gap:.3g} mm apart, taken as closed")
+    for name, prims, meta, note, bridged, nameless, used_paths in _joined(opened):
         try:
             piece = piece_from_primitives(name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit,
-                                          source="svg", notes=(f"units: {how}", joined), meta=meta)
+                                          source="svg", notes=(f"units: {how}", note), meta=meta)
         except InputError as exc:
-            if gap > JOIN_MM:           # a sliver only the gap made: no outline, its paths open ones
+            if bridged:                 # a sliver only the gap made: no outline, its paths open ones
                 for o in used_paths:
                     o.joined = False
                 continue
@@ -905,7 +899,7 @@ def _joined(opened: list[_Open]) -> list["_Outline"]:
         if not np.isfinite(extent) or not extent > 0:
             continue
         found = join_outlines([o.prims for o in paths], max(1e-6 * extent, JOIN_MM), min(GAP_MM, GAP_REL * extent))
-        out += [_joined_outline(group, paths, prims, mem, inner) for prims, mem, inner in found]
+        out += [_joined_outline(group, paths, f) for f in found]
     return out
 
 
@@ -915,18 +909,17 @@ class _Outline(NamedTuple):
     name: str
     prims: list[Primitive]
     meta: dict
-    members: list[str]            # the paths' names, in the outline's order
-    inner: list[str]              # the inner lines' names
-    gap: float                    # the largest gap bridged (mm)
+    note: str                     # how it was joined (chains.joined_note)
+    bridged: bool                 # made only across gaps (chains.Joined)
     nameless: bool                # named by a fallback or a made-up id (may take a label's name)
     paths: list["_Open"]          # the paths used (members and inner lines)
 
 
-def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], mem: list[int],
-                    inner: list[int]) -> _Outline:
-    """:func:`_joined`'s answer for an outline of ``prims`` joined from ``paths[mem]`` (around the
-    inner lines ``paths[inner]``), which are marked ``joined``: named after its group (else its
-    first path), its class the first path's, its structure from the paths' classes and groups."""
+def _joined_outline(group: str, paths: list["_Open"], joined: Joined) -> _Outline:
+    """:func:`_joined`'s answer for an outline ``joined`` of ``paths`` (its members and inner lines
+    are marked ``joined``): named after its group (else its first path), its class the first
+    path's, its structure from the paths' classes and groups."""
+    prims, mem, inner = joined.prims, joined.members, joined.inner
     for k in mem + inner:
         paths[k].joined = True
     first = paths[mem[0]]
@@ -941,8 +934,12 @@ def _joined_outline(group: str, paths: list["_Open"], prims: list[Primitive], me
             "part": group or None, "joined": [paths[k].base for k in mem]}
     if inner:
         meta["inner_lines"] = [paths[k].base for k in inner]
-    return _Outline(name, prims, meta, [paths[k].base for k in mem], [paths[k].base for k in inner],
-                    largest_gap(prims), nameless, [paths[k] for k in mem + inner])
+    gap = largest_gap(prims)
+    if joined.bridged:
+        meta["gap_mm"] = gap
+    note = joined_note(joined, gap, ("open path", "open paths"), _names([paths[k].base for k in mem]),
+                       _names([paths[k].base for k in inner]))
+    return _Outline(name, prims, meta, note, joined.bridged, nameless, [paths[k] for k in mem + inner])
 
 
 def _names(names: list[str], most: int = 10) -> str:
