@@ -669,7 +669,7 @@ def test_after_a_coarser_grid_only_the_poor_cells_neighbourhoods_are_smoothed(mo
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/patterns is not here")
 def test_an_active_set_whose_first_sweeps_add_folds_is_given_up(monkeypatch):
-    """A real piece (fs_wahid_layout.svg, piece 4, at the default 10 mm edges) whose poor cells'
+    """A real piece (fs_wahid_layout.svg, piece front, once 4, at the default 10 mm edges) whose poor cells'
     margin gathers folds in its first ``GIVE_UP_SWEEPS`` sweeps (220 -> 286 folded corners) gives
     that set up and untangles every node from the coarser grid at once: untangled, as good a
     smallest corner Jacobian as running the set's rounds out first (0.8 of it at least; the same to
@@ -679,7 +679,7 @@ def test_an_active_set_whose_first_sweeps_add_folds_is_given_up(monkeypatch):
     from clothgrid.readers import read_pieces
 
     src = SHARED / "fs_wahid_layout.svg"
-    piece = next(p for p in read_pieces(src) if p.name == "4")
+    piece = next(p for p in read_pieces(src) if p.name == "front")
     length = generate_piece(piece, edge_length="10mm", functional="length")
     given, info = ff.relax(length.points, dim=length.dim)
     assert info["untangled"] and info.get("given_up", 0) >= 1 and info["levels"] >= 2

@@ -498,12 +498,29 @@ def test_example_stitches_cathrin_corset(tmp_path, capsys):
     with np.load(out) as d:
         r = {k: d[k] for k in d.files}
     _check_seams_node_for_node(r, st, CATHRIN)
-    assert list(r["panel_names"]) == ["2", "9", "16", "23", "30", "38", "45"]
+    assert list(r["panel_names"]) == [f"panel{k}" for k in range(1, 8)]
     info = json.loads(str(r["info"]))
     assert sum(p["folded"] for p in info["panels"]) == 0
     rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
     assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 1
     assert rep["euler"] == 1                                 # one sheet (a disk): the corset laid open
+    # the same file written with the names an earlier release gave the panels (their path ids, now
+    # aliases) sews the same garment; the placement may name them so too
+    old = {f"panel{k}": n for k, n in zip(range(1, 8), ["2", "9", "16", "23", "30", "38", "45"])}
+    data = json.loads(st.read_text())
+    for seam in data["seams"]:
+        for side in ("a", "b"):
+            seam[side]["piece"] = old[seam[side]["piece"]]
+    data["pattern"] = str(CATHRIN)
+    data["placement"] = {"9": {"translation": [0, 0, 100], "rotation": [0, 0, 0]}}
+    st_old = tmp_path / "old_names.json"
+    st_old.write_text(json.dumps(data))
+    out_old = tmp_path / "corset_old.npz"
+    assert main(["garment", str(CATHRIN), "--stitches", str(st_old), "-o", str(out_old), "--edge-length", "2cm",
+                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
+    with np.load(out_old) as d:
+        assert list(d["panel_names"]) == list(r["panel_names"])
+        assert d["welded_quads"].shape == r["welded_quads"].shape
 
 
 def test_triangle_panel_flat_corner_and_its_triangles(tmp_path):

@@ -1130,6 +1130,45 @@ def test_made_up_ids_yield_to_group_names_and_labels(tmp_path):
     assert [p.name for p in read_pieces(path)] == ["Front", "Sleeve", "path5", "cuff"]
 
 
+def test_freesewing_ids_yield_to_part_names_and_stay_aliases(tmp_path, capsys):
+    """FreeSewing 2 ids its paths by running numbers in a group named after the part; FreeSewing 3 and 4
+    by ``fs-N`` in ``fs-stack-DESIGN.PART-part-DESIGN.PART`` groups. The pieces take the part's name;
+    of a part's sew line and cut line, the one gridded keeps it (whichever the file draws first). The
+    id names the piece still (an alias: ``--piece 12``, a stitches file), and a mark the file names as
+    one keeps its id."""
+    from clothgrid.cli import main
+
+    sq = "M {0},{1} L {2},{1} L {2},{3} L {0},{3} Z"
+    path = tmp_path / "fs.svg"
+    path.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="300mm" viewBox="0 0 400 300">'
+        '<g id="sleeve">'
+        f'<path class="fabric sa" id="11" d="{sq.format(0, 0, 110, 210)}"/>'        # the cut line first
+        f'<path class="fabric" id="12" d="{sq.format(5, 5, 105, 205)}"/>'
+        f'<path class="logo" id="13" d="{sq.format(40, 40, 50, 50)}"/></g>'
+        '<g id="fs-container"><g id="fs-stack-tee.front"><g id="fs-stack-tee.front-part-tee.front">'
+        f'<path class="fabric" id="fs-1" d="{sq.format(200, 0, 300, 200)}"/></g></g></g></svg>')
+    sew = read_pieces(path)
+    assert [(p.name, p.aliases, p.meta["line"]) for p in sew] == [("sleeve", ("12",), "sew"), ("front", ("fs-1",), "outline")]
+    assert {s.name: s.kind for s in sew.skipped} == {"sleeve-2": "seam allowance", "13": "mark"}
+    assert sew.skipped[0].of == "sleeve" and "'sleeve-2'" in sew[0].notes[-1]
+    cut = read_pieces(path, line="cut")
+    assert [(p.name, p.aliases, p.meta["line"]) for p in cut][0] == ("sleeve", ("11",), "cut")
+    assert cut[0].area > sew[0].area
+    assert (sew.resolve("12"), sew.resolve("11"), sew.resolve("fs-1"), sew.resolve("nothing")) == (
+        "sleeve", "sleeve-2", "front", "nothing")
+    # the old names on the command line, for a piece and for a skipped outline
+    out = tmp_path / "out"
+    assert main(["generate", str(path), "--piece", "12", "--piece", "fs-1", "-o", str(out / "{piece}.npz"),
+                 "--nodes", "9", "-q"]) == 0, capsys.readouterr().err
+    assert sorted(f.name for f in out.iterdir()) == ["front.npz", "sleeve.npz"]
+    capsys.readouterr()
+    assert main(["pieces", str(path), "--include", "11", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert [p["name"] for p in got["pieces"]] == ["sleeve", "front", "sleeve-2"]
+    assert [p["aliases"] for p in got["pieces"]] == [["12"], ["fs-1"], ["11"]]
+
+
 def test_without_word_drops_the_line_word_from_a_name():
     from clothgrid.patterns.svg import _without_word
 

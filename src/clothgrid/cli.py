@@ -945,6 +945,8 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
         print(f"  corners {','.join(map(str, c['indices']))} ({pts} mm): {c['message']}")
         if c.get("alternatives"):       # tried where the grid is poor; any can be given with --corners
             print("  runners-up: " + "; ".join(",".join(map(str, a)) for a in c["alternatives"]))
+        if e["aliases"]:
+            print(f"  also answers to {', '.join(map(repr, e['aliases']))} (the name earlier releases gave it)")
         if e["grain_line"] is not None:
             (x0, y0), (x1, y1) = e["grain_line"]
             print(f"  grain line: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm")

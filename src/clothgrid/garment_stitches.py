@@ -83,10 +83,10 @@ def _load(path: Path) -> dict:
     return data
 
 
-def _side(side: Any, pieces: dict[str, Any], what: str) -> tuple[str, int, int]:
+def _side(side: Any, pieces: dict[str, Any], what: str, resolve: Any = str) -> tuple[str, int, int]:
     if not isinstance(side, dict) or "piece" not in side or "range" not in side:
         raise InputError(f"{what} must be {{\"piece\": NAME, \"range\": [START, END]}}, not {side!r}")
-    name, rng = str(side["piece"]), side["range"]
+    name, rng = resolve(str(side["piece"])), side["range"]
     if name not in pieces:
         raise InputError(f"{what}: the pattern has no piece {name!r} (its pieces: "
                          f"{', '.join(map(repr, pieces))})")
@@ -103,12 +103,12 @@ def _side(side: Any, pieces: dict[str, Any], what: str) -> tuple[str, int, int]:
     return name, i, j
 
 
-def _placement(data: dict, names: list[str], path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def _placement(data: dict, names: list[str], path: Path, resolve: Any = str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     raw = data.get("placement") or {}
     if not isinstance(raw, dict):
         raise InputError(f"{path}: 'placement' must be an object PIECE -> {{\"translation\", \"rotation\"}}")
     out = {}
-    for name, p in raw.items():
+    for name, p in ((resolve(str(k)), v) for k, v in raw.items()):
         if name not in names:
             raise InputError(f"{path}: placement of {name!r}, which is not a piece of the garment "
                              f"({', '.join(map(repr, names))})")
@@ -160,7 +160,10 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
 
     pattern, stitches = Path(pattern), Path(stitches)
     data = _load(stitches)
-    pieces = {p.name: p for p in read_pieces(pattern, units=units)}
+    got = read_pieces(pattern, units=units)
+    pieces = {p.name: p for p in got}
+    # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
+    resolve = got.resolve
     seams = []
     for k, s in enumerate(data["seams"]):
         what = f"{stitches}: seam {k}"
@@ -169,16 +172,18 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
         rw = s.get("right_wrong", False)
         if not isinstance(rw, bool):
             raise InputError(f"{what}: 'right_wrong' must be true or false, not {rw!r}")
-        seams.append((_side(s["a"], pieces, f"{what}, side a"), _side(s["b"], pieces, f"{what}, side b"), rw))
+        seams.append((_side(s["a"], pieces, f"{what}, side a", resolve), _side(s["b"], pieces, f"{what}, side b", resolve),
+                      rw))
     extra = data.get("pieces", [])
     if not isinstance(extra, list) or not all(isinstance(x, str) for x in extra):
         raise InputError(f"{stitches}: 'pieces' must be a list of piece names")
+    extra = [resolve(x) for x in extra]
     for x in extra:
         if x not in pieces:
             raise InputError(f"{stitches}: the pattern has no piece {x!r} (its pieces: "
                              f"{', '.join(map(repr, pieces))})")
     names = [n for n in pieces if n in extra or any(n in (a[0], b[0]) for a, b, _ in seams)]
-    place = _placement(data, names, stitches)
+    place = _placement(data, names, stitches, resolve)
 
     # ranges per piece; no two may overlap
     ranges: dict[str, list[tuple[int, int]]] = {n: [] for n in names}

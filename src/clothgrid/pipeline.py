@@ -360,6 +360,8 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> 
     failed = list(getattr(pieces, "failed", ()))
     if not wanted:
         return Pieces(pieces, failed, getattr(pieces, "skipped", ()))
+    # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
+    wanted = [Pieces(pieces, failed, getattr(pieces, "skipped", ())).resolve(w) for w in wanted]
     skipped = {s.name for s in getattr(pieces, "skipped", ())}
     named = [w for w in wanted if w in skipped]
     if named:                         # --piece NAME of a skipped outline grids it
@@ -911,7 +913,7 @@ def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, can
             continue
         w, h = piece.extent
         entry = {
-            "name": piece.name, "source": piece.source, "file_units": piece.units,
+            "name": piece.name, "aliases": list(piece.aliases), "source": piece.source, "file_units": piece.units,
             "size_mm": [w, h], "perimeter_mm": piece.perimeter, "area_mm2": piece.area,
             "outline_points": len(piece.outline), "turn_points": len(piece.turn_points),
             "sampling_tolerance_mm": piece.tolerance,

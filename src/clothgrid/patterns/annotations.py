@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Iterable, Sequence
 
 import numpy as np
@@ -344,6 +344,10 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
         paired[i] = j
         outer, inner_p = items[i], items[j]
         if line == "sew":
+            _keep_group_name(inner_p, outer)
+        else:
+            _keep_group_name(outer, inner_p)
+        if line == "sew":
             outer.kind, outer.of = "seam allowance", inner_p.piece.name
             outer.reason = (f"seam-allowance outline around piece {inner_p.piece.name!r} (its cut "
                             f"line, up to {hd:.3g} mm outside; --line cut grids it instead)")
@@ -552,8 +556,18 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
 
 def _public_meta(meta: dict[str, Any]) -> dict[str, Any]:
     """A reader's ``meta`` without what only :func:`classify` reads (the structure's hint, how the
-    outline is drawn, its part, the box of an outline that could not be made)."""
-    return {k: v for k, v in meta.items() if k not in ("structure", "look", "part", "box")}
+    outline is drawn, its part, the box of an outline that could not be made, the group name it
+    was named after)."""
+    return {k: v for k, v in meta.items() if k not in ("structure", "look", "part", "box", "group_base")}
+
+
+def _keep_group_name(gridded: _Item, other: _Item) -> None:
+    """Of two lines of one piece both named after their group (``meta["group_base"]``: FreeSewing
+    draws a part's sew and cut lines in its group, with made-up ids), the one gridded takes the
+    group's name where the other had it (being first in the file), and the other its name."""
+    base = gridded.piece.meta.get("group_base")
+    if base and base == other.piece.meta.get("group_base") and other.piece.name == base != gridded.piece.name:
+        gridded.piece, other.piece = replace(gridded.piece, name=base), replace(other.piece, name=gridded.piece.name)
 
 
 def marked_annotation(name: str, hint: dict[str, Any], meta: dict[str, Any], box: Any, make: Any) -> Skipped:

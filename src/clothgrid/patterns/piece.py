@@ -72,6 +72,13 @@ class Piece:
     meta: dict[str, Any] = field(default_factory=dict)
 
     @property
+    def aliases(self) -> tuple[str, ...]:
+        """Other names the piece answers to (``meta["aliases"]``): what earlier releases called it
+        where a reader now names it better (an SVG piece with a made-up id, ``4`` or ``path1234``,
+        now named after its group or the text drawn on it)."""
+        return tuple(self.meta.get("aliases") or ())
+
+    @property
     def size(self) -> float:
         """Bounding-box diagonal of the outline (mm)."""
         return float(np.linalg.norm(self.outline.max(axis=0) - self.outline.min(axis=0)))
@@ -205,12 +212,22 @@ class Pieces(list):
         self.failed: list[PieceFailure] = list(failed)
         self.skipped: list[Skipped] = list(skipped)
 
+    def resolve(self, name: str) -> str:
+        """``name`` as the name of one of these pieces, skipped outlines or failed pieces: itself where
+        one is so named, else the name of the one piece or skipped outline that has it among its
+        aliases (:attr:`Piece.aliases`: an earlier release's name), else itself (unknown)."""
+        if any(x.name == name for x in (*self, *self.skipped, *self.failed)):
+            return name
+        having = [x.name for x in (*self, *self.skipped) if name in (x.meta.get("aliases") or ())]
+        return having[0] if len(having) == 1 else name
+
     def including(self, names: Sequence[str] | None, where: str = "") -> "Pieces":
         """These pieces plus the skipped outlines named in ``names`` (in file order of the skip
         list); :attr:`failed` is kept. A name that is neither a piece nor a skipped outline (nor a
         failed piece) is an InputError, and so is a skipped outline that cannot be gridded."""
         if not names:
             return self
+        names = [self.resolve(n) for n in names]
         wanted = set(names)
         by_name = {s.name: s for s in self.skipped}
         bad = {f.name: f for f in self.failed}

@@ -500,10 +500,12 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
         if not texts:
             continue
         best = min(texts, key=lambda t: (-_label_score(t), len(t)))
+        old = pieces[k].meta.get("aliases", [])
         out[k] = replace(pieces[k], name=unique(best),
                          notes=pieces[k].notes + (f"named after the text {best!r} drawn on it "
                                                   f"(it had no id or label: {pieces[k].name})",),
-                         meta={**pieces[k].meta, "label": best})
+                         meta={**pieces[k].meta, "label": best,
+                               "aliases": old + [pieces[k].name] if pieces[k].name not in old else old})
     return out
 
 
@@ -520,26 +522,39 @@ def _without_word(name: str, word: str) -> str:
 
 def _name(el: ET.Element, group: str | None, fallback: str) -> str:
     """The element's name: its ``inkscape:label``; its ``id``, unless a drawing program made it up
-    (:data:`_MADE_UP_ID`) and its ``group`` has a name; (not SVG, but what some pattern programs write
-    on each piece's path: ``name="sleeve-front-left"``) its ``name``; its group's name; else
+    (:data:`_MADE_UP_ID`); (not SVG, but what some pattern programs write on each piece's path:
+    ``name="sleeve-front-left"``) its ``name``; its ``group``'s name; its made-up id; else
     ``fallback``."""
+    return _own_name(el) or group or (el.get("id") or "").strip() or fallback
+
+
+def _own_name(el: ET.Element) -> str:
+    """The name the element gives itself (:func:`_name`), or "": its ``inkscape:label``, its ``id``
+    unless made up, its ``name``."""
     own = (el.get("id") or "").strip()
-    if own and group and _MADE_UP_ID.match(own):
-        own = ""
-    for name in (el.get(_INKSCAPE_LABEL), own, el.get("name"), group):
+    for name in (el.get(_INKSCAPE_LABEL), "" if _MADE_UP_ID.match(own) else own, el.get("name")):
         if name and name.strip():
             return name.strip()
-    return fallback
+    return ""
+
+
+def _former_names(el: ET.Element, name: str) -> tuple[str, ...]:
+    """The element's made-up id (:data:`_MADE_UP_ID`) where ``name`` is not it: what earlier
+    releases named the piece (FreeSewing's ``4``, Inkscape's ``path1234``), kept as an alias so
+    that ``--piece 4`` and stitches files written for it still find it."""
+    own = (el.get("id") or "").strip()
+    return (own,) if own and own != name and _MADE_UP_ID.match(own) else ()
 
 
 #: A group key a drawing program made up (Inkscape's ``g123`` and ``layer1``, Illustrator's
 #: ``Layer_1``), which names no piece.
-_MADE_UP = re.compile(r"^(g|layer|layer_|group|svg|path)?\d*$", re.IGNORECASE)
+_MADE_UP = re.compile(r"^((g|layer|layer_|group|svg|path)?\d*|fs-container)$", re.IGNORECASE)
 
 
-#: An element id a drawing program made up (Inkscape's ``path1234``, ``rect56-3``): a piece so named
-#: may take the name of the text drawn on it (:func:`_named_by_labels`).
-_MADE_UP_ID = re.compile(r"^(path|rect|circle|ellipse|polygon|polyline|line)\d+(-\d+)*$", re.IGNORECASE)
+#: An element id a drawing program made up (Inkscape's ``path1234``, ``rect56-3``; FreeSewing 2's
+#: running numbers ``4``, ``24``; FreeSewing 3 and 4's ``fs-12``): it yields to the piece's group name,
+#: and a piece so named may take the name of the text drawn on it (:func:`_named_by_labels`).
+_MADE_UP_ID = re.compile(r"^((path|rect|circle|ellipse|polygon|polyline|line)\d+(-\d+)*|\d+|fs-\d+)$", re.IGNORECASE)
 
 
 def _group_name(group: str) -> str | None:
@@ -548,8 +563,23 @@ def _group_name(group: str) -> str | None:
     with the piece's name, ``Dos``, and no id on the lines)."""
     for key in reversed(group.split("/")):
         if key.strip() and not _MADE_UP.match(key.strip()):
-            return key.strip()
+            return _part_name(key.strip())
     return None
+
+
+#: FreeSewing 3 and 4's groups: ``fs-stack-huey.back`` holding ``fs-stack-huey.back-part-huey.back``
+#: (design ``huey``, part ``back``), ``fs-container`` around them all; FreeSewing 2.x betas' ``fs-part-pants``.
+_FREESEWING_GROUP = re.compile(r"^fs-(stack-(?P<stack>.+?)(-part-(?P<part>.+))?|part-(?P<only>.+))$")
+
+
+def _part_name(key: str) -> str:
+    """The piece name a group key gives: FreeSewing's ``fs-stack-huey.back-part-huey.back`` is
+    ``back`` (the part without its design), ``fs-part-pants`` is ``pants``; any other key itself."""
+    m = _FREESEWING_GROUP.match(key)
+    if m is None:
+        return key
+    part = m.group("part") or m.group("only") or m.group("stack")
+    return part.split(".", 1)[1] if "." in part.strip(".") else part
 
 
 _NO_FILL = re.compile(r"(^|;)\s*fill\s*:\s*none\s*(;|$)")
@@ -723,7 +753,15 @@ def read_svg(path: str | Path, *, units: str | None = None,
             else:
                 counter += 1
                 fallback = f"piece{counter}"
-            base = _name(el, _group_name(group), fallback)
+            hint = structure_hint([el.get("class")], around, text, (el.get("id"), el.get(_INKSCAPE_LABEL)))
+            # an outline the file marks as an annotation (a logo, a button) keeps its made-up id
+            gname = None if hint.get("annotation") else _group_name(group)
+            base = _name(el, gname, fallback)
+            former = _former_names(el, base)
+            # named after its group: of two outlines so named, the one gridded keeps the name (classify)
+            named = {"aliases": list(former)} if former else {}
+            if gname is not None and base == gname and not _own_name(el):
+                named["group_base"] = base
             label = f"<{tag}> {base!r}"
             nameless = base == fallback or bool(_MADE_UP_ID.match(base))
             loops: list[list[Primitive] | np.ndarray] = []     # curves, or a polygon's points
@@ -780,17 +818,18 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 unmade.append((piece_failure(unique(base), exc, where, labels=(label,)),
                                {"element": tag, "id": el.get("id")}))
                 return
-            hint = structure_hint([el.get("class")], around, text, (el.get("id"), el.get(_INKSCAPE_LABEL)))
             if hint.get("hint") == "sew" and loops:
                 # TauMeta's "A.seamline" is piece "A" (its cut line keeps "A.cuttingline")
-                base = _without_word(base, hint["why"])
+                if (short := _without_word(base, hint["why"])) != base:
+                    named["aliases"] = named.get("aliases", []) + [base]
+                    base = short
             for k, prims in enumerate(loops):
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
                 if nameless:
                     unnamed.add(name)
                 meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
                         "group": group or None, "structure": hint, "look": _look(el),
-                        "part": group or None, **({"use": use} if use else {})}
+                        "part": group or None, **({"use": use} if use else {}), **named}
                 make = piece_from_points if isinstance(prims, np.ndarray) else piece_from_primitives
                 if hint.get("annotation"):      # skipped whatever its shape: made only if included
                     box = outline_box(prims) if isinstance(prims, np.ndarray) else control_box(prims)
@@ -817,6 +856,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
             visit(child, m, around, text, group, use, size=size)
 
     visit(root, view)
+    wanted: dict[int, str] = {}          # joined outlines that did not get their name: which they wanted
     for name, prims, meta, note, bridged, nameless, used_paths in _joined(opened):
         try:
             piece = piece_from_primitives(name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit,
@@ -831,8 +871,16 @@ def read_svg(path: str | Path, *, units: str | None = None,
         pieces.append(piece if (final := unique(name)) == name else replace(piece, name=final))
         if nameless:
             unnamed.add(final)
+        elif final != name:
+            wanted[len(pieces) - 1] = name
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
+    freed = {u[0].name for u in unmade if id(u) in used}
     unmade = [u for u in unmade if id(u) not in used]     # lines drawn closed that close an outline
+    for k, name in wanted.items():      # the name a line drawn closed took, which it closes (a side)
+        if name in freed:
+            freed.discard(name)
+            unnamed.discard(pieces[k].name)
+            pieces[k] = replace(pieces[k], name=name)
     open_paths += sum(1 for o in opened if not o.joined and not o.line)
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
@@ -927,18 +975,22 @@ def _joined_outline(group: str, paths: list["_Open"], joined: Joined) -> _Outlin
     hint = structure_hint([c for c in classes if c][:1], first.around, any(paths[k].text for k in mem))
     key = group.rsplit("/", 1)[-1] if group else ""
     # unnamed <line>s all fall back to "line": the first member with a name of its own, or a shape's
-    name = key if key and key != "g" else next((paths[k].base for k in mem if paths[k].base != "line"), "outline")
+    name = _part_name(key) if key and key != "g" else next((paths[k].base for k in mem if paths[k].base != "line"),
+                                                           "outline")
     nameless = not (key and key != "g") and all(paths[k].nameless for k in mem)
+    said = [_own_name(o.el) or (o.el.get("id") or "").strip() or o.base for o in paths]    # in notes: ids, not groups
     meta = {"element": "path", "id": first.el.get("id"), "class": first.el.get("class"),
             "group": group or None, "structure": hint, "look": _look(first.el),
-            "part": group or None, "joined": [paths[k].base for k in mem]}
+            "part": group or None, "joined": [said[k] for k in mem]}
+    if name != "outline" and key and key != "g":
+        meta["group_base"] = name
     if inner:
-        meta["inner_lines"] = [paths[k].base for k in inner]
+        meta["inner_lines"] = [said[k] for k in inner]
     gap = largest_gap(prims)
     if joined.bridged:
         meta["gap_mm"] = gap
-    note = joined_note(joined, gap, ("open path", "open paths"), _names([paths[k].base for k in mem]),
-                       _names([paths[k].base for k in inner]))
+    note = joined_note(joined, gap, ("open path", "open paths"), _names([said[k] for k in mem]),
+                       _names([said[k] for k in inner]))
     return _Outline(name, prims, meta, note, joined.bridged, nameless, [paths[k] for k in mem + inner])
 
 
