@@ -1008,7 +1008,7 @@ def test_real_file_pieces_drawn_as_open_paths_are_joined(capsys, tmp_path):
     class "fabric sa") do not close and stay open. Every piece is written (exit 0)."""
     src = SHARED / "fs_florent_layout.svg"
     pieces = read_pieces(src)
-    assert pieces.failed == [] and [p.name for p in pieces] == ["2", "31", "42", "side", "brimPlastic"]
+    assert pieces.failed == [] and [p.name for p in pieces] == ["top", "brimBottom", "brimTop", "side", "brimPlastic"]
     by = {p.name: p for p in pieces}
     assert by["side"].meta["joined"] == ["14", "15"]
     assert sorted(by["brimPlastic"].meta["joined"]) == ["53", "54", "55", "56"]
@@ -1167,6 +1167,27 @@ def test_freesewing_ids_yield_to_part_names_and_stay_aliases(tmp_path, capsys):
     got = json.loads(capsys.readouterr().out)
     assert [p["name"] for p in got["pieces"]] == ["sleeve", "front", "sleeve-2"]
     assert [p["aliases"] for p in got["pieces"]] == [["12"], ["fs-1"], ["11"]]
+
+
+def test_freesewing_3_export():
+    """FreeSewing 3's Aaron A-shirt (tests/data/freesewing): its two parts, named after their groups
+    (``fs-stack-aaron.front-part-aaron.front`` is ``front``), their ``fs-N`` ids kept as aliases, millimetres
+    from the root's size; the open seam-allowance paths along the edges not on the fold are no pieces;
+    both grid fold-free at the default edge length."""
+    from clothgrid.quality import quality
+
+    src = Path(__file__).parent / "data" / "freesewing" / "aaron_v3_pattern.svg"
+    got = read_pieces(src)
+    assert [(p.name, p.aliases) for p in got] == [("front", ("fs-1",)), ("back", ("fs-5",))]
+    assert got.failed == []
+    # the A-shirt is 275.6 mm wide (half, cut on the fold) and 754.1 mm long, both parts
+    for p in got:
+        assert p.extent == pytest.approx((275.56, 754.11), abs=0.01)
+        assert p.units == "mm"
+    assert got[0].area != pytest.approx(got[1].area, rel=1e-3)       # the front's neckline is deeper
+    for p in got:
+        g = generate_piece(p, edge_length="10mm")
+        assert quality(g).folded == 0
 
 
 def test_without_word_drops_the_line_word_from_a_name():

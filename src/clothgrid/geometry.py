@@ -7,7 +7,7 @@ import numpy as np
 from . import limits
 from .errors import BoundaryError
 
-__all__ = ["PLANAR_TOL", "cross", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
+__all__ = ["PLANAR_TOL", "cross", "points_in_polygon", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
            "spike_points", "SPIKE_TURN_DEG", "untie_loops", "roll"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
@@ -341,3 +341,21 @@ def untie_loops(loop: np.ndarray, max_area: float, max_loops: int = 64) -> np.nd
         if removed > max_area or len(p) < 3:
             return None
     return None
+
+
+def points_in_polygon(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Even-odd point-in-polygon test of each point (vectorised ray casting). Only the polygon's
+    edges whose height range meets the points' can cross a point's ray: the others are left out
+    first (a glyph inside a piece meets a few of its 2,000 edges; the same answer)."""
+    if not len(points):
+        return np.zeros(0, dtype=bool)
+    x, y = points[:, 0:1], points[:, 1:2]
+    x0, y0 = poly[:, 0], poly[:, 1]
+    x1, y1 = roll(x0, -1), roll(y0, -1)
+    low, high = float(points[:, 1].min()), float(points[:, 1].max())
+    near = ~(((y0 > high) & (y1 > high)) | ((y0 <= low) & (y1 <= low)))
+    x0, y0, x1, y1 = x0[near], y0[near], x1[near], y1[near]
+    crosses = (y0 > y) != (y1 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xs = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return (crosses & (x < xs)).sum(axis=1) % 2 == 1

@@ -33,7 +33,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import roll
+from ..geometry import points_in_polygon, roll
 from .piece import Piece, PieceFailure, Pieces, Skipped, pattern_pieces
 
 __all__ = ["Pieces", "Skipped", "classify", "classified", "structure_hint", "LINES", "MIN_AREA_FRACTION"]
@@ -124,24 +124,6 @@ def structure_hint(own: Iterable[str | None], around: Iterable[str | None] = (),
 # --------------------------------------------------------------------------- geometry
 
 
-def _inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Even-odd point-in-polygon test of each point (vectorised ray casting). Only the polygon's
-    edges whose height range meets the points' can cross a point's ray: the others are left out
-    first (a glyph inside a piece meets a few of its 2,000 edges; the same answer)."""
-    if not len(points):
-        return np.zeros(0, dtype=bool)
-    x, y = points[:, 0:1], points[:, 1:2]
-    x0, y0 = poly[:, 0], poly[:, 1]
-    x1, y1 = roll(x0, -1), roll(y0, -1)
-    low, high = float(points[:, 1].min()), float(points[:, 1].max())
-    near = ~(((y0 > high) & (y1 > high)) | ((y0 <= low) & (y1 <= low)))
-    x0, y0, x1, y1 = x0[near], y0[near], x1[near], y1[near]
-    crosses = (y0 > y) != (y1 > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xs = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-    return (crosses & (x < xs)).sum(axis=1) % 2 == 1
-
-
 #: Point-segment pairs from which :func:`_dist_to_polyline` takes the Numba kernel (the same bits;
 #: below it NumPy, which needs no compiled code loaded: a reader may run without the grid solver).
 KERNEL_PAIRS = 1 << 15
@@ -217,7 +199,7 @@ def _contains(outer: _Item, inner: _Item) -> bool:
     tol = ON_LINE_REL * float(np.hypot(*(outer.hi - outer.lo)))
     if not (np.all(inner.lo >= outer.lo - tol) and np.all(inner.hi <= outer.hi + tol)):
         return False
-    inside = _inside(inner.sub, outer.poly)
+    inside = points_in_polygon(inner.sub, outer.poly)
     if not inside.all():                        # points on the outer line count as inside it
         inside[~inside] = _dist_to_polyline(inner.sub[~inside], outer.poly) <= tol
     return bool(inside.mean() > 0.98)
@@ -383,7 +365,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             if (i == j or h.kind is not None or h.piece.area < it.piece.area or dashed(h.piece.meta.get("look"))
                     or not same_part(i, j) or np.any(it.hi < h.lo) or np.any(it.lo > h.hi)):
                 continue
-            if _inside(it.sub, h.poly).any():
+            if points_in_polygon(it.sub, h.poly).any():
                 it.kind, it.of = "dashed line", h.piece.name
                 it.reason = (f"dashed outline across the outline of piece {h.piece.name!r} (a construction, fold or "
                              "stitch line)")
@@ -420,7 +402,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             frac = it.piece.area / h.piece.area
             if frac > 0.02 or np.any(it.hi < h.lo) or np.any(it.lo > h.hi):
                 continue
-            ins = _inside(it.sub, h.poly)
+            ins = points_in_polygon(it.sub, h.poly)
             if ins.any() and not ins.all():
                 it.kind, it.of = "notch", h.piece.name
                 it.reason = f"notch on the outline of piece {h.piece.name!r} ({_fmt_pct(frac)} of its area)"

@@ -42,6 +42,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import points_in_polygon
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
 from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
@@ -474,8 +475,6 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
     area (an arrowhead or a dart drawn closed takes none)."""
     if not unnamed or not labels or not pieces or len(labels) > MAX_LABELS:
         return pieces
-    from .annotations import _inside
-
     largest = max(p.area for p in pieces)
     big = sorted((k for k, p in enumerate(pieces) if p.area >= 0.05 * largest), key=lambda k: pieces[k].area)
     if not any(pieces[k].name in unnamed for k in big):
@@ -490,7 +489,7 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
         todo = np.flatnonzero(free)
         for c in range(0, len(todo), 256):           # points x edges at a time: bounded memory
             part = todo[c:c + 256]
-            inside[part] = _inside(points[part], pieces[k].outline)
+            inside[part] = points_in_polygon(points[part], pieces[k].outline)
         owner[inside] = k
     out = list(pieces)
     for k in big:
