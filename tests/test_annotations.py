@@ -383,11 +383,11 @@ def test_a_degenerate_outline_is_skipped_when_marked_else_failed(tmp_path, capsy
 
 
 def _numpy_distance(points, poly, monkeypatch):
-    """``_dist_to_polyline`` by its NumPy form whatever the size."""
+    """``outline_distance`` by its NumPy form whatever the size."""
     from clothgrid.patterns import annotations
 
     monkeypatch.setattr(annotations, "KERNEL_PAIRS", np.inf)
-    return annotations._dist_to_polyline(points, poly)
+    return annotations.outline_distance(points, poly)
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -422,7 +422,7 @@ def test_large_pairs_take_the_kernel(monkeypatch):
     monkeypatch.setattr(distance_kernels, "dist_to_polyline", lambda p, q: calls.append(len(p)) or real(p, q))
     t = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
     circle = np.column_stack([np.cos(t), np.sin(t)]) * 50.0
-    big = annotations._dist_to_polyline(circle[::5] * 1.1, circle)
+    big = annotations.outline_distance(circle[::5] * 1.1, circle)
     assert calls == [400] and np.allclose(big, 5.0, atol=1e-3)
-    annotations._dist_to_polyline(circle[:4], circle[:8])
+    annotations.outline_distance(circle[:4], circle[:8])
     assert calls == [400]

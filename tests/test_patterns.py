@@ -479,6 +479,75 @@ def test_plain_dxf_pieces_and_accuracy(tmp_path):
     assert chain.extent == pytest.approx((550.0, 300.0), abs=chain.tolerance)
 
 
+def test_plain_dxf_pieces_named_by_their_texts(tmp_path):
+    """A plain drawing's ``Piece Name:`` and ``Size:`` texts name the outlines they are written on: on
+    the outline's own layer, inside it or beside a narrow strip (within its size, less than half as
+    far from it as from any other outline of the layer); two sizes drawn on top of each other, a
+    layer each, stay apart (a size's cut line is no seam allowance of another size's sew line); of a
+    piece's cut and sew lines the one gridded keeps the name, and ``pieceN`` stays an alias. Texts of
+    several pieces or sizes inside one outline (on another layer) name nothing."""
+    import ezdxf
+
+    doc = ezdxf.new("R2000")
+    doc.header["$INSUNITS"] = 5                                   # cm
+    msp = doc.modelspace()
+
+    def rect(x0, y0, w, h, layer):
+        msp.add_lwpolyline([(x0, y0), (x0 + w, y0), (x0 + w, y0 + h), (x0, y0 + h)], close=True,
+                           dxfattribs={"layer": layer})
+
+    for layer, size, grow in (("S", "Small", 0.0), ("L", "Large", 2.0)):
+        rect(0, 0, 40 + grow, 60 + grow, layer)                   # the body's cut line
+        rect(1, 1, 38 + grow, 58 + grow, layer)                   # its sew line, 1 cm inside
+        rect(60, 0, 50 + grow, 4, layer)                          # a strip's cut line
+        rect(60.5, 0.5, 49 + grow, 3, layer)                      # its sew line
+        for text, at in ((f"Size: {size}", (10, 30)), ("Piece Name: Body", (10, 28)),
+                         ("Quantity: 2", (10, 26)),
+                         (f"Size: {size}", (70, 7)), ("Piece Name: Strip", (75, 7))):   # beside the strip
+            msp.add_text(text, dxfattribs={"layer": layer, "insert": at, "height": 1})
+    rect(0, 100, 30, 30, "0")                                      # two pieces' texts inside: no name
+    for text, at in (("Piece Name: A", (5, 110)), ("Piece Name: B", (5, 120))):
+        msp.add_text(text, dxfattribs={"layer": "T", "insert": at, "height": 1})
+    path = tmp_path / "graded.dxf"
+    doc.saveas(path)
+
+    sew = read_pieces(path)
+    by = {p.name: p for p in sew}
+    assert sorted(by) == ["Body_Large", "Body_Small", "Strip_Large", "Strip_Small", "piece9"]
+    assert by["Body_Small"].extent == pytest.approx((380.0, 580.0))            # the sew line, in mm
+    assert by["Body_Small"].meta["line"] == "sew" and by["Body_Small"].meta["size"] == "Small"
+    assert by["Body_Small"].meta["quantity"] == "2" and by["Body_Small"].aliases == ("piece2",)
+    assert {s.name: (s.kind, s.of) for s in sew.skipped} == {
+        f"{n}_{z}-2": ("seam allowance", f"{n}_{z}") for n in ("Body", "Strip") for z in ("Small", "Large")}
+    cut = {p.name: p for p in read_pieces(path, line="cut")}
+    assert sorted(cut) == sorted(by)
+    assert cut["Strip_Large"].extent == pytest.approx((520.0, 40.0))
+    assert cut["Strip_Large"].aliases == ("piece7",) and sew.resolve("piece7") == "Strip_Large-2"
+
+
+def test_optitex_graded_flat_dxf():
+    """Optitex's graded Basic Tee (tests/data/optitex): 4 pieces in 8 sizes, a layer a size, drawn on
+    top of each other; each piece named by its texts and size, gridded along its sew line with its
+    cut line skipped as the seam allowance; no units in the file (an error naming --units)."""
+    src = Path(__file__).parent / "data" / "optitex" / "basic_tee_graded.dxf"
+    with pytest.raises(InputError, match="--units"):
+        read_pieces(src)
+    got = read_pieces(src, units="cm")
+    sizes = ["XS", "Small", "Medium", "Large", "XL", "2XL", "3XL", "4XL"]
+    names = [f"{n}_{z}" for n in ("Front", "Back", "Right Sleeve", "Neck Binding") for z in sizes]
+    assert sorted(p.name for p in got) == sorted(names)
+    assert got.failed == [] and all(p.meta["line"] == "sew" for p in got)
+    assert sorted(s.of for s in got.skipped if s.kind == "seam allowance") == sorted(names)
+    by = {p.name: p for p in got}
+    assert by["Front_Small"].meta["material"] == "Self" and by["Neck Binding_Small"].meta["material"] == "Contrast 1"
+    # the sample size's sew lines have the areas its texts say (Area: 0.3392 sq.m for the front)
+    assert by["Front_Small"].area == pytest.approx(0.3392e6, rel=1e-3)
+    # graded: each size larger than the one before
+    for n in ("Front", "Back", "Right Sleeve", "Neck Binding"):
+        areas = [by[f"{n}_{z}"].area for z in sizes]
+        assert all(b > a for a, b in zip(areas, areas[1:]))
+
+
 def test_dxf_spline_matches_ezdxf(tmp_path):
     doc = ezdxf.new("R2010")
     doc.units = 4

@@ -124,12 +124,12 @@ def structure_hint(own: Iterable[str | None], around: Iterable[str | None] = (),
 # --------------------------------------------------------------------------- geometry
 
 
-#: Point-segment pairs from which :func:`_dist_to_polyline` takes the Numba kernel (the same bits;
+#: Point-segment pairs from which :func:`outline_distance` takes the Numba kernel (the same bits;
 #: below it NumPy, which needs no compiled code loaded: a reader may run without the grid solver).
 KERNEL_PAIRS = 1 << 15
 
 
-def _dist_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+def outline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Distance of each point to the closed polyline ``poly``."""
     if len(points) * len(poly) >= KERNEL_PAIRS:
         from .distance_kernels import dist_to_polyline
@@ -201,12 +201,12 @@ def _contains(outer: _Item, inner: _Item) -> bool:
         return False
     inside = points_in_polygon(inner.sub, outer.poly)
     if not inside.all():                        # points on the outer line count as inside it
-        inside[~inside] = _dist_to_polyline(inner.sub[~inside], outer.poly) <= tol
+        inside[~inside] = outline_distance(inner.sub[~inside], outer.poly) <= tol
     return bool(inside.mean() > 0.98)
 
 
 def _hausdorff(a: _Item, b: _Item) -> float:
-    return float(max(_dist_to_polyline(a.sub, b.poly).max(), _dist_to_polyline(b.sub, a.poly).max()))
+    return float(max(outline_distance(a.sub, b.poly).max(), outline_distance(b.sub, a.poly).max()))
 
 
 def _fmt_pct(x: float) -> str:
@@ -275,7 +275,11 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     is_piece_class = {i: hints[i].get("hint") in ("piece", "cut", "sew") for i in cand}
 
     def same_part(i: int, j: int) -> bool:
-        # two outlines the file calls pieces, in different parts, are different pieces
+        # two outlines of different sizes (a graded file's, drawn on top of each other) are different
+        # pieces; so are two outlines the file calls pieces, in different parts
+        a, b = items[i].piece.meta.get("size"), items[j].piece.meta.get("size")
+        if a and b and a != b:
+            return False
         if is_piece_class[i] and is_piece_class[j]:
             return items[i].piece.meta.get("part") == items[j].piece.meta.get("part")
         return True

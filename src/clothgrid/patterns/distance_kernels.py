@@ -1,4 +1,4 @@
-"""Numba kernel of :func:`clothgrid.patterns.annotations._dist_to_polyline` for large inputs.
+"""Numba kernel of :func:`clothgrid.patterns.annotations.outline_distance` for large inputs.
 
 Sorting a file's closed outlines (seam allowance around a cut line, the same outline twice)
 measures how far one outline's points lie from another closed polyline: every point against

@@ -21,8 +21,9 @@ notches and drill holes are not needed for meshing and are ignored.
 ending at its start), ``SPLINE``, ``CIRCLE`` and full ``ELLIPSE`` in the model
 space (also inside inserted blocks) is a piece; open ``LINE``, ``ARC``,
 polylines, splines and elliptical arcs are joined end to end (gaps up to
-``1e-6`` of the drawing's size) and every chain that closes is a piece.
-``$INSUNITS`` gives the units. The closed outlines are then sorted into
+``1e-6`` of the drawing's size) and every chain that closes is a piece, named
+after the ``Piece Name:`` and ``Size:`` texts written on it (:func:`_named_by_texts`).
+A ``Units:`` text, else ``$INSUNITS``, gives the units. The closed outlines are then sorted into
 pieces and annotations (:func:`clothgrid.patterns.annotations.classify`):
 layer names such as ``TEXT``, ``NOTCH``, ``DRILL``, ``DIM``, ``GRAIN`` mark
 annotations, and geometry finds marks inside pieces and seam-allowance
@@ -41,6 +42,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -49,7 +51,7 @@ import numpy as np
 from ..errors import InputError
 from .. import limits
 from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
-from ..geometry import signed_area
+from ..geometry import points_in_polygon, signed_area
 from .annotations import LINES, classified, structure_hint
 from .chains import GAP_MM, GAP_REL, chain_loops, join_outlines, joined_note, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, outline_box, pattern_pieces, piece_failure,
@@ -356,9 +358,9 @@ def _polylines(ents: list[Any], layer: str, ctx: _Ctx, scale: float) -> list[lis
 
 def _max_gap(a: Piece, b: Piece) -> float:
     """Largest distance of ``a``'s outline from ``b``'s (mm)."""
-    from .annotations import _dist_to_polyline, _sub
+    from .annotations import outline_distance, _sub
 
-    return float(_dist_to_polyline(_sub(a.outline), _sub(b.outline, 4000)).max())
+    return float(outline_distance(_sub(a.outline), _sub(b.outline, 4000)).max())
 
 
 def _reason(exc: InputError, name: str) -> str:
@@ -474,24 +476,143 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
     return pattern_pieces(pieces, failed, ctx.where)
 
 
-def _flatten(entities: Iterable[Any], ctx: _Ctx, depth: int = 0) -> Iterable[Any]:
+def _flatten(entities: Iterable[Any], ctx: _Ctx, depth: int = 0, kinds: frozenset | set = _CURVES) -> Iterable[Any]:
+    """The entities of ``kinds`` (curves by default), those of inserted blocks placed."""
     for e in entities:
         if e.dxftype() == "INSERT":
             if depth > 16:
                 raise InputError(f"{ctx.where}: blocks nested more than 16 deep")
             try:
-                yield from _flatten(e.virtual_entities(), ctx, depth + 1)
+                yield from _flatten(e.virtual_entities(), ctx, depth + 1, kinds)
             except InputError:
                 raise
             except Exception as exc:                  # ezdxf raises several types
                 raise InputError(f"{ctx.where}: cannot place block {e.dxf.name!r} ({exc})") from None
-        elif e.dxftype() in _CURVES:
+        elif e.dxftype() in kinds:
             yield e
+
+
+#: The ``Key: value`` texts of a plain drawing that describe the piece they are written on (the AAMA
+#: texts, which pattern programs also write in their flat exports: Optitex's graded ``Basic Tee``
+#: draws every size on a layer of its own, each piece labelled ``Piece Name: Front``, ``Size: XS``)
+_PIECE_KEYS = ("piece name", "size", "quantity", "material", "category", "annotation")
+
+
+def _labels(entities: Iterable[Any], ctx: _Ctx, scale: float) -> list[tuple[str, str, str, np.ndarray]]:
+    """``(layer, key, value, anchor in mm)`` of the drawing's ``TEXT`` and ``MTEXT`` written ``Key: value``
+    with a key of :data:`_PIECE_KEYS`; at most :data:`MAX_LABELS`."""
+    out = []
+    for e in _flatten(entities, ctx, kinds={"TEXT", "MTEXT"}):
+        if len(out) >= MAX_LABELS:
+            break
+        got = _texts([e])
+        key = next((k for k in got if k in _PIECE_KEYS), None)
+        try:
+            at = np.asarray(e.dxf.insert, dtype=np.float64)[:2] * scale
+        except (AttributeError, TypeError, ValueError):
+            continue
+        if key is not None and got[key] and np.isfinite(at).all():
+            out.append((str(e.dxf.get("layer", "")), key, got[key], at))
+    return out
+
+
+#: At most this many ``Key: value`` texts are placed on a plain drawing's pieces (each a point-in-polygon
+#: test against every outline around it)
+MAX_LABELS = 20000
+
+
+def _nested(a: Piece, b: Piece) -> bool:
+    """Does either outline's bounding box hold the other's (within 2 % of the larger's size)?"""
+    (alo, ahi), (blo, bhi) = ((p.outline.min(axis=0), p.outline.max(axis=0)) for p in (a, b))
+    tol = 0.02 * max(a.size, b.size)
+    return bool(np.all(alo >= blo - tol) and np.all(ahi <= bhi + tol)) or bool(
+        np.all(blo >= alo - tol) and np.all(bhi <= ahi + tol))
+
+
+def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.ndarray]],
+                    taken: set[str]) -> list[Piece]:
+    """``pieces`` renamed after the ``Piece Name:`` text written on them, with the other texts of
+    :data:`_PIECE_KEYS` in ``meta``. An outline's texts: those on its own layer inside it, or beside
+    it (outside every outline of the layer, within the outline's size and less than half as far from
+    it and the outlines nested with it as from any other: Optitex writes a neck binding's texts beside
+    the strip), where one of them names it; else those of any layer inside it where they name one
+    piece in one size (a graded file's sizes drawn on top of each other, with their texts on one
+    layer, name none). A name that comes in several sizes gets the size (``Front_XS``, as AAMA graded
+    blocks). Of the outlines one text names (a piece's cut and sew lines), the smallest gets the
+    name, the others ``-2``, ``-3`` (``meta["group_base"]``: the one gridded takes it,
+    :func:`~.annotations.classify`); the old ``pieceN`` stays an alias. ``taken``: names in use by
+    outlines not renamed."""
+    if not labels or not pieces:
+        return pieces
+    from .annotations import outline_distance
+
+    points = np.array([at for *_, at in labels])
+    inside: list[np.ndarray] = []
+    for p in pieces:
+        lo, hi = p.outline.min(axis=0), p.outline.max(axis=0)
+        near = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
+        inside.append(near[points_in_polygon(points[near], p.outline)] if len(near) else near)
+    # a text on a layer whose outlines it lies outside of (written beside a narrow strip): the
+    # outline of its layer nearest to it and those nested with it (its cut and sew lines), where the
+    # text is within that outline's size of it and less than half as far from it as from any other
+    beside: list[list[int]] = [[] for _ in pieces]
+    held = np.zeros(len(labels), dtype=bool)
+    for k, p in enumerate(pieces):
+        held[[i for i in inside[k] if labels[i][0] == p.meta.get("layer")]] = True
+    by_layer: dict[str, list[int]] = {}
+    for k, p in enumerate(pieces):
+        by_layer.setdefault(p.meta.get("layer"), []).append(k)
+    for i in np.flatnonzero(~held):
+        ks = by_layer.get(labels[i][0], [])
+        if not ks:
+            continue
+        d = np.array([float(outline_distance(points[i:i + 1], pieces[k].outline)[0]) for k in ks])
+        first = ks[int(np.argmin(d))]
+        group = [k for k in ks if _nested(pieces[k], pieces[first])]
+        others = [dk for k, dk in zip(ks, d) if k not in group]
+        if d.min() <= pieces[first].size and (not others or d.min() < 0.5 * min(others)):
+            for k in group:
+                beside[k].append(int(i))
+    found: list[dict[str, str] | None] = []
+    for k, p in enumerate(pieces):
+        layer = p.meta.get("layer")
+        own = [i for i in inside[k] if labels[i][0] == layer] + beside[k]
+        pick = own if any(labels[i][1] == "piece name" for i in own) else list(inside[k])
+        values: dict[str, set[str]] = {}
+        for i in pick:
+            values.setdefault(labels[i][1], set()).add(labels[i][2])
+        names, sizes = values.get("piece name", set()), values.get("size", set())
+        ok = len(names) == 1 and len(sizes) <= 1
+        found.append({key: sorted(v)[0] for key, v in values.items() if len(v) == 1} if ok else None)
+    sizes_of: dict[str, set[str]] = {}
+    for f in found:
+        if f is not None:
+            sizes_of.setdefault(f["piece name"], set()).add(f.get("size", ""))
+    order = sorted((k for k, f in enumerate(found) if f is not None), key=lambda k: pieces[k].area)
+    out = list(pieces)
+    used = set(taken) | {p.name for p, f in zip(pieces, found) if f is None}
+    for k in order:                       # smallest first: a piece's sew line before its cut line
+        f = found[k]
+        assert f is not None
+        base = f["piece name"]
+        if len(sizes_of[base]) > 1 and f.get("size"):
+            base = f"{base}_{f['size']}"
+        name, n = base, 1
+        while name in used:
+            n += 1
+            name = f"{base}-{n}"
+        used.add(name)
+        p = pieces[k]
+        said = ", ".join(f"{key.title()}: {v}" for key, v in f.items())
+        out[k] = replace(p, name=name, notes=p.notes + (f"named after the texts written inside it ({said})",),
+                         meta={**p.meta, "group_base": base, "aliases": [p.name],
+                               **{key: v for key, v in f.items() if key != "piece name"}})
+    return out
 
 
 def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str = "sew") -> Pieces:
     msp = doc.modelspace()
-    scale, unit, how = _units(doc, {}, units, ctx.where)
+    scale, unit, how = _units(doc, _texts(msp), units, ctx.where)
     closed: list[tuple[list[Primitive], Any]] = []
     chains: list[list[Primitive]] = []
     for e in _flatten(msp, ctx):
@@ -544,6 +665,7 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
             if outline is not None and outline.bridged:    # a sliver only the gap made: no outline
                 continue
             unmade.append((piece_failure(name, exc, ctx.where), {**meta, "box": outline_box(_scale(prims, scale))}))
+    pieces = _named_by_texts(pieces, _labels(msp, ctx, scale), {f.name for f, _ in unmade})
     return classified(pieces, unmade, ctx.where, line=line)
 
 
