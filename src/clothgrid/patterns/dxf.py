@@ -44,7 +44,7 @@ import math
 import re
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
@@ -273,8 +273,10 @@ def _texts(entities: Iterable[Any]) -> dict[str, str]:
     return out
 
 
-def _units(doc: Any, texts: dict[str, str], units: str | None, where: str) -> tuple[float, str, str]:
-    """(mm per drawing unit, unit name, how it was found)."""
+def _units(doc: Any, texts: dict[str, str], units: str | None, where: str,
+           size: Callable[[], float] | None = None) -> tuple[float, str, str]:
+    """(mm per drawing unit, unit name, how it was found). ``size()``: the largest piece's size in
+    drawing units, for the error of a drawing without units (which units would make it a garment's)."""
     if units is not None:
         return unit_to_mm(units, what="--units"), units, f"{units} (given)"
     stated = texts.get("units")
@@ -291,7 +293,12 @@ def _units(doc: Any, texts: dict[str, str], units: str | None, where: str) -> tu
         name = INSUNITS[code]
         return UNITS[name], name, f"$INSUNITS {code} ({name})"
     what = _INSUNITS_NAMES.get(code, "an unknown code")
-    raise InputError(f"{where}: the DXF does not give usable units ($INSUNITS is {code}, {what}); "
+    hint = ""
+    largest = size() if size is not None else 0.0
+    if largest > 0 and math.isfinite(largest):
+        as_mm = ", ".join(f"{largest * UNITS[u] / 1000:.3g} m in {u}" for u in ("mm", "cm", "in"))
+        hint = f"; its largest outline measures {largest:.4g} across ({as_mm})"
+    raise InputError(f"{where}: the DXF does not give usable units ($INSUNITS is {code}, {what}){hint}; "
                      "give them with --units (mm, cm, in, ...)")
 
 
@@ -612,7 +619,6 @@ def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.nd
 
 def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str = "sew") -> Pieces:
     msp = doc.modelspace()
-    scale, unit, how = _units(doc, _texts(msp), units, ctx.where)
     closed: list[tuple[list[Primitive], Any]] = []
     chains: list[list[Primitive]] = []
     for e in _flatten(msp, ctx):
@@ -623,6 +629,8 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
             closed.append((prims, e))
         else:
             chains.append(prims)
+    scale, unit, how = _units(doc, _texts(msp), units, ctx.where,
+                              lambda: max((_extent([p]) for p, _ in closed), default=_extent(chains)))
     extent = _extent([p for p, _ in closed] + chains)
     # lines and curves that meet end to end (ends within 1e-6 of the drawing; a second pass up to
     # GAP_MM apart where some are left: a drawing made by hand), around construction lines
