@@ -548,6 +548,35 @@ def test_optitex_graded_flat_dxf():
         assert all(b > a for a, b in zip(areas, areas[1:]))
 
 
+def test_grade_picks_one_size_of_a_graded_pattern(tmp_path, capsys):
+    """``--grade SIZE``: of a graded pattern, only the pieces (and skipped outlines) of that size,
+    case aside; an unknown size lists the file's sizes, a file without sizes says it is not graded,
+    and a boundary file refuses it (exit 2, one error line each, nothing written)."""
+    src = Path(__file__).parent / "data" / "optitex" / "basic_tee_graded.dxf"
+    assert main(["pieces", str(src), "--units", "cm", "--grade", "medium", "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert [p["name"] for p in got["pieces"]] == ["Front_Medium", "Back_Medium", "Right Sleeve_Medium",
+                                                  "Neck Binding_Medium"]
+    assert [s["of"] for s in got["skipped"]] == [p["name"] for p in got["pieces"]]
+    out = tmp_path / "out"
+    assert main(["generate", str(src), "--units", "cm", "--grade", "XS", "--piece", "Neck Binding_XS",
+                 "-o", str(out / "{piece}.npz"), "-q"]) == 0, capsys.readouterr().err
+    assert [f.name for f in out.iterdir()] == ["Neck_Binding_XS.npz"]
+    capsys.readouterr()
+    for args, words in (([str(src), "--units", "cm", "--grade", "XXL"], "no piece of that size; its sizes are 'XS', "
+                                                                          "'Small', 'Medium'"),
+                        ([str(Path(__file__).parent / "data" / "freesewing" / "aaron_v3_pattern.svg"), "--grade", "M"],
+                         "not graded")):
+        assert main(["pieces", *args]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("clothgrid: error:") == 1
+    boundary = tmp_path / "b.json"
+    boundary.write_text(json.dumps({"outline": [[0, 0], [1, 0], [1, 1], [0, 1]], "corners": [0, 1, 2, 3]}))
+    assert main(["generate", str(boundary), "--grade", "M", "-o", str(tmp_path / "g.npz"), "-q"]) == 2
+    assert "--grade is for pattern files" in capsys.readouterr().err
+    assert not (tmp_path / "g.npz").exists()
+
+
 def test_dxf_spline_matches_ezdxf(tmp_path):
     doc = ezdxf.new("R2010")
     doc.units = 4

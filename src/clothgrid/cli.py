@@ -535,6 +535,7 @@ def _add_pattern_arguments(g: argparse.ArgumentParser, one_file: bool = True) ->
     p.add_argument("--piece", action="append", metavar="NAME",
                    help="grid only this piece (repeatable; default: every piece); may name an "
                         "outline skipped as an annotation")
+    _add_grade_argument(p, "grid")
     _add_annotation_arguments(p, "grid")
     p.add_argument("--corners", type=_corner_indices, metavar="I,J,K,L",
                    help="the grid corners as outline indices (bottom-left, bottom-right, "
@@ -544,6 +545,14 @@ def _add_pattern_arguments(g: argparse.ArgumentParser, one_file: bool = True) ->
                    help="the grid corners as the outline points nearest to four points in mm "
                         "(same order as --corners); one piece only")
     # --units (the generate parser's own option) overrides the units a pattern file states
+
+
+def _add_grade_argument(p: Any, verb: str) -> None:
+    """``--grade SIZE`` (generate and pieces)."""
+    p.add_argument("--grade", metavar="SIZE",
+                   help=f"of a graded pattern (several sizes in one file: AAMA/ASTM blocks, a flat DXF's "
+                        f"layers), {verb} only the pieces of this size (their 'Size:' text, e.g. 42, M, "
+                        "Small; case aside)")
 
 
 def _add_annotation_arguments(p: Any, verb: str) -> None:
@@ -575,6 +584,7 @@ def _add_pieces_parser(sub: Any) -> None:
     p.add_argument("input", metavar="FILE", help="pattern file")
     p.add_argument("--piece", action="append", metavar="NAME",
                    help="only this piece (repeatable); may name an outline skipped as an annotation")
+    _add_grade_argument(p, "list")
     _add_annotation_arguments(p, "list")
     p.add_argument("--candidates", action="store_true",
                    help="also list every corner candidate: outline index, point (mm), turn")
@@ -842,7 +852,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     jobs = pipeline.read_jobs(args.input, args.output, args.plot, options=options, pieces=args.piece,
                               corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
                               units=args.units, progress=progress, line=args.line,
-                              include=args.include)
+                              include=args.include, grade=args.grade)
     for line in jobs.warnings:
         _say(f"warning: {line}")
     pattern = jobs[0].piece is not None
@@ -913,7 +923,7 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
 
     source = Path(args.input)
     pieces = pipeline.select_pieces(source, args.piece, units=args.units, line=args.line or "sew",
-                                    include=args.include)
+                                    include=args.include, grade=args.grade)
     failed = list(pieces.failed)
     listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json,
                                      failed=failed)

@@ -61,7 +61,7 @@ from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
-           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "corner_choice",
+           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "corner_choice",
            "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
@@ -352,11 +352,38 @@ def _remove_folders(folders: Sequence[Path]) -> None:
 # --------------------------------------------------------------------------- reading
 
 
-def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path) -> Pieces:
-    """The pieces named in ``wanted`` (in that order; all if None), with the failures among them.
+def graded(pieces: list[Piece], size: str, source: Path | str) -> Pieces:
+    """The pieces (and skipped outlines) of one size of a graded pattern: those whose ``meta["size"]``
+    (AAMA's and flat exports' ``Size:`` text) is ``size`` (case and surrounding spaces aside).
+
+    Raises
+    ------
+    InputError
+        No piece of that size (the message lists the file's sizes), or a file without sizes.
+    """
+    def key(x: Any) -> str:
+        return str(x).strip().casefold()
+
+    sizes = list(dict.fromkeys(str(p.meta["size"]).strip() for p in pieces if p.meta.get("size")))
+    if not sizes:
+        raise InputError(f"{source}: --grade {size!r}: the file gives no sizes (no 'Size:' text on its "
+                         "pieces): it is not graded")
+    keep = [p for p in pieces if key(p.meta.get("size", "")) == key(size)]
+    if not keep:
+        raise InputError(f"{source}: --grade {size!r}: no piece of that size; its sizes are "
+                         + ", ".join(map(repr, sizes)))
+    skipped = [x for x in getattr(pieces, "skipped", ()) if key(x.meta.get("size", "")) == key(size)]
+    return Pieces(keep, getattr(pieces, "failed", ()), skipped)
+
+
+def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, grade: str | None = None) -> Pieces:
+    """The pieces named in ``wanted`` (in that order; all if None), with the failures among them;
+    only those of size ``grade`` where it is given (:func:`graded`).
 
     A name in ``wanted`` that names a piece that could not be read is an error (its reason).
     """
+    if grade is not None:
+        pieces = graded(pieces, grade, source)
     failed = list(getattr(pieces, "failed", ()))
     if not wanted:
         return Pieces(pieces, failed, getattr(pieces, "skipped", ()))
@@ -403,16 +430,17 @@ def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str 
 
 def select_pieces(source: str | Path, wanted: Sequence[str] | None = None, *,
                   units: str | None = None, line: str = "sew",
-                  include: Sequence[str] | None = None) -> list[Piece]:
+                  include: Sequence[str] | None = None, grade: str | None = None) -> list[Piece]:
     """The pieces of a pattern file, only those named in ``wanted`` if given (in that order).
 
     A :class:`~clothgrid.patterns.piece.Pieces` list: ``failed`` holds the pieces that could not
     be read (none when ``wanted`` names pieces: naming one that cannot be read is an InputError),
     ``skipped`` the outlines skipped as annotations. ``line`` and ``include`` as for
     :func:`clothgrid.readers.read_pieces`; a name in ``wanted`` may be a skipped outline's.
+    ``grade``: only the pieces of this size of a graded pattern (:func:`graded`).
     """
     source = Path(source)
-    return _select(read_pieces(source, units=units, line=line, include=include), wanted, source)
+    return _select(read_pieces(source, units=units, line=line, include=include), wanted, source, grade)
 
 
 def corner_choice(piece: Piece, corners: Sequence[int] | None = None, near: Any = None,
@@ -456,7 +484,8 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
               options: GridOptions = GridOptions(), pieces: Sequence[str] | None = None,
               corners: Sequence[int] | None = None, corners_near: Any = None, min_turn: float | None = None,
               units: str | None = None, progress: Callable[[str], None] | None = None,
-              line: str | None = None, include: Sequence[str] | None = None) -> list[Job]:
+              line: str | None = None, include: Sequence[str] | None = None,
+              grade: str | None = None) -> list[Job]:
     """The jobs of one input file, outputs checked (nothing is gridded or written yet).
 
     Parameters
@@ -477,6 +506,8 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
         Pattern files only: grid the ``"sew"`` (default) or ``"cut"`` line,
         and these outlines skipped as annotations (see
         :func:`clothgrid.readers.read_pieces`).
+    grade : str, optional
+        Pattern files only: the pieces of this size of a graded pattern (:func:`graded`).
     progress : callable, optional
         Called with a line saying what was read.
 
@@ -503,7 +534,8 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     got = read_input(source, units=units, line=line, include=include)
     if isinstance(got, Boundary):
         used = [name for name, v in (("--piece", pieces), ("--corners", corners), ("--corners-near", corners_near),
-                                     ("--min-turn", min_turn), ("--line", line), ("--include", include)) if v]
+                                     ("--min-turn", min_turn), ("--line", line), ("--include", include),
+                                     ("--grade", grade)) if v]
         if used:
             raise InputError(f"{', '.join(used)} {'is' if len(used) == 1 else 'are'} for pattern files "
                              f"(.svg, .dxf, GarmentCode .json), not for the boundary file {source}")
@@ -518,7 +550,7 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
         return Jobs([job], source=source)
     if min_turn is not None and not (0 <= min_turn < 180):
         raise InputError(f"--min-turn {min_turn!r} must be between 0 and 180 degrees")
-    chosen = _select(got, pieces, source)
+    chosen = _select(got, pieces, source, grade)
     if progress:
         bad = f" ({len(chosen.failed)} more could not be read)" if chosen.failed else ""
         skipped = chosen.skipped
