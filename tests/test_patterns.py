@@ -1224,8 +1224,13 @@ def test_made_up_ids_yield_to_group_names_and_labels(tmp_path):
         '<g id="g77"><path id="path99-3" d="M 100,0 L 180,0 L 180,80 L 100,80 Z"/>'
         '<text x="120" y="40">Sleeve</text></g>'
         '<path id="path5" d="M 200,0 L 280,0 L 280,80 L 200,80 Z"/>'
-        '<path id="cuff" d="M 0,100 L 80,100 L 80,180 L 0,180 Z"/><text x="20" y="140">Collar</text></svg>')
-    assert [p.name for p in read_pieces(path)] == ["Front", "Sleeve", "path5", "cuff"]
+        '<path id="cuff" d="M 0,100 L 80,100 L 80,180 L 0,180 Z"/><text x="20" y="140">Collar</text>'
+        # Inkscape's default layer label names no piece: the text drawn on it does
+        '<g inkscape:label="Layer 1" id="layer2"><path id="path77" d="M 100,100 L 180,100 L 180,180 L 100,180 Z"/>'
+        '<text x="120" y="140">Back</text></g></svg>')
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["Front", "Sleeve", "path5", "cuff", "Back"]
+    assert [p.aliases for p in got] == [("path1234",), ("path99-3",), (), (), ("path77",)]
 
 
 def test_freesewing_ids_yield_to_part_names_and_stay_aliases(tmp_path, capsys):

@@ -545,9 +545,11 @@ def _former_names(el: ET.Element, name: str) -> tuple[str, ...]:
     return (own,) if own and own != name and _MADE_UP_ID.match(own) else ()
 
 
-#: A group key a drawing program made up (Inkscape's ``g123`` and ``layer1``, Illustrator's
-#: ``Layer_1``), which names no piece.
-_MADE_UP = re.compile(r"^((g|layer|layer_|group|svg|path)?\d*|fs-container)$", re.IGNORECASE)
+#: A group key a drawing program made up (Inkscape's ``g123``, ``layer1`` and its layers' default
+#: labels ``Layer 1``, ``Calque 1``, ``Ebene 1``, ``Capa 1``, ``Livello 1``; Illustrator's ``Layer_1``;
+#: FreeSewing's ``fs-container``), which names no piece.
+_MADE_UP = re.compile(r"^(((g|layer|group|svg|path|calque|ebene|capa|livello)[ _-]?)?\d*|fs-container)$",
+                      re.IGNORECASE)
 
 
 #: An element id a drawing program made up (Inkscape's ``path1234``, ``rect56-3``; FreeSewing 2's
