@@ -528,10 +528,17 @@ def _labels(entities: Iterable[Any], ctx: _Ctx, scale: float) -> list[tuple[str,
 MAX_LABELS = 20000
 
 
+#: A text beside the outlines of its layer is measured against the outlines nearest to it by their boxes
+_NEAR = 8
+
+
 def _nested(a: Piece, b: Piece) -> bool:
-    """Does either outline's bounding box hold the other's (within 2 % of the larger's size)?"""
+    """Two lines of one piece: either outline's bounding box holds the other's (within 2 % of the
+    larger's size), and neither is under half the other's size (a mark drawn inside is no line of it)."""
     (alo, ahi), (blo, bhi) = ((p.outline.min(axis=0), p.outline.max(axis=0)) for p in (a, b))
     tol = 0.02 * max(a.size, b.size)
+    if min(a.size, b.size) < 0.5 * max(a.size, b.size):
+        return False
     return bool(np.all(alo >= blo - tol) and np.all(ahi <= bhi + tol)) or bool(
         np.all(blo >= alo - tol) and np.all(bhi <= ahi + tol))
 
@@ -569,14 +576,21 @@ def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.nd
     by_layer: dict[str, list[int]] = {}
     for k, p in enumerate(pieces):
         by_layer.setdefault(p.meta.get("layer"), []).append(k)
+    boxes = np.array([[*p.outline.min(axis=0), *p.outline.max(axis=0)] for p in pieces])
     for i in np.flatnonzero(~held):
-        ks = by_layer.get(labels[i][0], [])
-        if not ks:
+        ks = np.array(by_layer.get(labels[i][0], []), dtype=np.int64)
+        if not len(ks):
             continue
-        d = np.array([float(outline_distance(points[i:i + 1], pieces[k].outline)[0]) for k in ks])
-        first = ks[int(np.argmin(d))]
-        group = [k for k in ks if _nested(pieces[k], pieces[first])]
-        others = [dk for k, dk in zip(ks, d) if k not in group]
+        # the true distance of the NEAR outlines nearest by their boxes (a lower bound of it); the
+        # rest are at least as far as the first box left out
+        gap = np.maximum(np.maximum(boxes[ks, :2] - points[i], points[i] - boxes[ks, 2:]), 0.0)
+        order = np.argsort(np.hypot(gap[:, 0], gap[:, 1]), kind="stable")
+        lower = np.hypot(gap[:, 0], gap[:, 1])[order]
+        near = ks[order[:_NEAR]]
+        d = np.array([float(outline_distance(points[i:i + 1], pieces[k].outline)[0]) for k in near])
+        first = int(near[int(np.argmin(d))])
+        group = [int(k) for k in near if _nested(pieces[int(k)], pieces[first])]
+        others = [dk for k, dk in zip(near, d) if int(k) not in group] + list(lower[_NEAR:_NEAR + 1])
         if d.min() <= pieces[first].size and (not others or d.min() < 0.5 * min(others)):
             for k in group:
                 beside[k].append(int(i))
