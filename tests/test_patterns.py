@@ -1293,6 +1293,27 @@ def test_freesewing_3_export():
         assert quality(g).folded == 0
 
 
+def test_a_layer_of_several_pieces_names_none_of_them(tmp_path):
+    """A named layer holding several pieces side by side (made-up ids) does not name them: each takes
+    the garment words drawn on it (or keeps the layer's name, numbered, where there are none); one
+    part's sew and cut lines in one group keep its name (FreeSewing)."""
+    ink = 'xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"'
+    path = tmp_path / "layer.svg"
+    path.write_text(
+        f'<svg xmlns="http://www.w3.org/2000/svg" {ink} width="400mm" height="200mm" viewBox="0 0 400 200">'
+        '<g inkscape:label="Pattern" id="layer1">'
+        '<path id="path11" d="M 0,0 L 80,0 L 80,120 L 0,120 Z"/><text x="20" y="60">FRONT</text>'
+        '<path id="path12" d="M 100,0 L 180,0 L 180,120 L 100,120 Z"/><text x="120" y="60">BACK</text>'
+        '<path id="path13" d="M 200,0 L 260,0 L 260,60 L 200,60 Z"/></g>'
+        '<g id="sleeve"><path id="21" d="M 300,0 L 390,0 L 390,150 L 300,150 Z"/>'
+        '<path id="22" d="M 305,5 L 385,5 L 385,145 L 305,145 Z"/><text x="320" y="60">Sleeve cap</text></g></svg>')
+    got = read_pieces(path)
+    # (the names the last release gave, the ids and the layer's, stay aliases)
+    assert [(p.name, p.aliases) for p in got] == [("FRONT", ("path11", "Pattern")), ("BACK", ("path12", "Pattern-2")),
+                                                  ("Pattern-3", ("path13",)), ("sleeve", ("22",))]
+    assert {s.name: s.kind for s in got.skipped} == {"sleeve-2": "seam allowance"}
+
+
 def test_without_word_drops_the_line_word_from_a_name():
     from clothgrid.patterns.svg import _without_word
 

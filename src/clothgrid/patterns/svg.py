@@ -500,11 +500,34 @@ def _named_by_labels(pieces: list[Piece], unnamed: set[str], labels: list[tuple[
             continue
         best = min(texts, key=lambda t: (-_label_score(t), len(t)))
         old = pieces[k].meta.get("aliases", [])
+        meta = {key: v for key, v in pieces[k].meta.items() if key != "group_base"}    # no longer its group's
         out[k] = replace(pieces[k], name=unique(best),
                          notes=pieces[k].notes + (f"named after the text {best!r} drawn on it "
                                                   f"(it had no id or label: {pieces[k].name})",),
-                         meta={**pieces[k].meta, "label": best,
+                         meta={**meta, "label": best,
                                "aliases": old + [pieces[k].name] if pieces[k].name not in old else old})
+    return out
+
+
+def _shared_group_names(pieces: list[Piece]) -> set[str]:
+    """The names of the outlines named after a group (``meta["group_base"]``) that holds several
+    pieces side by side: outlines of it whose bounding boxes do not hold one another (a layer
+    ``Pattern`` holding a front and a back). A part's sew and cut lines (FreeSewing's), one inside the
+    other, are one piece."""
+    by: dict[str, list[Piece]] = {}
+    for p in pieces:
+        if p.meta.get("group_base"):
+            by.setdefault(p.meta["group_base"], []).append(p)
+    out: set[str] = set()
+    for group in by.values():
+        if len(group) < 2:
+            continue
+        boxes = [(p.outline.min(axis=0), p.outline.max(axis=0), 0.01 * p.size) for p in group]
+        tops = [a for a, (alo, ahi, _) in enumerate(boxes)
+                if not any(b != a and np.all(alo >= blo - t) and np.all(ahi <= bhi + t)
+                           for b, (blo, bhi, t) in enumerate(boxes))]
+        if len(tops) >= 2:
+            out |= {p.name for p in group}
     return out
 
 
@@ -886,7 +909,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
     extra = (f" ({open_paths} open path{'s were' if open_paths != 1 else ' was'} skipped: a "
              "piece must be a closed path, ending with Z or at its start point)"
              if open_paths else "")
-    pieces = _named_by_labels(pieces, unnamed, labels, unique)
+    # a group's name names no piece where the group holds several pieces side by side: they may take
+    # the garment words drawn on them
+    pieces = _named_by_labels(pieces, unnamed | _shared_group_names(pieces), labels, unique)
     return classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
                       line=line, marked=marked)
 
