@@ -457,6 +457,50 @@ def test_no_runners_up_where_a_darts_tip_sets_the_smallest_angle():
     assert grid.info["piece"]["corners"]["alternatives"]                        # there were some
 
 
+@needs_shared
+def test_a_poor_edge_spread_tries_the_first_runner_up():
+    """A racer front (AAMA, no darts) whose first corners give an edge spread of 13.1 (no fold, angles
+    from 27.8 degrees): the first runner-up, gridded because the spread is over 2x the target, gives
+    2.0 with a larger smallest angle, and is kept; only that one is gridded."""
+    piece = select_pieces(SHARED / "astm_DEEP_ARMHOLE_RACER.DXF", ["DEEP ARMHOLE RACE FR_46"])[0]
+    said: list[str] = []
+    grid = generate_piece(piece, progress=said.append)
+    f = sim_figures(grid.points, 10.0)
+    assert quality(grid).folded == 0 and f["edge_spread"] < 3 and f["min_angle_deg"] > 27.8   # measured 2.0, 28.7
+    assert sum("(runner-up" in s for s in said) == 1
+    assert "edge spread was 13.1" in grid.info["piece"]["corners"]["message"]
+
+
+def test_a_poor_spread_keeps_the_first_grid_unless_a_runner_up_is_much_better(monkeypatch):
+    """The spread rule grids at most ``RUNNER_UP_SPREAD_TRIES`` runners-up and keeps one only for a
+    spread of at most ``RUNNER_UP_SPREAD_GAIN`` of the first's, no fold and no smaller angle."""
+    from clothgrid import pipeline
+    piece = _hexagon()
+    choice = pipeline.choose_corners(piece)
+    first = generate_piece(piece, corners=list(choice.corners))
+    f0 = sim_figures(first.points, 10.0)
+    made = []
+
+    def make(b, n):
+        made.append(n)
+        return pipeline.generate(b, n, weights="uniform", functional="auto")
+
+    alt = sim_figures(generate_piece(piece, corners=list(choice.alternatives[0].corners)).points, 10.0)
+    # a first grid said to have a spread of 100 (its angles as measured): the runner-up is taken where
+    # its angle is no smaller (up to 20 degrees)
+    poor = {**f0, "edge_spread": 100.0}
+    got = pipeline.runners_up(piece, choice, (first, quality(first), poor), 10.0, None, make)
+    assert len(made) == pipeline.RUNNER_UP_SPREAD_TRIES == 1
+    assert (got is not None) == (alt["min_angle_deg"] >= min(f0["min_angle_deg"], pipeline.RUNNER_UP_KEEP_DEG))
+    # said to be just above the runner-up's own spread (the threshold below both): not 2/3 of it, so
+    # the first is kept
+    made.clear()
+    monkeypatch.setattr(pipeline, "RUNNER_UP_SPREAD", 0.5 * alt["edge_spread"])
+    near = {**f0, "edge_spread": 1.01 * alt["edge_spread"]}
+    assert pipeline.runners_up(piece, choice, (first, quality(first), near), 10.0, None, make) is None
+    assert len(made) == 1
+
+
 def test_no_runners_up_on_grids_over_the_node_cap(monkeypatch):
     from clothgrid import pipeline
     piece = _hexagon()

@@ -93,6 +93,8 @@ class CornerChoice:
         their coarse grids, best first (at most :data:`ALTERNATIVES`), to try
         where the chosen set's grid misses the angle target
         (:func:`clothgrid.pipeline.runners_up`).
+    darts : int
+        Automatic choices: the darts found in the outline (:func:`dart_mouths`).
     """
 
     outline: np.ndarray
@@ -102,6 +104,7 @@ class CornerChoice:
     candidates: int = 0
     inserted: tuple[int, ...] = ()
     alternatives: tuple["CornerChoice", ...] = ()
+    darts: int = 0
 
     def runner_up(self, k: int, why: str) -> "CornerChoice":
         """Alternative ``k``, its message saying why it was taken (``why``: what the first choice's
@@ -701,9 +704,9 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
     for c in others:
         alt = _rotate_to_grain(outline, sorted(c), piece.grain_line)
         text = scored + _fmt_idx(i for i in pool if i not in c) + dart_note + _corners_named(alt)
-        alternatives.append(CornerChoice(outline, tuple(alt), "scored", text, len(cands)))
+        alternatives.append(CornerChoice(outline, tuple(alt), "scored", text, len(cands), darts=len(darts)))
     return CornerChoice(outline, tuple(ordered), method, message, len(cands), tuple(inserted),
-                        tuple(alternatives))
+                        tuple(alternatives), darts=len(darts))
 
 
 def _corners_named(ordered: Sequence[int]) -> str:
