@@ -359,13 +359,16 @@ def test_resampled_boundary():
 
 
 def test_resampled_outline_spaces_nodes_whatever_the_count():
-    """A boundary sampled from an outline (``from_outline``) has points, not nodes, on its sides: a
-    side with as many points as nodes asked is spaced by arc length too (its points 0.5 to 4 apart:
-    kept as nodes they gave Optitex's graded sleeve an edge spread of 10). Sides given as sides
-    (``from_sides``) with the count asked stay as they are."""
+    """A boundary sampled from an outline (a pattern piece's, ``from_outline(..., sampled=True)``) has
+    points, not nodes, on its sides: a side with as many points as nodes asked is spaced by arc length
+    too (its points 0.5 to 4 apart: kept as nodes they gave Optitex's graded sleeve an edge spread of
+    10). Sides given as sides (``from_sides``), or a region file's outline with its corners, with the
+    count asked stay as they are (a classic region's own nodes)."""
     xs = np.array([0.0, 0.5, 4.5, 5.0, 9.0, 10.0])               # uneven points on the bottom side
     outline = np.vstack([np.column_stack([xs, np.zeros(6)]), [[10.0, 5.0], [0.0, 5.0]]])
-    b = Boundary.from_outline(outline, [0, 5, 6, 7], name="strip")
+    region = Boundary.from_outline(outline, [0, 5, 6, 7])
+    assert not region.sampled and region.resampled(6, 2).bottom is region.bottom
+    b = Boundary.from_outline(outline, [0, 5, 6, 7], name="strip", sampled=True)
     assert b.sampled and b.bottom.shape == (6, 3)
     r = b.resampled(6, 2)
     np.testing.assert_allclose(r.bottom[:, 0], np.linspace(0.0, 10.0, 6), rtol=0, atol=1e-12)

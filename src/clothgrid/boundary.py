@@ -360,8 +360,8 @@ class Boundary:
     name : str or None
         A name for messages and output files.
     sampled : bool
-        The sides are points sampled along an outline (:meth:`from_outline`: a pattern piece's, a
-        region's), not nodes: :meth:`resampled` spaces nodes along them whatever their count.
+        The sides are points sampled along an outline (a pattern piece's, a region's whose corners
+        were chosen), not nodes: :meth:`resampled` spaces nodes along them whatever their count.
     """
 
     bottom: np.ndarray
@@ -448,7 +448,8 @@ class Boundary:
         return b
 
     @classmethod
-    def from_outline(cls, points: Any, corners: Any, *, name: str | None = None) -> Boundary:
+    def from_outline(cls, points: Any, corners: Any, *, name: str | None = None,
+                     sampled: bool = False) -> Boundary:
         """Build a boundary from a closed outline and four corner indices.
 
         Parameters
@@ -468,6 +469,9 @@ class Boundary:
             :attr:`orientation` ``+1``, a clockwise one ``-1``.
         name : str, optional
             Name of the piece.
+        sampled : bool
+            The outline is points sampled along a curve (a pattern piece's), not
+            nodes (a region file's own): :attr:`sampled`.
 
         Raises
         ------
@@ -505,7 +509,7 @@ class Boundary:
 
         b = cls.from_sides(run(c[0], c[1]), run(c[1], c[2]), run(c[2], c[3])[::-1],
                            run(c[3], c[0])[::-1], name=name)
-        return cls(b.bottom, b.right, b.top, b.left, dim=b.dim, name=b.name, sampled=True)
+        return cls(b.bottom, b.right, b.top, b.left, dim=b.dim, name=b.name, sampled=True) if sampled else b
 
     # ------------------------------------------------------------- geometry
     @property

@@ -65,7 +65,7 @@ def piece_boundary(piece: Piece, corners: Sequence[int] | None = None, near: Any
     if choice is None:
         choice = choose_corners(piece, corners, near)
     try:
-        return Boundary.from_outline(choice.outline, list(choice.corners), name=piece.name)
+        return Boundary.from_outline(choice.outline, list(choice.corners), name=piece.name, sampled=True)
     except BoundaryError as exc:
         raise BoundaryError(f"piece {piece.name!r}: {exc}") from None
 
@@ -125,7 +125,7 @@ def outline_boundary(points: Any, *, name: str | None = None) -> tuple[Boundary,
     out = choice.outline / scale
     if pts.shape[1] == 3:
         out = np.column_stack([out, np.full(len(out), pts[0, 2])])
-    return Boundary.from_outline(out, list(choice.corners), name=name), choice
+    return Boundary.from_outline(out, list(choice.corners), name=name, sampled=True), choice
 
 
 def grid_line_lengths(boundary: Boundary, samples: int = 33) -> tuple[float, float]:
