@@ -1314,6 +1314,37 @@ def test_a_layer_of_several_pieces_names_none_of_them(tmp_path):
     assert {s.name: s.kind for s in got.skipped} == {"sleeve-2": "seam allowance"}
 
 
+def test_tiny_outlines_are_sorted_on_a_draft_and_made_exactly_when_included(tmp_path, capsys):
+    """Outlines under ``svg.TINY_REL`` of the largest's size (lettering drawn as paths) are sampled to
+    ``svg.DRAFT_REL_TOL`` for the sorting; a piece keeps the reader's tolerance, and a skipped glyph
+    named with ``--include`` is made again at it (its points within ``1e-7`` of its size of the curve)."""
+    from clothgrid.patterns import svg
+
+    glyphs = "".join(f'<circle id="dot{k}" cx="{20 + 5 * k}" cy="20" r="1"/>' for k in range(5))
+    path = _svg(tmp_path, '<path id="front" d="M 0,0 L 280,0 C 290,60 290,120 280,180 L 0,180 Z"/>' + glyphs)
+    got = read_pieces(path)
+    assert [p.name for p in got] == ["front"] and got[0].tolerance == pytest.approx(1e-7 * got[0].size, rel=1e-6)
+    dots = [s for s in got.skipped if s.name.startswith("dot")]
+    assert len(dots) == 5 and all(s.piece is None and s.size == pytest.approx((2.0, 2.0), rel=1e-3) for s in dots)
+    assert all("draft" not in s.meta for s in dots)
+    made = dots[0].made()
+    assert made.tolerance == pytest.approx(1e-7 * made.size, rel=1e-6)
+    r = np.hypot(*(made.outline - [20.0, 180.0]).T)      # the circle at (20, 20), y flipped in a 200 high page
+    assert np.abs(r - 1.0).max() <= 1e-7 * made.size
+    # the same reading with every outline at the full tolerance: the same pieces and skipped kinds
+    svg_tiny = svg.TINY_REL
+    try:
+        svg.TINY_REL = 0.0
+        full = read_pieces(path)
+    finally:
+        svg.TINY_REL = svg_tiny
+    assert [p.name for p in full] == ["front"] and np.array_equal(full[0].outline, got[0].outline)
+    assert [(s.name, s.kind) for s in full.skipped] == [(s.name, s.kind) for s in got.skipped]
+    assert main(["pieces", str(path), "--include", "dot0", "--piece", "dot0", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["pieces"][0]["sampling_tolerance_mm"] == pytest.approx(
+        made.tolerance)
+
+
 def test_without_word_drops_the_line_word_from_a_name():
     from clothgrid.patterns.svg import _without_word
 
