@@ -401,17 +401,28 @@ def test_per_edge_solve_stops_on_the_residual_solve(rng):
     (its reductions and float32 levels round differently) meets it a cycle sooner or later than the
     cpu's, they differ by more than rounding (a CI run's fresh quad: 2.425e-4 against 2.431e-4;
     30 seeds here: at most 2.2e-4 apart, relative). The operations are compared one by one in
-    ``test_residual_solve_matches_cpu``."""
+    ``test_residual_solve_matches_cpu``.
+
+    On some fresh quads the residual solve's bound after the first iteration is over the tolerance
+    on both backends alike (a CI run's seed 1929571730: both went on to the barrier solve and stopped
+    on ``max step`` after 3 iterations); such a quad is checked the same way and another is drawn,
+    three at most, one of which must stop on the residual solve."""
     nu, nv = 65, 57     # at 33 x 29 the bound after one iteration is 2x the tolerance on both: the barrier solve
-    b = quad(rng, nu, nv, 2)
     w = smooth_field(nu, nv)
-    g = clothgrid.generate(b, weights=w, solver="multigrid", backend="cuda")
-    c = clothgrid.generate(b, weights=w, solver="multigrid", backend="cpu")
-    assert g.info["bound_method"] == c.info["bound_method"] == "residual solve"
-    assert g.info["iterations"] == c.info["iterations"]
-    err = max_rel_error(g.points, exact_solution(boundary_grid(b), *w), b.size)
-    assert err <= g.info["error_estimate"] <= TOL
-    assert max_rel_error(c.points, exact_solution(boundary_grid(b), *w), b.size) <= c.info["error_estimate"] <= TOL
+    methods = []
+    for _ in range(3):
+        b = quad(rng, nu, nv, 2)
+        g = clothgrid.generate(b, weights=w, solver="multigrid", backend="cuda")
+        c = clothgrid.generate(b, weights=w, solver="multigrid", backend="cpu")
+        assert g.info["bound_method"] == c.info["bound_method"]
+        assert g.info["iterations"] == c.info["iterations"]
+        err = max_rel_error(g.points, exact_solution(boundary_grid(b), *w), b.size)
+        assert err <= g.info["error_estimate"] <= TOL
+        assert max_rel_error(c.points, exact_solution(boundary_grid(b), *w), b.size) <= c.info["error_estimate"] <= TOL
+        methods.append(c.info["bound_method"])
+        if methods[-1] == "residual solve":
+            break
+    assert methods[-1] == "residual solve", methods
 
 
 def test_jumps_solve_with_conjugate_gradients_on_the_device(rng):
