@@ -13,7 +13,7 @@ message that says what is wrong and where.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -509,7 +509,7 @@ class Boundary:
 
         b = cls.from_sides(run(c[0], c[1]), run(c[1], c[2]), run(c[2], c[3])[::-1],
                            run(c[3], c[0])[::-1], name=name)
-        return cls(b.bottom, b.right, b.top, b.left, dim=b.dim, name=b.name, sampled=True) if sampled else b
+        return replace(b, sampled=True) if sampled else b
 
     # ------------------------------------------------------------- geometry
     @property

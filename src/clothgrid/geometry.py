@@ -7,7 +7,7 @@ import numpy as np
 from . import limits
 from .errors import BoundaryError
 
-__all__ = ["PLANAR_TOL", "cross", "points_in_polygon", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
+__all__ = ["PLANAR_TOL", "cross", "points_in_polygon", "box_holds", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
            "spike_points", "SPIKE_TURN_DEG", "untie_loops", "roll"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
@@ -341,6 +341,11 @@ def untie_loops(loop: np.ndarray, max_area: float, max_loops: int = 64) -> np.nd
         if removed > max_area or len(p) < 3:
             return None
     return None
+
+
+def box_holds(lo: np.ndarray, hi: np.ndarray, inner_lo: np.ndarray, inner_hi: np.ndarray, tol: float = 0.0) -> bool:
+    """Does the box ``lo .. hi`` hold the box ``inner_lo .. inner_hi``, within ``tol`` on every side?"""
+    return bool(np.all(inner_lo >= lo - tol) and np.all(inner_hi <= hi + tol))
 
 
 def points_in_polygon(points: np.ndarray, poly: np.ndarray) -> np.ndarray:

@@ -388,7 +388,8 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, gra
     if not wanted:
         return Pieces(pieces, failed, getattr(pieces, "skipped", ()))
     # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
-    wanted = [Pieces(pieces, failed, getattr(pieces, "skipped", ())).resolve(w) for w in wanted]
+    resolve = Pieces(pieces, failed, getattr(pieces, "skipped", ())).resolve
+    wanted = [resolve(w) for w in wanted]
     skipped = {s.name for s in getattr(pieces, "skipped", ())}
     named = [w for w in wanted if w in skipped]
     if named:                         # --piece NAME of a skipped outline grids it

@@ -33,7 +33,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import points_in_polygon, roll
+from ..geometry import box_holds, points_in_polygon, roll
 from .piece import Piece, PieceFailure, Pieces, Skipped, pattern_pieces
 
 __all__ = ["Pieces", "Skipped", "classify", "classified", "structure_hint", "LINES", "MIN_AREA_FRACTION"]
@@ -197,7 +197,7 @@ ON_LINE_REL = 1e-9
 
 def _contains(outer: _Item, inner: _Item) -> bool:
     tol = ON_LINE_REL * float(np.hypot(*(outer.hi - outer.lo)))
-    if not (np.all(inner.lo >= outer.lo - tol) and np.all(inner.hi <= outer.hi + tol)):
+    if not box_holds(outer.lo, outer.hi, inner.lo, inner.hi, tol):
         return False
     inside = points_in_polygon(inner.sub, outer.poly)
     if not inside.all():                        # points on the outer line count as inside it
@@ -331,9 +331,6 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
         outer, inner_p = items[i], items[j]
         if line == "sew":
             _keep_group_name(inner_p, outer)
-        else:
-            _keep_group_name(outer, inner_p)
-        if line == "sew":
             outer.kind, outer.of = "seam allowance", inner_p.piece.name
             outer.reason = (f"seam-allowance outline around piece {inner_p.piece.name!r} (its cut "
                             f"line, up to {hd:.3g} mm outside; --line cut grids it instead)")
@@ -341,6 +338,7 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             notes[j].append(f"line: sew (the inner of two outlines; the cut line "
                             f"{outer.piece.name!r} lies up to {hd:.3g} mm outside)")
         else:
+            _keep_group_name(outer, inner_p)
             inner_p.kind, inner_p.of = "sew line", outer.piece.name
             inner_p.reason = (f"sew line inside piece {outer.piece.name!r} (up to {hd:.3g} mm "
                               "inside; --line sew grids it instead)")

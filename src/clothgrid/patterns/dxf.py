@@ -51,7 +51,7 @@ import numpy as np
 from ..errors import InputError
 from .. import limits
 from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
-from ..geometry import points_in_polygon, signed_area
+from ..geometry import box_holds, points_in_polygon, signed_area
 from .annotations import LINES, classified, structure_hint
 from .chains import GAP_MM, GAP_REL, chain_loops, join_outlines, joined_note, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, outline_box, pattern_pieces, piece_failure,
@@ -532,15 +532,15 @@ MAX_LABELS = 20000
 _NEAR = 8
 
 
-def _nested(a: Piece, b: Piece) -> bool:
-    """Two lines of one piece: either outline's bounding box holds the other's (within 2 % of the
-    larger's size), and neither is under half the other's size (a mark drawn inside is no line of it)."""
-    (alo, ahi), (blo, bhi) = ((p.outline.min(axis=0), p.outline.max(axis=0)) for p in (a, b))
-    tol = 0.02 * max(a.size, b.size)
-    if min(a.size, b.size) < 0.5 * max(a.size, b.size):
+def _nested(a: np.ndarray, b: np.ndarray) -> bool:
+    """Two lines of one piece, by their bounding boxes ``(x0, y0, x1, y1)``: either box holds the other
+    (within 2 % of the larger's size), and neither is under half the other's size (a mark drawn
+    inside is no line of it)."""
+    sa, sb = float(np.hypot(*(a[2:] - a[:2]))), float(np.hypot(*(b[2:] - b[:2])))
+    if min(sa, sb) < 0.5 * max(sa, sb):
         return False
-    return bool(np.all(alo >= blo - tol) and np.all(ahi <= bhi + tol)) or bool(
-        np.all(blo >= alo - tol) and np.all(bhi <= ahi + tol))
+    tol = 0.02 * max(sa, sb)
+    return box_holds(b[:2], b[2:], a[:2], a[2:], tol) or box_holds(a[:2], a[2:], b[:2], b[2:], tol)
 
 
 def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.ndarray]],
@@ -561,10 +561,10 @@ def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.nd
     from .annotations import outline_distance
 
     points = np.array([at for *_, at in labels])
+    boxes = np.array([[*p.outline.min(axis=0), *p.outline.max(axis=0)] for p in pieces])
     inside: list[np.ndarray] = []
-    for p in pieces:
-        lo, hi = p.outline.min(axis=0), p.outline.max(axis=0)
-        near = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
+    for p, box in zip(pieces, boxes):
+        near = np.flatnonzero(np.all((points >= box[:2]) & (points <= box[2:]), axis=1))
         inside.append(near[points_in_polygon(points[near], p.outline)] if len(near) else near)
     # a text on a layer whose outlines it lies outside of (written beside a narrow strip): the
     # outline of its layer nearest to it and those nested with it (its cut and sew lines), where the
@@ -576,7 +576,6 @@ def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.nd
     by_layer: dict[str, list[int]] = {}
     for k, p in enumerate(pieces):
         by_layer.setdefault(p.meta.get("layer"), []).append(k)
-    boxes = np.array([[*p.outline.min(axis=0), *p.outline.max(axis=0)] for p in pieces])
     for i in np.flatnonzero(~held):
         ks = np.array(by_layer.get(labels[i][0], []), dtype=np.int64)
         if not len(ks):
@@ -589,7 +588,7 @@ def _named_by_texts(pieces: list[Piece], labels: list[tuple[str, str, str, np.nd
         near = ks[order[:_NEAR]]
         d = np.array([float(outline_distance(points[i:i + 1], pieces[k].outline)[0]) for k in near])
         first = int(near[int(np.argmin(d))])
-        group = [int(k) for k in near if _nested(pieces[int(k)], pieces[first])]
+        group = [int(k) for k in near if _nested(boxes[k], boxes[first])]
         others = [dk for k, dk in zip(near, d) if int(k) not in group] + list(lower[_NEAR:_NEAR + 1])
         if d.min() <= pieces[first].size and (not others or d.min() < 0.5 * min(others)):
             for k in group:

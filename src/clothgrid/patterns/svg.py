@@ -42,7 +42,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import points_in_polygon
+from ..geometry import box_holds, points_in_polygon
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
 from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
@@ -524,8 +524,7 @@ def _shared_group_names(pieces: list[Piece]) -> set[str]:
             continue
         boxes = [(p.outline.min(axis=0), p.outline.max(axis=0), 0.01 * p.size) for p in group]
         tops = [a for a, (alo, ahi, _) in enumerate(boxes)
-                if not any(b != a and np.all(alo >= blo - t) and np.all(ahi <= bhi + t)
-                           for b, (blo, bhi, t) in enumerate(boxes))]
+                if not any(b != a and box_holds(blo, bhi, alo, ahi, t) for b, (blo, bhi, t) in enumerate(boxes))]
         if len(tops) >= 2:
             out |= {p.name for p in group}
     return out
@@ -720,6 +719,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     marked: list[Skipped] = []                       # outlines the structure marks as annotations
     drawn: dict[int, _Open] = {}                     # lines drawn closed, by their subpath
     pending: list[tuple] = []                        # closed outlines to make, and failures, in file order
+    made_as = {"where": f"{where}: ", "units": unit, "source": "svg", "notes": (f"units: {how}",)}   # every piece's
     labels: list[tuple[str, np.ndarray]] = []        # texts that may name a piece, and their places
     unnamed: set[str] = set()                        # pieces named by a fallback (piece3, outline)
 
@@ -859,8 +859,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 if hint.get("annotation"):      # skipped whatever its shape: made only if included
                     box = outline_box(prims) if isinstance(prims, np.ndarray) else control_box(prims)
                     marked.append(marked_annotation(name, hint, meta, box, partial(
-                        make, name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                        notes=(f"units: {how}",), meta=dict(meta))))
+                        make, name, prims, rel_tol=rel_tol, meta=dict(meta), **made_as)))
                     continue
                 pending.append((name, prims, make, meta))     # made once every outline's size is known
             return
@@ -886,13 +885,11 @@ def read_svg(path: str | Path, *, units: str | None = None,
             continue
         name, prims, make, meta = item
         draft = make is piece_from_primitives and size < TINY_REL * largest and rel_tol < DRAFT_REL_TOL
-        exact = partial(make, name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit, source="svg",
-                        notes=(f"units: {how}",), meta=dict(meta))
+        if draft:
+            exact = partial(make, name, prims, rel_tol=rel_tol, meta=dict(meta), **made_as)
+            meta["draft"] = len(drafts)
         try:
-            if draft:
-                meta["draft"] = len(drafts)
-            pieces.append(make(name, prims, rel_tol=DRAFT_REL_TOL if draft else rel_tol, where=f"{where}: ",
-                               units=unit, source="svg", notes=(f"units: {how}",), meta=meta))
+            pieces.append(make(name, prims, rel_tol=DRAFT_REL_TOL if draft else rel_tol, meta=meta, **made_as))
             if draft:                   # its maker at full tolerance, and how many notes it made itself
                 drafts[meta["draft"]] = (exact, len(pieces[-1].notes))
         except InputError as exc:       # fewer than 3 points, no area: failed or skipped
