@@ -426,3 +426,39 @@ def test_large_pairs_take_the_kernel(monkeypatch):
     assert calls == [400] and np.allclose(big, 5.0, atol=1e-3)
     annotations.outline_distance(circle[:4], circle[:8])
     assert calls == [400]
+
+
+def _frame_svg(tmp_path, inner: str, name: str = "frame.svg") -> Path:
+    path = tmp_path / name
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="600mm" height="500mm" viewBox="0 0 600 500">'
+                    + inner + "</svg>")
+    return path
+
+
+def test_a_frame_around_the_pieces_is_no_piece(tmp_path):
+    """A drawing's frame (matplotlib's white figure and axes backgrounds, its four spines drawn as
+    lines: OpenPattern's SVGs) or a page border around two pieces is skipped as a "frame", and the
+    pieces it holds are gridded (they were taken for marks drawn on a 600 x 500 mm piece). A
+    rectangle holding rectangles (a bag panel with two pocket placements), or one shape, stays a
+    piece."""
+    bodice = "M 50,50 L 250,50 L 260,300 C 200,320 120,330 40,300 Z"
+    sleeve = "M 320,60 L 540,60 C 560,200 520,300 430,420 C 340,300 300,200 320,60 Z"
+    frame = ('<rect x="0" y="0" width="600" height="500" style="fill:#ffffff;stroke:none"/>'
+             '<rect x="0" y="0" width="600" height="500" style="fill:#ffffff;stroke:none"/>'
+             '<g id="spines"><path d="M 0,0 V 500"/><path d="M 600,0 V 500"/><path d="M 0,0 H 600"/>'
+             '<path d="M 0,500 H 600"/></g>')
+    got = read_pieces(_frame_svg(tmp_path, frame + f'<path id="bodice" d="{bodice}"/><path id="sleeve" d="{sleeve}"/>'))
+    assert sorted(p.name for p in got) == ["bodice", "sleeve"]
+    assert [s.kind for s in got.skipped] == ["frame"] * 3
+    assert all("frame around 2 outlines" in s.reason for s in got.skipped)
+    # a bag panel with two rectangular pocket placements: a piece and its marks
+    bag = ('<rect id="panel" x="0" y="0" width="600" height="500"/>'
+           '<rect id="pocket1" x="50" y="50" width="200" height="150"/>'
+           '<rect id="pocket2" x="350" y="50" width="200" height="150"/>')
+    got = read_pieces(_frame_svg(tmp_path, bag, "bag.svg"))
+    assert "panel" in [p.name for p in got] and not got.skipped
+    # one shape inside a rectangle: the rectangle stays a piece, as before
+    got = read_pieces(_frame_svg(tmp_path, f'<rect id="panel" x="0" y="0" width="600" height="500"/>'
+                                           f'<path id="bodice" d="{bodice}" style="stroke-dasharray:4,2"/>',
+                                 "one.svg"))
+    assert [p.name for p in got] == ["panel"] and [s.kind for s in got.skipped] == ["inside"]

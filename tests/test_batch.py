@@ -461,3 +461,27 @@ def test_a_file_whose_pieces_suggest_other_units_has_warnings_in_its_manifest_li
         assert ("warnings" in entry) == warned
         if warned:
             assert "40 mm across" in entry["warnings"][0] and "--units" in entry["warnings"][0]
+
+
+def test_unfold_in_a_batch_grids_the_whole_pieces_and_keys_the_option(tmp_path):
+    """``batch --unfold``: grid_file (what a worker runs) grids the pieces cut on the fold whole
+    (FreeSewing's Aaron: both halves, about twice as many nodes across), and the option is part of
+    the resume key (a run without it is not taken for one with it); without it the key is as before."""
+    from clothgrid.pipeline import OutputOptions
+
+    src = Path(__file__).parent / "data" / "freesewing" / "aaron_v3_pattern.svg"
+    nodes = {}
+    for unfold in (False, True):
+        out = tmp_path / f"out{unfold}"
+        task = B.FileTask(str(src), "aaron", str(out), ("{piece}.npz",), OPTS, OutputOptions(), unfold=unfold)
+        entry = B.grid_file(task)
+        assert entry["status"] == "ok" and sorted(entry["outputs"]) == ["aaron/back.npz", "aaron/front.npz"]
+        nodes[unfold] = {p["name"]: p["nodes"] for p in entry["pieces"]}
+        assert all(p["folded"] == 0 for p in entry["pieces"])
+    for name in ("front", "back"):
+        assert max(nodes[True][name]) * min(nodes[True][name]) > 1.6 * max(nodes[False][name]) * min(nodes[False][name])
+    k = B._normalised
+    plain = k(OPTS, OutputOptions(), ["{piece}.npz"], None, None, None)
+    assert "unfold" not in plain
+    assert options_key("abc", k(OPTS, OutputOptions(), ["{piece}.npz"], None, None, None, unfold=True)) != \
+        options_key("abc", plain)

@@ -410,11 +410,12 @@ def _stitched(tmp_path, seams=SQUARES_SEAMS):
     return svg, st
 
 
-def _check_seams_node_for_node(r, stitches_file, pattern):
-    """Every seam of the file: equal counts, its nodes at the range's ends, matching fractions."""
-    from clothgrid.readers import read_pieces
+def _check_seams_node_for_node(r, stitches_file, pattern, unfold=False):
+    """Every seam of the file: equal counts, its nodes at the range's ends, matching fractions (of
+    the pieces unfolded, with ``unfold``)."""
+    from clothgrid.pipeline import select_pieces
 
-    pieces = {p.name: p for p in read_pieces(pattern)}
+    pieces = {p.name: p for p in select_pieces(pattern, unfold=unfold)}
     names = list(r["panel_names"])
     seams = json.loads(Path(stitches_file).read_text())["seams"]
     assert set(np.unique(r["stitch_id"])) == set(range(len(seams)))

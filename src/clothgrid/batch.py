@@ -146,7 +146,7 @@ class FileTask:
         Output names relative to ``outdir/stem`` (``{piece}`` is the piece's name).
     options, output :
         How grids are made and written.
-    units, line, min_turn :
+    units, line, min_turn, unfold :
         Pattern-file options of :func:`clothgrid.pipeline.read_jobs`.
     key, sha256 :
         The resume key and the content hash, copied into the manifest line.
@@ -168,6 +168,7 @@ class FileTask:
     sha256: str = ""
     garment: bool = False
     seams: str = "keep"
+    unfold: bool = False
 
 
 def _clean_stale(folder: Path) -> None:
@@ -207,7 +208,7 @@ def grid_file(task: FileTask) -> dict[str, Any]:
         return _grid_garment(task, entry, timings, t0, c0)
     try:
         jobs = read_jobs(task.source, [str(folder / t) for t in task.templates], options=task.options,
-                         units=task.units, line=task.line, min_turn=task.min_turn)
+                         units=task.units, line=task.line, min_turn=task.min_turn, unfold=task.unfold)
         timings["read"] = time.perf_counter() - t0
         stage = "grid"
         results, failed = run_jobs(jobs)
@@ -452,7 +453,7 @@ class BatchSummary:
 
 def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence[str], units: str | None,
                 line: str | None, min_turn: float | None, garment: bool = False,
-                seams: str = "keep") -> dict[str, Any]:
+                seams: str = "keep", unfold: bool = False) -> dict[str, Any]:
     """The options that change an input's outputs, as plain JSON values (``"2cm"`` and ``"20mm"`` alike)."""
     from .units import parse_length
 
@@ -472,6 +473,8 @@ def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence
            "line": line or "sew", "min_turn": min_turn, "clothgrid": version}
     if garment:                                  # pieces-mode keys stay as they were (resume)
         out["garment"] = {"seams": seams}
+    if unfold:                                   # likewise: only where asked
+        out["unfold"] = True
     return out
 
 
@@ -556,7 +559,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
           retries: int = DEFAULT_RETRIES, redo_failed: bool = False, force: bool = False,
           progress: Callable[[BatchProgress], None] | None = None,
           on_entry: Callable[[dict[str, Any]], None] | None = None,
-          garment: bool = False, seams: str = "keep") -> BatchSummary:
+          garment: bool = False, seams: str = "keep", unfold: bool = False) -> BatchSummary:
     """Grid every piece of every input file on Dask; write ``OUTDIR/<stem>/...`` and the manifest.
 
     Parameters
@@ -571,7 +574,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         How the outputs are written (triangles, uv, density, cloth arrays).
     templates : sequence of str
         Output names inside ``OUTDIR/<stem>/``, each with ``{piece}``; the extension picks the format.
-    units, line, min_turn :
+    units, line, min_turn, unfold :
         Pattern-file options (as for ``clothgrid generate``).
     workers : int, optional
         Worker processes of the local cluster (default: the CPU cores, at most one per file to grid).
@@ -634,7 +637,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         raise InputError(f"output folder {str(outdir)!r} is not writable")
     outdir = outdir.resolve()
     manifest = outdir / MANIFEST
-    norm = _normalised(options, output, templates, units, line, min_turn, garment, seams)
+    norm = _normalised(options, output, templates, units, line, min_turn, garment, seams, unfold)
     previous = latest_entries(read_manifest(manifest))
     stems = assign_stems(paths)
 
@@ -650,7 +653,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
             skipped.append(previous[stem])
             continue
         tasks.append(FileTask(str(path), stem, str(outdir), templates, options, output, units, line, min_turn,
-                              key, digest, garment, seams))
+                              key, digest, garment, seams, unfold))
 
     state = BatchProgress(total=len(tasks), skipped=len(skipped))
     done_now: list[dict[str, Any]] = []

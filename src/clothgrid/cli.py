@@ -531,11 +531,13 @@ def _add_pattern_arguments(g: argparse.ArgumentParser, one_file: bool = True) ->
                         "(default: 20)")
     if not one_file:
         _add_line_argument(p)
+        _add_unfold_argument(p, "grid")
         return
     p.add_argument("--piece", action="append", metavar="NAME",
                    help="grid only this piece (repeatable; default: every piece); may name an "
                         "outline skipped as an annotation")
     _add_grade_argument(p, "grid")
+    _add_unfold_argument(p, "grid")
     _add_annotation_arguments(p, "grid")
     p.add_argument("--corners", type=_corner_indices, metavar="I,J,K,L",
                    help="the grid corners as outline indices (bottom-left, bottom-right, "
@@ -553,6 +555,14 @@ def _add_grade_argument(p: Any, verb: str) -> None:
                    help=f"of a graded pattern (several sizes in one file: AAMA/ASTM blocks, a flat DXF's "
                         f"layers), {verb} only the pieces of this size (their 'Size:' text, e.g. 42, M, "
                         "Small; case aside)")
+
+
+def _add_unfold_argument(p: Any, verb: str) -> None:
+    """``--unfold`` (generate, batch and pieces)."""
+    p.add_argument("--unfold", action="store_true",
+                   help=f"{verb} each piece cut on the fold whole: the half the file draws and its mirror "
+                        "image across the fold line it marks (AAMA/ASTM DXF layer 6, FreeSewing's 'cut on "
+                        "fold' mark)")
 
 
 def _add_annotation_arguments(p: Any, verb: str) -> None:
@@ -585,6 +595,7 @@ def _add_pieces_parser(sub: Any) -> None:
     p.add_argument("--piece", action="append", metavar="NAME",
                    help="only this piece (repeatable); may name an outline skipped as an annotation")
     _add_grade_argument(p, "list")
+    _add_unfold_argument(p, "list")
     _add_annotation_arguments(p, "list")
     p.add_argument("--candidates", action="store_true",
                    help="also list every corner candidate: outline index, point (mm), turn")
@@ -852,7 +863,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     jobs = pipeline.read_jobs(args.input, args.output, args.plot, options=options, pieces=args.piece,
                               corners=args.corners, corners_near=args.corners_near, min_turn=args.min_turn,
                               units=args.units, progress=progress, line=args.line,
-                              include=args.include, grade=args.grade)
+                              include=args.include, grade=args.grade, unfold=args.unfold)
     for line in jobs.warnings:
         _say(f"warning: {line}")
     pattern = jobs[0].piece is not None
@@ -923,7 +934,7 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
 
     source = Path(args.input)
     pieces = pipeline.select_pieces(source, args.piece, units=args.units, line=args.line or "sew",
-                                    include=args.include, grade=args.grade)
+                                    include=args.include, grade=args.grade, unfold=args.unfold)
     failed = list(pieces.failed)
     listing = pipeline.piece_listing(pieces, min_turn=args.min_turn, candidates=args.candidates or args.json,
                                      failed=failed)
@@ -960,6 +971,10 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
         if e["grain_line"] is not None:
             (x0, y0), (x1, y1) = e["grain_line"]
             print(f"  grain line: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm")
+        if e["fold_line"] is not None and not e["unfolded"]:
+            (x0, y0), (x1, y1) = e["fold_line"]
+            print(f"  cut on the fold: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm (this is half the piece; "
+                  "--unfold for the whole)")
         for note in e["notes"]:
             print(f"  note: {note}")
         if args.candidates:
@@ -1025,7 +1040,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                           templates=args.template or (batch.DEFAULT_TEMPLATE,), units=args.units,
                           line=args.line, min_turn=args.min_turn, workers=args.workers,
                           scheduler=args.scheduler, retries=args.retries, redo_failed=args.redo_failed,
-                          force=args.force, progress=progress, garment=args.garment, seams=args.seams)
+                          force=args.force, progress=progress, garment=args.garment, seams=args.seams,
+                          unfold=args.unfold)
     finally:
         signal.signal(signal.SIGTERM, old)
     s = run.summary

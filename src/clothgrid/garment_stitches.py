@@ -10,6 +10,7 @@ SVG and DXF pattern files carry no stitches. ``clothgrid garment PATTERN
         "right_wrong": true, "label": "side seam"},
        ...],
      "pieces": ["4", "24"],
+     "unfold": ["24"],
      "placement": {"24": {"translation": [0, 0, -200], "rotation": [0, 180, 0]}}}
 
 A side ``{"piece": NAME, "range": [I, J]}`` is the part of the piece's outline
@@ -18,7 +19,10 @@ outline's own order, wrapping past the last point): the indices
 ``clothgrid pieces FILE --candidates`` prints (same reading options). The two
 sides of a seam are joined as GarmentCode joins a stitch: ``a``'s end meets
 ``b``'s start, or start meets start with ``"right_wrong": true``. Both ranges
-of one piece (a dart) may share an end (the dart's tip).
+of one piece (a dart) may share an end (the dart's tip). ``"unfold"`` (``true``, or a
+list of piece names) makes the pieces cut on the fold whole first
+(:func:`clothgrid.patterns.fold.unfold`); their ranges are then those of
+``clothgrid pieces FILE --unfold --candidates``.
 
 Each piece becomes one :class:`~clothgrid.patterns.garmentcode.SpecPanel`
 whose edges are :class:`Polyline` parts of its outline, cut at the seams'
@@ -81,6 +85,35 @@ def _load(path: Path) -> dict:
         raise InputError(f"{path}: clothgrid_stitches {version!r} is not a version this clothgrid reads "
                          f"({STITCHES_FORMAT})")
     return data
+
+
+def _unfolded(pieces: dict[str, Any], unfold: Any, path: Path, resolve: Any) -> dict[str, Any]:
+    """``pieces`` with those the stitches file's ``"unfold"`` names made whole (``true``: every piece
+    the pattern marks cut on the fold; a list: these pieces, each of which must have a fold line)."""
+    from .patterns.fold import unfold as whole
+
+    if unfold is False:
+        return pieces
+    if unfold is True:
+        names = [n for n, p in pieces.items() if p.meta.get("fold_line") is not None]
+    elif isinstance(unfold, list) and all(isinstance(x, str) for x in unfold):
+        names = [resolve(x) for x in unfold]
+        for n in names:
+            if n not in pieces:
+                raise InputError(f"{path}: 'unfold': the pattern has no piece {n!r} (its pieces: "
+                                 f"{', '.join(map(repr, pieces))})")
+            if pieces[n].meta.get("fold_line") is None:
+                raise InputError(f"{path}: 'unfold': piece {n!r} has no fold line (the pattern does not "
+                                 "mark it cut on the fold)")
+    else:
+        raise InputError(f"{path}: 'unfold' must be true, false or a list of piece names, not {unfold!r}")
+    out = dict(pieces)
+    for n in names:
+        try:
+            out[n] = whole(pieces[n])
+        except InputError as exc:
+            raise InputError(f"{path}: 'unfold': {exc}") from None
+    return out
 
 
 def _side(side: Any, pieces: dict[str, Any], what: str, resolve: Any = str) -> tuple[str, int, int]:
@@ -161,9 +194,9 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
     pattern, stitches = Path(pattern), Path(stitches)
     data = _load(stitches)
     got = read_pieces(pattern, units=units)
-    pieces = {p.name: p for p in got}
     # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
     resolve = got.resolve
+    pieces = _unfolded({p.name: p for p in got}, data.get("unfold", False), stitches, resolve)
     seams = []
     for k, s in enumerate(data["seams"]):
         what = f"{stitches}: seam {k}"

@@ -61,7 +61,7 @@ from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
-           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "corner_choice",
+           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "unfolded_pieces", "corner_choice",
            "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
@@ -376,14 +376,37 @@ def graded(pieces: list[Piece], size: str, source: Path | str) -> Pieces:
     return Pieces(keep, getattr(pieces, "failed", ()), skipped)
 
 
-def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, grade: str | None = None) -> Pieces:
-    """The pieces named in ``wanted`` (in that order; all if None), with the failures among them;
-    only those of size ``grade`` where it is given (:func:`graded`).
+def unfolded_pieces(pieces: list[Piece], source: Path | str) -> Pieces:
+    """``pieces`` with each piece cut on the fold made whole (:func:`clothgrid.patterns.fold.unfold`:
+    the pieces whose file marks a fold line); one that cannot be unfolded joins ``failed``."""
+    from .patterns.fold import unfold
 
-    A name in ``wanted`` that names a piece that could not be read is an error (its reason).
+    kept: list[Piece] = []
+    failed = list(getattr(pieces, "failed", ()))
+    for p in pieces:
+        if p.meta.get("fold_line") is None or p.meta.get("unfolded"):
+            kept.append(p)
+            continue
+        try:
+            kept.append(unfold(p))
+        except InputError as exc:
+            failed.append(piece_failure(p.name, exc, str(source), stage="unfold"))
+    return Pieces(kept, failed, getattr(pieces, "skipped", ()))
+
+
+def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, grade: str | None = None,
+            unfold: bool = False) -> Pieces:
+    """The pieces named in ``wanted`` (in that order; all if None), with the failures among them;
+    only those of size ``grade`` where it is given (:func:`graded`); those cut on the fold made whole
+    with ``unfold`` (:func:`unfolded_pieces`).
+
+    A name in ``wanted`` that names a piece that could not be read (or unfolded) is an error (its
+    reason).
     """
     if grade is not None:
         pieces = graded(pieces, grade, source)
+    if unfold:
+        pieces = unfolded_pieces(pieces, source)
     failed = list(getattr(pieces, "failed", ()))
     if not wanted:
         return Pieces(pieces, failed, getattr(pieces, "skipped", ()))
@@ -431,17 +454,20 @@ def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str 
 
 def select_pieces(source: str | Path, wanted: Sequence[str] | None = None, *,
                   units: str | None = None, line: str = "sew",
-                  include: Sequence[str] | None = None, grade: str | None = None) -> list[Piece]:
+                  include: Sequence[str] | None = None, grade: str | None = None,
+                  unfold: bool = False) -> list[Piece]:
     """The pieces of a pattern file, only those named in ``wanted`` if given (in that order).
 
     A :class:`~clothgrid.patterns.piece.Pieces` list: ``failed`` holds the pieces that could not
     be read (none when ``wanted`` names pieces: naming one that cannot be read is an InputError),
     ``skipped`` the outlines skipped as annotations. ``line`` and ``include`` as for
     :func:`clothgrid.readers.read_pieces`; a name in ``wanted`` may be a skipped outline's.
-    ``grade``: only the pieces of this size of a graded pattern (:func:`graded`).
+    ``grade``: only the pieces of this size of a graded pattern (:func:`graded`). ``unfold``: the
+    pieces cut on the fold made whole (:func:`unfolded_pieces`).
     """
     source = Path(source)
-    return _select(read_pieces(source, units=units, line=line, include=include), wanted, source, grade)
+    return _select(read_pieces(source, units=units, line=line, include=include), wanted, source, grade,
+                   unfold)
 
 
 def corner_choice(piece: Piece, corners: Sequence[int] | None = None, near: Any = None,
@@ -486,7 +512,7 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
               corners: Sequence[int] | None = None, corners_near: Any = None, min_turn: float | None = None,
               units: str | None = None, progress: Callable[[str], None] | None = None,
               line: str | None = None, include: Sequence[str] | None = None,
-              grade: str | None = None) -> list[Job]:
+              grade: str | None = None, unfold: bool = False) -> list[Job]:
     """The jobs of one input file, outputs checked (nothing is gridded or written yet).
 
     Parameters
@@ -509,6 +535,9 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
         :func:`clothgrid.readers.read_pieces`).
     grade : str, optional
         Pattern files only: the pieces of this size of a graded pattern (:func:`graded`).
+    unfold : bool
+        Pattern files only: grid each piece cut on the fold whole, the outline and its mirror
+        image across the fold line the file marks (:func:`unfolded_pieces`).
     progress : callable, optional
         Called with a line saying what was read.
 
@@ -536,7 +565,7 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
     if isinstance(got, Boundary):
         used = [name for name, v in (("--piece", pieces), ("--corners", corners), ("--corners-near", corners_near),
                                      ("--min-turn", min_turn), ("--line", line), ("--include", include),
-                                     ("--grade", grade)) if v]
+                                     ("--grade", grade), ("--unfold", unfold)) if v]
         if used:
             raise InputError(f"{', '.join(used)} {'is' if len(used) == 1 else 'are'} for pattern files "
                              f"(.svg, .dxf, GarmentCode .json), not for the boundary file {source}")
@@ -551,7 +580,7 @@ def read_jobs(source: str | Path, outputs: Sequence[str | Path], plot: str | Pat
         return Jobs([job], source=source)
     if min_turn is not None and not (0 <= min_turn < 180):
         raise InputError(f"--min-turn {min_turn!r} must be between 0 and 180 degrees")
-    chosen = _select(got, pieces, source, grade)
+    chosen = _select(got, pieces, source, grade, unfold)
     if progress:
         bad = f" ({len(chosen.failed)} more could not be read)" if chosen.failed else ""
         skipped = chosen.skipped
@@ -981,6 +1010,7 @@ def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, can
             "sampling_tolerance_mm": piece.tolerance,
             "grain_line": None if piece.grain_line is None else piece.grain_line.tolist(),
             "corners": choice.as_dict(), "line": piece.meta.get("line"), "notes": list(piece.notes),
+            "fold_line": piece.meta.get("fold_line"), "unfolded": bool(piece.meta.get("unfolded")),
         }
         if candidates:
             entry["candidates"] = [c.as_dict() for c in

@@ -165,6 +165,20 @@ def _circle_like(p: Piece) -> bool:
     return per > 0 and 4 * math.pi * p.area / per ** 2 > 0.85
 
 
+#: A frame (an axis-aligned rectangle around the pieces) holds at least two outlines of at least this
+#: fraction of its area each.
+FRAME_CONTENT = 0.05
+
+
+def _rectangle(p: Piece) -> bool:
+    """Four outline points, the sides along the axes (within 1e-6 of its size)."""
+    q = p.outline
+    if len(q) != 4:
+        return False
+    d = np.abs(roll(q, -1) - q)
+    return bool((np.minimum(d[:, 0], d[:, 1]) <= 1e-6 * p.size).all())
+
+
 def _arrow_like(p: Piece) -> bool:
     """A straight-edged 7-gon with two reflex corners: a block arrow."""
     if len(p.outline) != 7 or len(p.vertices) != 7:
@@ -345,6 +359,29 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
             lines[i] = "cut"
             notes[i].append(f"line: cut (the outer of two outlines; the sew line "
                             f"{inner_p.piece.name!r} lies up to {hd:.3g} mm inside)")
+
+    # 2b. frames: an axis-aligned rectangle holding several outlines side by side, not all of them
+    # rectangles (a plot's frame or page background around the pieces: OpenPattern's matplotlib
+    # drawings; a page border), is no piece, and what it holds is not drawn on it
+    for i in order:
+        it = items[i]
+        if it.kind not in (None, "seam allowance") or is_piece_class[i] or not _rectangle(it.piece):
+            continue
+        held = [j for j in order if i in containers[j] and items[j].kind is None and not _rectangle(items[j].piece)
+                and items[j].piece.area >= FRAME_CONTENT * it.piece.area]
+        held = [j for j in held if not any(k in held for k in containers[j])]          # top level
+        if len(held) < 2:
+            continue
+        it.kind, it.of = "frame", None
+        it.reason = (f"frame around {len(held)} outlines side by side (a page border or a drawing's "
+                     "frame, not a piece)")
+        j = partner.get(i) if (partner := {**paired, **{v: k for k, v in paired.items()}}) else None
+        if j is not None:                              # the same rectangle drawn twice: both frames
+            items[j].kind, items[j].of, items[j].reason = "frame", None, it.reason
+            paired.pop(i, None), paired.pop(j, None), lines.pop(i, None), lines.pop(j, None)
+            notes[i], notes[j] = [], []
+    for j in cand:                                     # what a frame holds is not inside it
+        containers[j] = [i for i in containers[j] if items[i].kind != "frame"]
 
     alive = [i for i in cand if items[i].kind is None]
     if alive:

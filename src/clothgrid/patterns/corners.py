@@ -302,13 +302,29 @@ def _closed_arc(outline: np.ndarray, darts: Sequence[tuple[int, int, int]]
     return np.concatenate([[0.0], np.cumsum(seg)[:-1]]), float(seg.sum())
 
 
+def mirror_partners(outline: np.ndarray, idx: Sequence[int], fold: Any, tol: float) -> dict[int, int]:
+    """For a piece symmetric about the line ``fold`` (two points; an unfolded piece): each index of
+    ``idx`` whose mirror image is within ``tol`` of another index of ``idx`` (or itself, on the line),
+    mapped to it."""
+    a, b = (np.asarray(p, dtype=np.float64)[:2] for p in (fold[0], fold[-1]))
+    d = (b - a) / np.linalg.norm(b - a)
+    pts = outline[np.asarray(idx, dtype=np.int64)]
+    rel = pts - a
+    img = a + 2.0 * np.outer(rel @ d, d) - rel
+    dist = np.linalg.norm(img[:, None, :] - pts[None, :, :], axis=2)
+    k = dist.argmin(axis=1)
+    return {int(idx[i]): int(idx[k[i]]) for i in range(len(idx)) if dist[i, k[i]] <= tol}
+
+
 def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
-               outline: np.ndarray | None = None) -> list[list[int]]:
+               outline: np.ndarray | None = None, partners: dict[int, int] | None = None) -> list[list[int]]:
     """Sets of 4 of ``idx`` (outline order), best score first; ``q``, ``s`` per outline point.
 
     Without ``outline``, the best set alone. With it, the :data:`GRID_RANKED`
     best by the quick score, ranked again by the quality of a coarse grid
     (:func:`grid_score`; sets whose coarse grid cannot be made left out).
+    With ``partners`` (:func:`mirror_partners` of a symmetric piece), only the sets that are their
+    own mirror image, where there are any.
     """
     idx = sorted(idx)
     if len(idx) > MAX_SCORED:
@@ -317,6 +333,11 @@ def _best_four(idx: list[int], q: np.ndarray, s: np.ndarray, perimeter: float,
     cand = np.asarray(idx)
     combos = np.array(list(itertools.combinations(range(len(cand)), 4)))
     c = cand[combos]
+    if partners:
+        image = np.vectorize(lambda i: partners.get(int(i), -1), otypes=[np.int64])(c)
+        symmetric = np.array([set(x) == set(y) for x, y in zip(c.tolist(), image.tolist())], dtype=bool)
+        if symmetric.any():
+            c = c[symmetric]
     pos = s[c]
     sides = np.column_stack([pos[:, 1] - pos[:, 0], pos[:, 2] - pos[:, 1], pos[:, 3] - pos[:, 2],
                              perimeter - (pos[:, 3] - pos[:, 0])])
@@ -670,10 +691,15 @@ def choose_corners(piece: Piece, corners: Sequence[int] | None = None,
         method = "turn-points" if from_tps else "candidates"
         message = f"the {what} are the corners"
     elif pool is not None:
-        ranked = _best_four(pool, q, s, perimeter, outline)
+        fold = piece.meta.get("fold_line") if piece.meta.get("unfolded") else None
+        partners = (mirror_partners(outline, pool, fold, max(1e-6 * piece.size, 4 * piece.tolerance))
+                    if fold is not None else None)
+        ranked = _best_four(pool, q, s, perimeter, outline, partners)
+        paired = bool(partners) and all(partners.get(i) in ranked[0] for i in ranked[0])
         chosen, method, others = ranked[0], "scored", ranked[1:1 + ALTERNATIVES]
         scored = (f"chose 4 of {what} by score (right-angled convex corners, opposite "
-                  f"sides of similar length); left out outline indices ")
+                  f"sides of similar length{'; an unfolded piece: in mirror pairs' if paired else ''}); "
+                  "left out outline indices ")
         message = scored + _fmt_idx(i for i in pool if i not in chosen)
     if pool is not None:
         message += dart_note

@@ -53,6 +53,7 @@ from .. import limits
 from ..limits import MAX_BULGE, MAX_COORDINATE, MAX_ENTITIES, check_input_file
 from ..geometry import box_holds, points_in_polygon, signed_area
 from .annotations import LINES, classified, structure_hint
+from .fold import attach_fold_lines
 from .chains import GAP_MM, GAP_REL, chain_loops, join_outlines, joined_note, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, outline_box, pattern_pieces, piece_failure,
                     piece_from_primitives)
@@ -475,8 +476,11 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
                     f"; the sew line (layer 14) lies up to {gap:.3g} mm inside" if sew is not None else "")]
                 line_used = "cut"
             piece.meta["line"] = line_used
-            from dataclasses import replace
-
+            mirror = _polylines(ents, "6", ctx, scale)       # layer 6: the mirror line (cut on the fold)
+            if mirror:
+                piece = attach_fold_lines([piece], mirror)[0]
+                if piece.meta.get("fold_line") is None:
+                    extra.append("its mirror line (layer 6) runs along no edge of the gridded line: ignored")
             pieces.append(replace(piece, notes=piece.notes + tuple(extra)))
         except InputError as exc:
             failed.append(piece_failure(pname, exc, ctx.where, labels=(f"block {bname!r}",)))

@@ -46,6 +46,7 @@ from ..geometry import box_holds, points_in_polygon
 from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
 from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
+from .fold import attach_fold_lines
 from .piece import (Piece, PieceFailure, Pieces, Skipped, outline_box, piece_failure, piece_from_points,
                     piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
@@ -721,6 +722,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     pending: list[tuple] = []                        # closed outlines to make, and failures, in file order
     made_as = {"where": f"{where}: ", "units": unit, "source": "svg", "notes": (f"units: {how}",)}   # every piece's
     labels: list[tuple[str, np.ndarray]] = []        # texts that may name a piece, and their places
+    folds: list[np.ndarray] = []                     # the ends of "cut on fold" marks (mm)
     unnamed: set[str] = set()                        # pieces named by a fallback (piece3, outline)
 
     def unique(name: str) -> str:
@@ -737,6 +739,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
         raise InputError(f"{where}: {count:,} elements, more than the limit of {MAX_ENTITIES:,}")
 
     ids = {k: e for e in root.iter() if (k := e.get("id"))}
+    fold_paths = _fold_text_paths(root)       # paths whose text says "cut on fold" (FreeSewing 2)
     using: set[int] = set()             # the elements a <use> is drawing (a <use> of its own group: a cycle)
     drawn_uses = 0
 
@@ -810,6 +813,11 @@ def read_svg(path: str | Path, *, units: str | None = None,
                         loops.append(prims)
                 else:
                     d = _shape_d(el, f"{where}: {label}")
+                    if d and (_fold_mark(el) or el.get("id") in fold_paths):       # a "cut on fold" mark: its ends are on the fold
+                        ends = _fold_ends(d, m, f"{where}: {label}")
+                        if ends is not None:
+                            folds.append(ends)
+                        return
                     if d:
                         if not _PATH_CHARS.fullmatch(d):
                             bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
@@ -937,7 +945,55 @@ def read_svg(path: str | Path, *, units: str | None = None,
     pieces = _named_by_labels(pieces, unnamed | _shared_group_names(pieces), labels, unique)
     got = classified(pieces, unmade, where, f"{where}: no closed path found, so no pattern piece{extra}",
                      line=line, marked=marked)
-    return _exact(got, drafts) if drafts else got
+    got = _exact(got, drafts) if drafts else got
+    if folds:                               # a piece cut on the fold: its fold line (fold.unfold)
+        got = Pieces(attach_fold_lines(got, folds), got.failed, got.skipped)
+    return got
+
+
+#: FreeSewing's "cut on fold" mark: a path drawn with these markers (``url(#cutonfoldFrom)``)
+_FOLD_MARKERS = re.compile(r"cut-?on-?fold", re.IGNORECASE)
+
+
+def _fold_mark(el: ET.Element) -> bool:
+    """Whether ``el`` is a "cut on fold" mark (its markers, or its class, say so)."""
+    return any(_FOLD_MARKERS.search(el.get(k) or "") for k in ("marker-start", "marker-end", "class", "style"))
+
+
+_FOLD_TEXT = re.compile(r"\b(cut|place)\s+on\s+(the\s+)?fold\b", re.IGNORECASE)
+
+
+def _fold_text_paths(root: ET.Element) -> set[str]:
+    """The ids of the paths a ``<textPath>`` writes "Cut on fold" along (FreeSewing 2's mark: the
+    grain line's bracket, its ends on the fold)."""
+    out = set()
+    for el in root.iter():
+        if _local(el.tag) == "textPath" and _FOLD_TEXT.search("".join(el.itertext())):
+            ref = (el.get("href") or el.get(_XLINK_HREF) or "").strip()
+            if ref.startswith("#"):
+                out.add(ref[1:])
+    return out
+
+
+def _fold_ends(d: str, m: np.ndarray, where: str) -> np.ndarray | None:
+    """The first and last points (mm) of a fold mark's path data ``d``, or None where it cannot be
+    read (a mark, not a piece: it is then ignored)."""
+    from svgpathtools import parse_path
+
+    if not _PATH_CHARS.fullmatch(d) or not d.lstrip().startswith(("M", "m")):
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            parsed = parse_path(d)
+    except Exception:                          # svgpathtools raises several types
+        return None
+    if len(parsed) == 0:
+        return None
+    ends = np.array([[parsed[0].start.real, parsed[0].start.imag, 1.0],
+                     [parsed[-1].end.real, parsed[-1].end.imag, 1.0]]) @ m.T
+    out = ends[:, :2]
+    return out if np.isfinite(out).all() and np.hypot(*(out[1] - out[0])) > 0 else None
 
 
 def _box_size(prims: Any) -> float:

@@ -1,0 +1,228 @@
+"""Pieces cut on the fold: their fold line, and the whole piece unfolded across it.
+
+A pattern draws a symmetric piece (a T-shirt's back, a skirt's front) as one half, cut with its
+straight centre edge on the fold of the fabric. The cloth is the whole piece. Pattern files say so:
+
+- AAMA/ASTM D6673 DXF: a ``LINE`` on layer ``6`` (the mirror line) along the piece's edge;
+- FreeSewing SVG: the "cut on fold" mark, a path whose markers are ``cutonfoldFrom`` and
+  ``cutonfoldTo``, whose two ends lie on the piece's edge.
+
+The readers keep that line as ``Piece.meta["fold_line"]`` (``[[x0, y0], [x1, y1]]``, mm; see
+:func:`attach_fold_lines`) and :func:`unfold` makes the whole piece: the outline and its mirror
+image across the line, joined where the outline meets the line. The indices of the original
+outline's vertices and turn points are carried over (and mirrored); a turn point at an end of the
+fold edge stays a turn point only where the unfolded outline still turns there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from .piece import Piece, piece_from_polygon
+
+__all__ = ["FOLD_TOL_REL", "FOLD_TOL_MM", "fold_edge", "unfold", "unfolded", "attach_fold_lines"]
+
+#: How far (relative to the piece's size, and at least :data:`FOLD_TOL_MM`) an outline point may lie
+#: from the fold line and still be on it.
+FOLD_TOL_REL = 1e-4
+FOLD_TOL_MM = 0.05
+
+#: A turn point at an end of the fold edge stays one where the unfolded outline turns by at least this
+#: (degrees): a square corner at the fold becomes a straight line; a V-neck's point stays a corner.
+KEEP_TURN_DEG = 20.0
+
+
+def _tolerance(piece: Piece) -> float:
+    return max(FOLD_TOL_MM, FOLD_TOL_REL * piece.size, 2.0 * piece.tolerance)
+
+
+def _line(fold: Any) -> tuple[np.ndarray, np.ndarray, float]:
+    a, b = (np.asarray(p, dtype=np.float64)[:2] for p in (fold[0], fold[-1]))
+    length = float(np.hypot(*(b - a)))
+    if not (np.isfinite(a).all() and np.isfinite(b).all()) or not length > 0:
+        raise InputError("the fold line has no length")
+    return a, (b - a) / length, length
+
+
+def _runs(on: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal cyclic runs ``(start, length)`` of True in ``on`` (one run of all if every one is)."""
+    n = len(on)
+    if on.all():
+        return [(0, n)]
+    start = int(np.argmin(on))                       # a False: no run wraps past it
+    out, k = [], 0
+    while k < n:
+        i = (start + k) % n
+        if on[i]:
+            m = 0
+            while k + m < n and on[(start + k + m) % n]:
+                m += 1
+            out.append((i, m))
+            k += m
+        else:
+            k += 1
+    return out
+
+
+def fold_edge(piece: Piece, fold: Any | None = None) -> tuple[int, int]:
+    """The part of ``piece``'s outline along its fold line: indices ``(first, last)`` of the outline
+    points where it starts and ends (counter-clockwise, ``first`` to ``last``).
+
+    Parameters
+    ----------
+    piece : Piece
+    fold : array_like, optional
+        The fold line's two end points (mm); by default ``piece.meta["fold_line"]``.
+
+    Raises
+    ------
+    InputError
+        No fold line, a fold line along no edge of the outline (two outline points on it,
+        consecutive, spanning part of it), or an outline on both sides of it.
+    """
+    fold = piece.meta.get("fold_line") if fold is None else fold
+    label = f"piece {piece.name!r}"
+    if fold is None:
+        raise InputError(f"{label}: no fold line (the file marks none)")
+    try:
+        a, d, length = _line(fold)
+    except InputError as exc:
+        raise InputError(f"{label}: {exc}") from None
+    o = piece.outline
+    tol = _tolerance(piece)
+    rel = o - a
+    off = rel[:, 0] * d[1] - rel[:, 1] * d[0]          # signed distance from the line
+    along = rel @ d
+    on = np.abs(off) <= tol
+    best, overlap = None, 0.0
+    for start, m in _runs(on):
+        if m < 2 or m == len(o):
+            continue
+        t = along[(start + np.arange(m)) % len(o)]
+        got = min(t.max(), length) - max(t.min(), 0.0)
+        if got > overlap:
+            best, overlap = (start, m), got
+    if best is None or overlap < 0.5 * length:
+        raise InputError(f"{label}: its fold line ({_pt(a)} to {_pt(a + d * length)}) runs along no "
+                         "edge of its outline, so it cannot be unfolded")
+    start, m = best
+    run = (start + np.arange(m)) % len(o)
+    rest = np.ones(len(o), bool)
+    rest[run] = False
+    side = off[rest & ~on]
+    if (side > tol).any() and (side < -tol).any():
+        raise InputError(f"{label}: its outline lies on both sides of its fold line, so it cannot be "
+                         "unfolded")
+    return int(run[0]), int(run[-1])
+
+
+def _pt(p: np.ndarray) -> str:
+    return f"({p[0]:.6g}, {p[1]:.6g})"
+
+
+def _turn_deg(prev: np.ndarray, at: np.ndarray, nxt: np.ndarray) -> float:
+    u, v = at - prev, nxt - at
+    return float(np.degrees(abs(np.arctan2(u[0] * v[1] - u[1] * v[0], u @ v))))
+
+
+def unfold(piece: Piece, fold: Any | None = None) -> Piece:
+    """The whole piece of a half cut on the fold: ``piece``'s outline and its mirror image across the
+    fold line (:func:`fold_edge`), counter-clockwise, starting at the far end of the fold edge.
+
+    The outline's vertices and turn points are carried over, and their mirror images added; the
+    fold edge's inner points are dropped, and a turn point at either of its ends is kept where the
+    unfolded outline turns there by :data:`KEEP_TURN_DEG` or more. The grain line is kept;
+    ``meta["internal_lines"]`` gain their mirror images. ``meta["unfolded"]`` is True and a note says
+    so.
+
+    Raises
+    ------
+    InputError
+        As :func:`fold_edge`.
+    """
+    first, last = fold_edge(piece, fold)
+    fold = piece.meta.get("fold_line") if fold is None else fold
+    a, d, _ = _line(fold)
+    o = piece.outline
+    n = len(o)
+    # the half from the fold edge's last point round to its first, off the line between
+    idx = (last + np.arange((first - last) % n + 1)) % n
+    half = o[idx]
+    # the end points on the line exactly (within the tolerance they were), so the two halves meet
+    for k in (0, -1):
+        rel = half[k] - a
+        half[k] = a + d * (rel @ d)
+
+    def mirror(p: np.ndarray) -> np.ndarray:
+        rel = p - a
+        return a + 2.0 * np.outer(rel @ d, d) - rel if p.ndim == 2 else a + 2.0 * (rel @ d) * d - rel
+
+    h = len(half)
+    back = mirror(half[::-1])[1:-1]
+    points = np.vstack([half, back])                 # half, then its image from the first point's side
+    position = {int(i): k for k, i in enumerate(idx)}
+
+    def carried(indices: np.ndarray, ends: bool) -> np.ndarray:
+        out = []
+        for i in indices:
+            k = position.get(int(i))
+            if k is None:
+                continue
+            if k in (0, h - 1):                      # an end of the fold edge: once, if it still turns
+                if ends:
+                    j = k
+                    prev = back[-1] if j == 0 else half[j - 1]
+                    nxt = half[1] if j == 0 else back[0] if len(back) else half[0]
+                    if _turn_deg(prev, half[j], nxt) >= KEEP_TURN_DEG:
+                        out.append(j)
+                else:
+                    out.append(k)
+                continue
+            out.extend([k, h + (h - 2 - k)])          # itself and its image
+        return np.unique(np.array(out, dtype=np.int64))
+
+    meta = dict(piece.meta)
+    meta["unfolded"] = True
+    if meta.get("internal_lines"):
+        meta["internal_lines"] = list(meta["internal_lines"]) + [
+            [[float(x), float(y)] for x, y in mirror(np.asarray(line, dtype=np.float64))]
+            for line in meta["internal_lines"]]
+    whole = piece_from_polygon(piece.name, points, vertices=carried(piece.vertices, False),
+                               turn_points=carried(piece.turn_points, True), grain_line=piece.grain_line,
+                               units=piece.units, source=piece.source, tolerance=piece.tolerance,
+                               notes=piece.notes + (
+                                   f"unfolded across its fold line ({_pt(a)} to "
+                                   f"{_pt(np.asarray(fold[-1], dtype=np.float64))} mm): the outline "
+                                   "and its mirror image",),
+                               meta=meta)
+    return whole
+
+
+def unfolded(pieces: Sequence[Piece]) -> list[Piece]:
+    """``pieces`` with every piece that has a fold line unfolded (:func:`unfold`); the others as
+    they are."""
+    return [unfold(p) if p.meta.get("fold_line") is not None else p for p in pieces]
+
+
+def attach_fold_lines(pieces: Sequence[Piece], lines: Sequence[Any]) -> list[Piece]:
+    """``pieces`` with each fold line of ``lines`` (two end points each, mm) in the ``meta`` of the
+    piece whose outline it runs along (:func:`fold_edge`), the first such piece; a line along
+    no piece's edge is dropped."""
+    out = list(pieces)
+    for line in lines:
+        for k, p in enumerate(out):
+            if p.meta.get("fold_line") is not None:
+                continue
+            try:
+                fold_edge(p, line)
+            except InputError:
+                continue
+            ends = [[float(v) for v in np.asarray(line[0], dtype=np.float64)[:2]],
+                    [float(v) for v in np.asarray(line[-1], dtype=np.float64)[:2]]]
+            out[k] = replace(p, meta={**p.meta, "fold_line": ends})
+            break
+    return out
