@@ -22,7 +22,6 @@ pytest.importorskip("svgpathtools")
 HERE = Path(__file__).parent
 SHARED = HERE.resolve().parents[1] / "shared" / "patterns"
 AARON = HERE / "data" / "freesewing" / "aaron_v3_pattern.svg"
-EXAMPLES = HERE.parent / "examples"
 
 
 def _moved(points: np.ndarray, angle: float, shift: np.ndarray) -> np.ndarray:
@@ -175,37 +174,6 @@ def test_freesewing_2_cut_on_fold_text():
     (side,) = [p for p in select_pieces(SHARED / "fs_florent_layout.svg") if p.meta.get("fold_line")]
     whole = unfold(side)
     assert whole.area == pytest.approx(2 * side.area, rel=1e-9)
-
-
-def test_example_stitches_aaron_unfolded_tank(tmp_path, capsys):
-    """examples/fs_aaron_stitches.json: Aaron's front and back halves unfolded ("unfold": true) and
-    sewn at the side seams and shoulders: every seam node for node on the unfolded outlines, no
-    folded cell, and welded one oriented manifold sheet with four boundary loops (hem, neck, two
-    armholes)."""
-    from clothgrid.garment_seams import mesh_report
-    from test_garment import _check_seams_node_for_node
-
-    st = EXAMPLES / "fs_aaron_stitches.json"
-    out = tmp_path / "tank.npz"
-    assert main(["garment", str(AARON), "--stitches", str(st), "-o", str(out), "--edge-length", "2cm",
-                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
-    with np.load(out) as d:
-        r = {k: d[k] for k in d.files}
-    _check_seams_node_for_node(r, st, AARON, unfold=True)
-    info = json.loads(str(r["info"]))
-    assert sum(p["folded"] for p in info["panels"]) == 0
-    rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
-    assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 4
-    # the stitches file's "unfold": a piece without a fold line, or a bad value, is one error line
-    data = json.loads(st.read_text())
-    for value, words in ((["front", "nope"], "the pattern has no piece 'nope'"), (3, "'unfold' must be true")):
-        data["unfold"] = value
-        bad = tmp_path / "bad.json"
-        bad.write_text(json.dumps(data))
-        assert main(["garment", str(AARON), "--stitches", str(bad), "-o", str(tmp_path / "x.npz"), "-q"]) == 2
-        err = capsys.readouterr().err
-        assert words in err and err.count("clothgrid: error:") == 1
-        assert not (tmp_path / "x.npz").exists()
 
 
 @pytest.mark.skipif(not (SHARED / "astm_DEEP_ARMHOLE_RACER.DXF").is_file(), reason=f"no {SHARED}")

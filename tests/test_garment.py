@@ -489,20 +489,49 @@ def test_svg_without_stitches_is_an_input_error(tmp_path, capsys):
     assert "--stitches" in capsys.readouterr().err
 
 
+def _sewn_example(tmp_path, capsys, stitches, pattern, unfold=False):
+    """``clothgrid garment PATTERN --stitches FILE`` at 2 cm, welded: its arrays, after checking
+    every seam node for node (on the unfolded outlines with ``unfold``) and that no cell folds, and
+    the welded mesh's report."""
+    out = tmp_path / "garment.npz"
+    assert main(["garment", str(pattern), "--stitches", str(stitches), "-o", str(out), "--edge-length", "2cm",
+                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
+    with np.load(out) as d:
+        r = {k: d[k] for k in d.files}
+    _check_seams_node_for_node(r, stitches, pattern, unfold=unfold)
+    info = json.loads(str(r["info"]))
+    assert sum(p["folded"] for p in info["panels"]) == 0
+    return r, mesh_report(r["welded_quads"], len(r["welded_points"]))
+
+
+def test_example_stitches_aaron_unfolded_tank(tmp_path, capsys):
+    """examples/fs_aaron_stitches.json: FreeSewing's Aaron (tests/data), its front and back halves
+    unfolded ("unfold": true) and sewn at the side seams and shoulders: every seam node for node on
+    the unfolded outlines, no folded cell, and welded one oriented manifold sheet with four boundary
+    loops (hem, neck, two armholes). The stitches file's "unfold" naming an unknown piece, or not a
+    list or boolean, is one error line."""
+    aaron = Path(__file__).parent / "data" / "freesewing" / "aaron_v3_pattern.svg"
+    st = EXAMPLES / "fs_aaron_stitches.json"
+    r, rep = _sewn_example(tmp_path, capsys, st, aaron, unfold=True)
+    assert list(r["panel_names"]) == ["front", "back"]
+    assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 4
+    data = json.loads(st.read_text())
+    for value, words in ((["front", "nope"], "the pattern has no piece 'nope'"), (3, "'unfold' must be true")):
+        data["unfold"] = value
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(data))
+        assert main(["garment", str(aaron), "--stitches", str(bad), "-o", str(tmp_path / "x.npz"), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("clothgrid: error:") == 1
+        assert not (tmp_path / "x.npz").exists()
+
+
 @pytest.mark.skipif(not CATHRIN.is_file(), reason=f"no {CATHRIN}")
 def test_example_stitches_cathrin_corset(tmp_path, capsys):
     """examples/fs_cathrin_stitches.json: FreeSewing's Cathrin corset, 7 panels sewn side by side."""
     st = EXAMPLES / "fs_cathrin_stitches.json"
-    out = tmp_path / "corset.npz"
-    assert main(["garment", str(CATHRIN), "--stitches", str(st), "-o", str(out), "--edge-length", "2cm",
-                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
-    with np.load(out) as d:
-        r = {k: d[k] for k in d.files}
-    _check_seams_node_for_node(r, st, CATHRIN)
+    r, rep = _sewn_example(tmp_path, capsys, st, CATHRIN)
     assert list(r["panel_names"]) == [f"panel{k}" for k in range(1, 8)]
-    info = json.loads(str(r["info"]))
-    assert sum(p["folded"] for p in info["panels"]) == 0
-    rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
     assert rep["nonmanifold_edges"] == 0 and rep["oriented"] and len(rep["boundary_loops"]) == 1
     assert rep["euler"] == 1                                 # one sheet (a disk): the corset laid open
     # the same file written with the names an earlier release gave the panels (their path ids, now

@@ -971,6 +971,8 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
         if e["grain_line"] is not None:
             (x0, y0), (x1, y1) = e["grain_line"]
             print(f"  grain line: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm")
+        if e["cut"]:
+            print(f"  cut {pipeline.cut_text(e['cut'])}")
         if e["fold_line"] is not None and not e["unfolded"]:
             (x0, y0), (x1, y1) = e["fold_line"]
             print(f"  cut on the fold: {x0:.6g},{y0:.6g} -> {x1:.6g},{y1:.6g} mm (this is half the piece; "

@@ -61,7 +61,7 @@ from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
-           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "unfolded_pieces", "corner_choice",
+           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "unfolded_pieces", "cut_of", "corner_choice",
            "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
@@ -1011,12 +1011,36 @@ def piece_listing(pieces: Sequence[Piece], *, min_turn: float | None = None, can
             "grain_line": None if piece.grain_line is None else piece.grain_line.tolist(),
             "corners": choice.as_dict(), "line": piece.meta.get("line"), "notes": list(piece.notes),
             "fold_line": piece.meta.get("fold_line"), "unfolded": bool(piece.meta.get("unfolded")),
+            "cut": cut_of(piece),
         }
         if candidates:
             entry["candidates"] = [c.as_dict() for c in
                                    corner_candidates(piece, MIN_TURN_DEG if min_turn is None else min_turn)]
         out.append(entry)
     return out
+
+
+def cut_of(piece: Piece) -> list[dict[str, Any]]:
+    """What the file says to cut of ``piece``: the cut instructions drawn on it (``meta["cut"]``, SVG:
+    :func:`~clothgrid.patterns.piece.cut_instructions`), else its AAMA/flat DXF ``Quantity:`` (whether
+    mirrored unknown: ``None``), else ``[]``."""
+    if piece.meta.get("cut"):
+        return [dict(c) for c in piece.meta["cut"]]
+    try:
+        n = int(str(piece.meta.get("quantity", "")).strip())
+    except ValueError:
+        return []
+    if not 0 < n <= 1000:
+        return []
+    return [{"count": n, "material": piece.meta.get("material"), "mirrored": None,
+             "on_fold": piece.meta.get("fold_line") is not None}]
+
+
+def cut_text(cut: Sequence[dict[str, Any]]) -> str:
+    """:func:`cut_of`'s answer in words: ``2 mirrored from main fabric; 2 from interfacing``."""
+    return "; ".join(f"{c['count']}" + (" mirrored" if c.get("mirrored") else "")
+                     + (" on the fold" if c.get("on_fold") else "")
+                     + (f" from {c['material']}" if c.get("material") else "") for c in cut)
 
 
 def skipped_listing(pieces: Sequence[Piece]) -> list[dict[str, Any]]:

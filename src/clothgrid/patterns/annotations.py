@@ -363,11 +363,16 @@ def classify(pieces: Sequence[Piece], unmade: Sequence[tuple[PieceFailure, dict]
     # 2b. frames: an axis-aligned rectangle holding several outlines side by side, not all of them
     # rectangles (a plot's frame or page background around the pieces: OpenPattern's matplotlib
     # drawings; a page border), is no piece, and what it holds is not drawn on it
+    holds: dict[int, list[int]] = {}              # outline -> the outlines it holds, largest first
+    for j in order:
+        for i in containers[j]:
+            holds.setdefault(i, []).append(j)
     for i in order:
         it = items[i]
-        if it.kind not in (None, "seam allowance") or is_piece_class[i] or not _rectangle(it.piece):
+        if (len(holds.get(i, ())) < 2 or it.kind not in (None, "seam allowance") or is_piece_class[i]
+                or not _rectangle(it.piece)):
             continue
-        held = [j for j in order if i in containers[j] and items[j].kind is None and not _rectangle(items[j].piece)
+        held = [j for j in holds[i] if items[j].kind is None and not _rectangle(items[j].piece)
                 and items[j].piece.area >= FRAME_CONTENT * it.piece.area]
         held = [j for j in held if not any(k in held for k in containers[j])]          # top level
         if len(held) < 2:

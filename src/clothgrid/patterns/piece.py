@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Sequence
@@ -255,6 +256,45 @@ class Pieces(list):
                 added.append(piece)
         return Pieces(list(self) + added, self.failed,
                       [s for s in self.skipped if s.name not in wanted])
+
+
+_CUT_SAYS = re.compile(r"^\s*cut\s+(?P<n>\d+)\s*(?:x\b|times\b|pieces?\b)?(?P<rest>.*)$", re.IGNORECASE)
+_TIMES = re.compile(r"^\s*(?P<n>\d+)\s*x\s*(?P<rest>.*)$", re.IGNORECASE)
+_MIRRORED = re.compile(r"\b(mirrored|mirror|pairs?|reversed|flipped)\b", re.IGNORECASE)
+_ON_FOLD = re.compile(r"\b(cut\s+)?on\s+(the\s+)?fold\b", re.IGNORECASE)
+
+
+def cut_instructions(text: str) -> list[dict[str, Any]]:
+    """What a pattern's text says to cut of a piece, as ``[{"count", "material", "mirrored",
+    "on_fold"}, ...]`` (one entry a material), or ``[]`` where it says no such thing.
+
+    FreeSewing 3 and 4: ``Cut 2 mirrored from main fabric``, ``Cut 1 on the fold from main fabric``,
+    ``Cut 1 from plugin-annotations:ribbing`` (a translation key: ``ribbing``); FreeSewing 2:
+    ``2x from main fabric, 2x from interfacing``, ``1x main, 1x lining Cut on fold``; others:
+    ``Cut 2 Fabric``.
+    """
+    text = " ".join(str(text).split())
+    on_fold = bool(_ON_FOLD.search(text))
+    parts: list[tuple[int, str]] = []
+    m = _CUT_SAYS.match(text)
+    if m:
+        parts.append((int(m["n"]), m["rest"]))
+    else:
+        for chunk in text.split(","):
+            t = _TIMES.match(chunk)
+            if not t:
+                return []
+            parts.append((int(t["n"]), t["rest"]))
+    out = []
+    for n, rest in parts:
+        if not 0 < n <= 1000:
+            return []
+        mirrored = bool(_MIRRORED.search(rest))
+        material = _ON_FOLD.sub(" ", _MIRRORED.sub(" ", rest))
+        material = re.sub(r"^\s*(from|of|in)\b", " ", material.strip(), flags=re.IGNORECASE)
+        material = " ".join(material.split(":")[-1].split()) or None
+        out.append({"count": n, "material": material, "mirrored": mirrored, "on_fold": on_fold})
+    return out
 
 
 def outline_box(prims: Any) -> tuple[tuple[float, float], tuple[float, float]] | None:

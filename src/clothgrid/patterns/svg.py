@@ -47,7 +47,7 @@ from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
 from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
 from .fold import attach_fold_lines
-from .piece import (Piece, PieceFailure, Pieces, Skipped, outline_box, piece_failure, piece_from_points,
+from .piece import (Piece, PieceFailure, Pieces, Skipped, cut_instructions, outline_box, piece_failure, piece_from_points,
                     piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
 from ..units import UNITS, unit_to_mm
@@ -451,10 +451,16 @@ def _label_score(text: str) -> int:
 
 def _text_label(el: ET.Element, m: np.ndarray, where: str) -> tuple[str, np.ndarray] | None:
     """A ``<text>`` element's words (its ``<tspan>`` elements' too, spaces collapsed) and its anchor point
-    (its own ``x``, ``y``, else its first ``<tspan>``'s, transformed), or None where it has no words,
-    more than 80 characters, or no readable place."""
+    (its own ``x``, ``y``, else its first ``<tspan>``'s, transformed), or None where it has no words
+    naming a garment piece (:func:`_label_score`), more than 80 characters, or no readable place."""
+    got = _text_anchor(el, m, where)
+    return got if got is not None and _label_score(got[0]) else None
+
+
+def _text_anchor(el: ET.Element, m: np.ndarray, where: str) -> tuple[str, np.ndarray] | None:
+    """A ``<text>`` element's words and anchor point (:func:`_text_label`), whatever they say."""
     content = " ".join("".join(el.itertext()).split())
-    if not content or len(content) > 80 or not _label_score(content):
+    if not content or len(content) > 80:
         return None
     place = el
     if el.get("x") is None and el.get("y") is None:
@@ -723,6 +729,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     made_as = {"where": f"{where}: ", "units": unit, "source": "svg", "notes": (f"units: {how}",)}   # every piece's
     labels: list[tuple[str, np.ndarray]] = []        # texts that may name a piece, and their places
     folds: list[np.ndarray] = []                     # the ends of "cut on fold" marks (mm)
+    cuts: list[tuple[list, str, np.ndarray]] = []    # cut instructions ("Cut 2 mirrored"), their texts and places
     unnamed: set[str] = set()                        # pieces named by a fallback (piece3, outline)
 
     def unique(name: str) -> str:
@@ -749,9 +756,14 @@ def read_svg(path: str | Path, *, units: str | None = None,
         nonlocal open_paths, counter, drawn_uses
         tag = _local(el.tag)
         if tag == "text" and not _hidden(el):       # a label, perhaps a piece's name (_named_by_labels)
-            got = _text_label(el, m, where)
-            if got is not None:
+            got = _text_anchor(el, m, where)
+            if got is not None and _label_score(got[0]):
                 labels.append(got)
+            if got is not None:             # cut instructions, a line (a <tspan>) at a time
+                lines = [" ".join("".join(t.itertext()).split()) for t in el if _local(t.tag) == "tspan"]
+                cut = [c for line in (lines or [got[0]]) for c in cut_instructions(line)]
+                if cut:
+                    cuts.append((cut, got[0], got[1]))
             return
         if (tag in _SKIP and not (ref and tag == "symbol")) or _hidden(el):
             return
@@ -948,7 +960,22 @@ def read_svg(path: str | Path, *, units: str | None = None,
     got = _exact(got, drafts) if drafts else got
     if folds:                               # a piece cut on the fold: its fold line (fold.unfold)
         got = Pieces(attach_fold_lines(got, folds), got.failed, got.skipped)
+    if cuts:                                # how many to cut, of what: the text drawn on the piece
+        got = Pieces(_with_cut_instructions(got, cuts), got.failed, got.skipped)
     return got
+
+
+def _with_cut_instructions(pieces: list[Piece], cuts: list[tuple[list, str, np.ndarray]]) -> list[Piece]:
+    """``pieces`` with each cut instruction (:func:`~clothgrid.patterns.piece.cut_instructions`) in
+    ``meta["cut"]`` of the smallest piece around its text's anchor (the first text of a piece)."""
+    out = list(pieces)
+    order = sorted(range(len(out)), key=lambda k: out[k].area)
+    for cut, text, point in cuts:
+        for k in order:
+            if "cut" not in out[k].meta and points_in_polygon(point[None, :], out[k].outline)[0]:
+                out[k] = replace(out[k], meta={**out[k].meta, "cut": cut, "cut_text": text})
+                break
+    return out
 
 
 #: FreeSewing's "cut on fold" mark: a path drawn with these markers (``url(#cutonfoldFrom)``)

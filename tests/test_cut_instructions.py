@@ -1,0 +1,73 @@
+"""What a pattern says to cut of each piece ("Cut 2 mirrored from main fabric"): parsed from the
+texts drawn on SVG pieces, from AAMA/flat DXF ``Quantity:`` texts, and listed by ``clothgrid pieces``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from clothgrid.cli import main
+from clothgrid.patterns.piece import cut_instructions
+from clothgrid.pipeline import cut_of, select_pieces
+
+pytest.importorskip("svgpathtools")
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "patterns"
+
+
+def C(n, material=None, mirrored=False, on_fold=False):
+    return {"count": n, "material": material, "mirrored": mirrored, "on_fold": on_fold}
+
+
+@pytest.mark.parametrize("text, want", [
+    # FreeSewing 3 and 4 (a translation key names the material)
+    ("Cut  2 mirrored  from  main fabric  ", [C(2, "main fabric", mirrored=True)]),
+    ("Cut  1 on the fold  from  main fabric", [C(1, "main fabric", on_fold=True)]),
+    ("Cut  1 from  plugin-annotations:ribbing", [C(1, "ribbing")]),
+    # FreeSewing 2
+    ("2x from main fabric", [C(2, "main fabric")]),
+    ("4x from main fabric, 4x from interfacing", [C(4, "main fabric"), C(4, "interfacing")]),
+    ("1x  main, 1x lining Cut on fold", [C(1, "main", on_fold=True), C(1, "lining", on_fold=True)]),
+    ("Cut 2 Fabric", [C(2, "Fabric")]),
+    ("cut 3 pairs", [C(3, mirrored=True)]),
+    # not cut instructions
+    ("Cut on fold", []), ("Front", []), ("cutTwoStripsToFinishTheArmholes :", []), ("2x4 lumber, front", []),
+    ("Cut 0 from fabric", []),
+])
+def test_cut_instructions_parse(text, want):
+    assert cut_instructions(text) == want
+
+
+@pytest.mark.skipif(not (SHARED / "fs_wahid_layout.svg").is_file(), reason=f"no {SHARED}")
+def test_freesewing_pieces_say_what_to_cut(capsys):
+    """FreeSewing 2's Wahid waistcoat and Florent cap: each part's title says how many to cut of
+    which material, a line (``<tspan>``) at a time; the text goes to the smallest piece around it;
+    `pieces` prints it and its JSON has it."""
+    got = {p.name: cut_of(p) for p in select_pieces(SHARED / "fs_wahid_layout.svg")}
+    assert got["front"] == [C(2, "main fabric")]
+    assert got["back"] == [C(2, "main fabric"), C(2, "lining")]          # two lines, one text
+    assert got["pocketBag"] == [C(2, "lining")] and got["pocketInterfacing"] == [C(2, "interfacing")]
+    florent = {p.name: cut_of(p) for p in select_pieces(SHARED / "fs_florent_layout.svg")}
+    assert florent["side"] == [C(1, "main", on_fold=True), C(1, "lining", on_fold=True)]
+    assert main(["pieces", str(SHARED / "fs_wahid_layout.svg")]) == 0
+    assert "  cut 2 from main fabric; 2 from lining" in capsys.readouterr().out
+    assert main(["pieces", str(SHARED / "fs_wahid_layout.svg"), "--json"]) == 0
+    listing = {p["name"]: p for p in json.loads(capsys.readouterr().out)["pieces"]}
+    assert listing["pocketWelt"]["cut"] == [C(2, "main fabric")]
+
+
+def test_dxf_quantity_is_what_to_cut(tmp_path):
+    """An AAMA or flat DXF piece's ``Quantity:`` text (whether mirrored unknown: None)."""
+    ezdxf = pytest.importorskip("ezdxf")
+    doc = ezdxf.new("R2010")
+    doc.units = 4
+    msp = doc.modelspace()
+    msp.add_lwpolyline([(0, 0), (100, 0), (100, 60), (0, 60)], close=True)
+    for text, at in (("Piece Name: Cuff", (10, 30)), ("Quantity: 2", (10, 20)), ("Material: Rib", (10, 10))):
+        msp.add_text(text, dxfattribs={"insert": at, "height": 2})
+    path = tmp_path / "cuff.dxf"
+    doc.saveas(path)
+    (piece,) = select_pieces(path)
+    assert piece.name == "Cuff" and cut_of(piece) == [C(2, "Rib", mirrored=None)]
