@@ -410,12 +410,12 @@ def _stitched(tmp_path, seams=SQUARES_SEAMS):
     return svg, st
 
 
-def _check_seams_node_for_node(r, stitches_file, pattern, unfold=False):
+def _check_seams_node_for_node(r, stitches_file, pattern, unfold=False, extra=None):
     """Every seam of the file: equal counts, its nodes at the range's ends, matching fractions (of
-    the pieces unfolded, with ``unfold``)."""
+    the pieces unfolded, with ``unfold``; ``extra``: more pieces by name, the file's copies)."""
     from clothgrid.pipeline import select_pieces
 
-    pieces = {p.name: p for p in select_pieces(pattern, unfold=unfold)}
+    pieces = {p.name: p for p in select_pieces(pattern, unfold=unfold)} | dict(extra or {})
     names = list(r["panel_names"])
     seams = json.loads(Path(stitches_file).read_text())["seams"]
     assert set(np.unique(r["stitch_id"])) == set(range(len(seams)))
@@ -487,6 +487,44 @@ def test_svg_without_stitches_is_an_input_error(tmp_path, capsys):
     svg, _ = _stitched(tmp_path)
     assert main(["garment", str(svg), "-o", str(tmp_path / "g.npz"), "-q"]) == 2
     assert "--stitches" in capsys.readouterr().err
+
+
+def test_stitches_file_copies_a_piece_mirrored(tmp_path, capsys):
+    """"copies": {"B2": {"of": "B"}} adds B's mirror image (the other sleeve of a pair cut "2
+    mirrored"), across the vertical line through B's box centre, its outline point k being B's
+    point (n - k) % n: sewn to A's left side, with its dart, node for node; a copy named like a
+    piece, of an unknown piece, or with a 'mirrored' that is no boolean, is one error line."""
+    from types import SimpleNamespace
+
+    seams = {"clothgrid_stitches": 1, "copies": {"B2": {"of": "B", "mirrored": True}}, "seams": [
+        *SQUARES_SEAMS["seams"],
+        {"a": {"piece": "B2", "range": [0, 1]}, "b": {"piece": "A", "range": [3, 0]}, "label": "B2's right ~ A's left"},
+        {"a": {"piece": "B2", "range": [2, 3]}, "b": {"piece": "B2", "range": [3, 4]}, "label": "B2's dart"}]}
+    svg, st = _stitched(tmp_path, seams)
+    out = tmp_path / "g.npz"
+    assert main(["garment", str(svg), "--stitches", str(st), "-o", str(out), "--edge-length", "1cm",
+                 "--seams", "weld", "-q"]) == 0, capsys.readouterr().err
+    with np.load(out) as d:
+        r = {k: d[k] for k in d.files}
+    assert list(r["panel_names"]) == ["A", "B", "B2"]
+    # B's mirror image, made here: x -> 400 - x (B spans 150 .. 250 mm), point k -> (n - k) % n
+    from clothgrid.readers import read_pieces
+
+    b = {p.name: p for p in read_pieces(svg)}["B"]
+    n = len(b.outline)
+    image = b.outline[(n - np.arange(n)) % n] * [-1, 1] + [400, 0]
+    np.testing.assert_allclose(image[3], [210, 120])            # the dart's tip: B's point 4
+    _check_seams_node_for_node(r, st, svg, extra={"B2": SimpleNamespace(outline=image, size=b.size)})
+    assert sum(p["folded"] for p in json.loads(str(r["info"]))["panels"]) == 0
+    for copies, words in (({"A": {"of": "B"}}, "already has a piece of that name"),
+                          ({"C": {"of": "Z"}}, "has no piece 'Z'"),
+                          ({"C": {"of": "B", "mirrored": "yes"}}, "'mirrored' must be true or false"),
+                          ([1], "'copies' must be an object")):
+        _, bad = _stitched(tmp_path, {**seams, "copies": copies})
+        assert main(["garment", str(svg), "--stitches", str(bad), "-o", str(tmp_path / "x.npz"), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("clothgrid: error:") == 1
+        assert not (tmp_path / "x.npz").exists()
 
 
 def _sewn_example(tmp_path, capsys, stitches, pattern, unfold=False):

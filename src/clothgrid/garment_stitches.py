@@ -22,7 +22,10 @@ sides of a seam are joined as GarmentCode joins a stitch: ``a``'s end meets
 of one piece (a dart) may share an end (the dart's tip). ``"unfold"`` (``true``, or a
 list of piece names) makes the pieces cut on the fold whole first
 (:func:`clothgrid.patterns.fold.unfold`); their ranges are then those of
-``clothgrid pieces FILE --unfold --candidates``.
+``clothgrid pieces FILE --unfold --candidates``. ``"copies"`` (``{NAME: {"of": PIECE,
+"mirrored": true}}``) adds a second piece cut from one of the pattern's, its mirror image by
+default (the other sleeve): outline point ``k`` of the piece is point ``(n - k) % n`` of its
+mirror image, so a range ``[I, J]`` on the piece is ``[(n - J) % n, (n - I) % n]`` on it.
 
 Each piece becomes one :class:`~clothgrid.patterns.garmentcode.SpecPanel`
 whose edges are :class:`Polyline` parts of its outline, cut at the seams'
@@ -116,6 +119,40 @@ def _unfolded(pieces: dict[str, Any], unfold: Any, path: Path, resolve: Any) -> 
     return out
 
 
+def _copies(pieces: dict[str, Any], copies: Any, path: Path, resolve: Any) -> dict[str, Any]:
+    """``pieces`` and the copies the stitches file's ``"copies"`` asks for: ``{NAME: {"of": PIECE,
+    "mirrored": true}}``, a second piece cut from the pattern's one, its mirror image by default
+    (:func:`clothgrid.patterns.fold.mirrored`: outline point ``k`` of the piece is point ``(n - k)
+    % n`` of the mirror image) or the same with ``"mirrored": false``."""
+    from dataclasses import replace
+
+    from .patterns.fold import mirrored
+
+    if not isinstance(copies, dict):
+        raise InputError(f"{path}: 'copies' must be an object {{NAME: {{\"of\": PIECE, \"mirrored\": true}}}}, "
+                         f"not {copies!r}")
+    out = dict(pieces)
+    for name, spec in copies.items():
+        what = f"{path}: copy {name!r}"
+        if not isinstance(spec, dict) or not isinstance(spec.get("of"), str):
+            raise InputError(f"{what} must be {{\"of\": PIECE, \"mirrored\": true}}, not {spec!r}")
+        flip = spec.get("mirrored", True)
+        if not isinstance(flip, bool):
+            raise InputError(f"{what}: 'mirrored' must be true or false, not {flip!r}")
+        if name in out or resolve(name) in pieces:
+            raise InputError(f"{what}: the pattern already has a piece of that name")
+        of = resolve(spec["of"])
+        if of not in pieces:
+            raise InputError(f"{what}: the pattern has no piece {of!r} (its pieces: "
+                             f"{', '.join(map(repr, pieces))})")
+        try:
+            out[name] = mirrored(pieces[of], name) if flip else replace(
+                pieces[of], name=name, meta={**pieces[of].meta, "copy_of": of})
+        except InputError as exc:
+            raise InputError(f"{what}: {exc}") from None
+    return out
+
+
 def _side(side: Any, pieces: dict[str, Any], what: str, resolve: Any = str) -> tuple[str, int, int]:
     if not isinstance(side, dict) or "piece" not in side or "range" not in side:
         raise InputError(f"{what} must be {{\"piece\": NAME, \"range\": [START, END]}}, not {side!r}")
@@ -197,6 +234,7 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
     # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
     resolve = got.resolve
     pieces = _unfolded({p.name: p for p in got}, data.get("unfold", False), stitches, resolve)
+    pieces = _copies(pieces, data.get("copies", {}), stitches, resolve)
     seams = []
     for k, s in enumerate(data["seams"]):
         what = f"{stitches}: seam {k}"

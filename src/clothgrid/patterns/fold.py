@@ -1,4 +1,5 @@
-"""Pieces cut on the fold: their fold line, and the whole piece unfolded across it.
+"""Pieces cut on the fold (their fold line, and the whole piece unfolded across it) and pieces cut
+in mirrored pairs (:func:`mirrored`).
 
 A pattern draws a symmetric piece (a T-shirt's back, a skirt's front) as one half, cut with its
 straight centre edge on the fold of the fabric. The cloth is the whole piece. Pattern files say so:
@@ -24,7 +25,7 @@ import numpy as np
 from ..errors import InputError
 from .piece import Piece, piece_from_polygon
 
-__all__ = ["FOLD_TOL_REL", "FOLD_TOL_MM", "fold_edge", "unfold", "unfolded", "attach_fold_lines"]
+__all__ = ["FOLD_TOL_REL", "FOLD_TOL_MM", "fold_edge", "unfold", "unfolded", "mirrored", "attach_fold_lines"]
 
 #: How far (relative to the piece's size, and at least :data:`FOLD_TOL_MM`) an outline point may lie
 #: from the fold line and still be on it.
@@ -200,6 +201,37 @@ def unfold(piece: Piece, fold: Any | None = None) -> Piece:
                                    "and its mirror image",),
                                meta=meta)
     return whole
+
+
+def mirrored(piece: Piece, name: str | None = None) -> Piece:
+    """The mirror image of ``piece`` (the second of a pair cut "2 mirrored": a left and a right
+    sleeve), across the vertical line through the centre of its bounding box, counter-clockwise
+    again and named ``name`` (default: the same name).
+
+    Outline point ``k`` of ``piece`` is point ``(n - k) % n`` of its image (``n`` points), so the
+    part of the outline from ``i`` to ``j`` (counter-clockwise) is the image's from ``(n - j) % n``
+    to ``(n - i) % n``. Vertices, turn points, the grain line, the fold line and internal lines are
+    mirrored with it; ``meta["mirror_of"]`` names the original.
+    """
+    c = 0.5 * (piece.outline[:, 0].min() + piece.outline[:, 0].max())
+
+    def flip(points: Any) -> np.ndarray:
+        q = np.array(points, dtype=np.float64, copy=True)
+        q[..., 0] = 2.0 * c - q[..., 0]
+        return q
+
+    meta = dict(piece.meta)
+    meta["mirror_of"] = piece.name
+    if meta.get("fold_line") is not None:
+        meta["fold_line"] = flip(meta["fold_line"]).tolist()
+    if meta.get("internal_lines"):
+        meta["internal_lines"] = [flip(line).tolist() for line in meta["internal_lines"]]
+    grain = None if piece.grain_line is None else flip(piece.grain_line)
+    out = piece_from_polygon(name or piece.name, flip(piece.outline), vertices=piece.vertices,
+                             turn_points=piece.turn_points, grain_line=grain, units=piece.units,
+                             source=piece.source, tolerance=piece.tolerance,
+                             notes=piece.notes + (f"the mirror image of piece {piece.name!r}",), meta=meta)
+    return out
 
 
 def unfolded(pieces: Sequence[Piece]) -> list[Piece]:
