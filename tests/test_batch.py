@@ -485,3 +485,26 @@ def test_unfold_in_a_batch_grids_the_whole_pieces_and_keys_the_option(tmp_path):
     assert "unfold" not in plain
     assert options_key("abc", k(OPTS, OutputOptions(), ["{piece}.npz"], None, None, None, unfold=True)) != \
         options_key("abc", plain)
+
+
+def test_grade_in_a_batch_grids_one_size(tmp_path):
+    """``batch --grade SIZE``: a worker grids only that size of a graded pattern (Optitex's Basic Tee,
+    4 pieces of 32); a file without that size is a bad file, with the reason; the size is part of
+    the resume key, spelled any case."""
+    from clothgrid.pipeline import OutputOptions
+
+    src = Path(__file__).parent / "data" / "optitex" / "basic_tee_graded.dxf"
+    task = B.FileTask(str(src), "tee", str(tmp_path / "out"), ("{piece}.npz",), OPTS, OutputOptions(), "cm",
+                      grade="medium")
+    entry = B.grid_file(task)
+    assert entry["status"] == "ok", entry
+    assert sorted(p["name"] for p in entry["pieces"]) == sorted(
+        f"{n}_Medium" for n in ("Front", "Back", "Right Sleeve", "Neck Binding"))
+    bad = B.grid_file(B.FileTask(str(src), "tee", str(tmp_path / "out2"), ("{piece}.npz",), OPTS, OutputOptions(),
+                                 "cm", grade="XXXL"))
+    assert bad["status"] == "failed" and "no piece of that size" in bad["error"]
+    k = B._normalised
+    keys = {options_key("abc", k(OPTS, OutputOptions(), ["{piece}.npz"], None, None, None, grade=g))
+            for g in ("M", " m")}
+    assert len(keys) == 1
+    assert options_key("abc", k(OPTS, OutputOptions(), ["{piece}.npz"], None, None, None)) not in keys

@@ -519,7 +519,8 @@ def test_stitches_file_copies_a_piece_mirrored(tmp_path, capsys):
     for copies, words in (({"A": {"of": "B"}}, "already has a piece of that name"),
                           ({"C": {"of": "Z"}}, "has no piece 'Z'"),
                           ({"C": {"of": "B", "mirrored": "yes"}}, "'mirrored' must be true or false"),
-                          ([1], "'copies' must be an object")):
+                          ([1], "'copies' must be an object"),
+                          ({f"C{k}": {"of": "B"} for k in range(101)}, "101 copies, more than the limit of 100")):
         _, bad = _stitched(tmp_path, {**seams, "copies": copies})
         assert main(["garment", str(svg), "--stitches", str(bad), "-o", str(tmp_path / "x.npz"), "-q"]) == 2
         err = capsys.readouterr().err

@@ -146,7 +146,7 @@ class FileTask:
         Output names relative to ``outdir/stem`` (``{piece}`` is the piece's name).
     options, output :
         How grids are made and written.
-    units, line, min_turn, unfold :
+    units, line, min_turn, unfold, grade :
         Pattern-file options of :func:`clothgrid.pipeline.read_jobs`.
     key, sha256 :
         The resume key and the content hash, copied into the manifest line.
@@ -169,6 +169,7 @@ class FileTask:
     garment: bool = False
     seams: str = "keep"
     unfold: bool = False
+    grade: str | None = None
 
 
 def _clean_stale(folder: Path) -> None:
@@ -208,7 +209,8 @@ def grid_file(task: FileTask) -> dict[str, Any]:
         return _grid_garment(task, entry, timings, t0, c0)
     try:
         jobs = read_jobs(task.source, [str(folder / t) for t in task.templates], options=task.options,
-                         units=task.units, line=task.line, min_turn=task.min_turn, unfold=task.unfold)
+                         units=task.units, line=task.line, min_turn=task.min_turn, unfold=task.unfold,
+                         grade=task.grade)
         timings["read"] = time.perf_counter() - t0
         stage = "grid"
         results, failed = run_jobs(jobs)
@@ -453,7 +455,7 @@ class BatchSummary:
 
 def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence[str], units: str | None,
                 line: str | None, min_turn: float | None, garment: bool = False,
-                seams: str = "keep", unfold: bool = False) -> dict[str, Any]:
+                seams: str = "keep", unfold: bool = False, grade: str | None = None) -> dict[str, Any]:
     """The options that change an input's outputs, as plain JSON values (``"2cm"`` and ``"20mm"`` alike)."""
     from .units import parse_length
 
@@ -475,6 +477,8 @@ def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence
         out["garment"] = {"seams": seams}
     if unfold:                                   # likewise: only where asked
         out["unfold"] = True
+    if grade is not None:
+        out["grade"] = str(grade).strip().casefold()
     return out
 
 
@@ -559,7 +563,8 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
           retries: int = DEFAULT_RETRIES, redo_failed: bool = False, force: bool = False,
           progress: Callable[[BatchProgress], None] | None = None,
           on_entry: Callable[[dict[str, Any]], None] | None = None,
-          garment: bool = False, seams: str = "keep", unfold: bool = False) -> BatchSummary:
+          garment: bool = False, seams: str = "keep", unfold: bool = False,
+          grade: str | None = None) -> BatchSummary:
     """Grid every piece of every input file on Dask; write ``OUTDIR/<stem>/...`` and the manifest.
 
     Parameters
@@ -574,8 +579,9 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         How the outputs are written (triangles, uv, density, cloth arrays).
     templates : sequence of str
         Output names inside ``OUTDIR/<stem>/``, each with ``{piece}``; the extension picks the format.
-    units, line, min_turn, unfold :
-        Pattern-file options (as for ``clothgrid generate``).
+    units, line, min_turn, unfold, grade :
+        Pattern-file options (as for ``clothgrid generate``; a file without the size ``grade`` fails
+        with that reason).
     workers : int, optional
         Worker processes of the local cluster (default: the CPU cores, at most one per file to grid).
     scheduler : str, optional
@@ -637,7 +643,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
         raise InputError(f"output folder {str(outdir)!r} is not writable")
     outdir = outdir.resolve()
     manifest = outdir / MANIFEST
-    norm = _normalised(options, output, templates, units, line, min_turn, garment, seams, unfold)
+    norm = _normalised(options, output, templates, units, line, min_turn, garment, seams, unfold, grade)
     previous = latest_entries(read_manifest(manifest))
     stems = assign_stems(paths)
 
@@ -653,7 +659,7 @@ def batch(inputs: Sequence[str | Path], outdir: str | Path, *, options: GridOpti
             skipped.append(previous[stem])
             continue
         tasks.append(FileTask(str(path), stem, str(outdir), templates, options, output, units, line, min_turn,
-                              key, digest, garment, seams, unfold))
+                              key, digest, garment, seams, unfold, grade))
 
     state = BatchProgress(total=len(tasks), skipped=len(skipped))
     done_now: list[dict[str, Any]] = []

@@ -532,6 +532,7 @@ def _add_pattern_arguments(g: argparse.ArgumentParser, one_file: bool = True) ->
     if not one_file:
         _add_line_argument(p)
         _add_unfold_argument(p, "grid")
+        _add_grade_argument(p, "grid")
         return
     p.add_argument("--piece", action="append", metavar="NAME",
                    help="grid only this piece (repeatable; default: every piece); may name an "
@@ -550,7 +551,7 @@ def _add_pattern_arguments(g: argparse.ArgumentParser, one_file: bool = True) ->
 
 
 def _add_grade_argument(p: Any, verb: str) -> None:
-    """``--grade SIZE`` (generate and pieces)."""
+    """``--grade SIZE`` (generate, batch and pieces)."""
     p.add_argument("--grade", metavar="SIZE",
                    help=f"of a graded pattern (several sizes in one file: AAMA/ASTM blocks, a flat DXF's "
                         f"layers), {verb} only the pieces of this size (their 'Size:' text, e.g. 42, M, "
@@ -1043,7 +1044,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                           line=args.line, min_turn=args.min_turn, workers=args.workers,
                           scheduler=args.scheduler, retries=args.retries, redo_failed=args.redo_failed,
                           force=args.force, progress=progress, garment=args.garment, seams=args.seams,
-                          unfold=args.unfold)
+                          unfold=args.unfold, grade=args.grade)
     finally:
         signal.signal(signal.SIGTERM, old)
     s = run.summary

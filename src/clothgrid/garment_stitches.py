@@ -119,6 +119,10 @@ def _unfolded(pieces: dict[str, Any], unfold: Any, path: Path, resolve: Any) -> 
     return out
 
 
+#: Copies a stitches file may ask for (a garment has tens of pieces; each copy holds its outline)
+MAX_COPIES = 100
+
+
 def _copies(pieces: dict[str, Any], copies: Any, path: Path, resolve: Any) -> dict[str, Any]:
     """``pieces`` and the copies the stitches file's ``"copies"`` asks for: ``{NAME: {"of": PIECE,
     "mirrored": true}}``, a second piece cut from the pattern's one, its mirror image by default
@@ -131,6 +135,8 @@ def _copies(pieces: dict[str, Any], copies: Any, path: Path, resolve: Any) -> di
     if not isinstance(copies, dict):
         raise InputError(f"{path}: 'copies' must be an object {{NAME: {{\"of\": PIECE, \"mirrored\": true}}}}, "
                          f"not {copies!r}")
+    if len(copies) > MAX_COPIES:
+        raise InputError(f"{path}: {len(copies):,} copies, more than the limit of {MAX_COPIES}")
     out = dict(pieces)
     for name, spec in copies.items():
         what = f"{path}: copy {name!r}"

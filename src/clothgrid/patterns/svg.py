@@ -47,8 +47,8 @@ from ..limits import MAX_ENTITIES, MAX_NESTING, check_input_file
 from .annotations import classified, marked_annotation, structure_hint
 from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
 from .fold import attach_fold_lines
-from .piece import (Piece, PieceFailure, Pieces, Skipped, cut_instructions, outline_box, piece_failure, piece_from_points,
-                    piece_from_primitives)
+from .piece import (Piece, PieceFailure, Pieces, Skipped, cut_instructions, outline_box, piece_failure,
+                    piece_from_points, piece_from_primitives)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
 from ..units import UNITS, unit_to_mm
 
@@ -825,8 +825,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
                         loops.append(prims)
                 else:
                     d = _shape_d(el, f"{where}: {label}")
-                    if d and (_fold_mark(el) or el.get("id") in fold_paths):       # a "cut on fold" mark: its ends are on the fold
-                        ends = _fold_ends(d, m, f"{where}: {label}")
+                    if d and (_fold_mark(el) or el.get("id") in fold_paths):   # "cut on fold": its ends on the fold
+                        ends = _fold_ends(d, m)
                         if ends is not None:
                             folds.append(ends)
                         return
@@ -1002,7 +1002,7 @@ def _fold_text_paths(root: ET.Element) -> set[str]:
     return out
 
 
-def _fold_ends(d: str, m: np.ndarray, where: str) -> np.ndarray | None:
+def _fold_ends(d: str, m: np.ndarray) -> np.ndarray | None:
     """The first and last points (mm) of a fold mark's path data ``d``, or None where it cannot be
     read (a mark, not a piece: it is then ignored)."""
     from svgpathtools import parse_path
