@@ -71,3 +71,23 @@ def test_dxf_quantity_is_what_to_cut(tmp_path):
     doc.saveas(path)
     (piece,) = select_pieces(path)
     assert piece.name == "Cuff" and cut_of(piece) == [C(2, "Rib", mirrored=None)]
+
+
+def test_svg_text_lines_and_owner(tmp_path):
+    """A text's lines are its positioned ``<tspan>`` elements; an inline one stays on its line. Each
+    text goes to the smallest piece around its anchor (a pocket drawn on a front takes its own)."""
+    svg = tmp_path / "p.svg"
+    svg.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" viewBox="0 0 300 200">'
+        '<path id="front" d="M 10 190 L 140 190 L 140 10 L 10 10 Z"/>'
+        '<path id="pocket" d="M 80 150 L 130 150 L 130 110 L 80 110 Z"/>'
+        '<path id="back" d="M 160 190 L 290 190 L 290 10 L 160 10 Z"/>'
+        '<text x="20" y="40">Cut 2 mirrored from <tspan font-weight="bold">main fabric</tspan></text>'
+        '<text x="90" y="130">Cut 4</text>'
+        '<text x="170" y="40"><tspan x="170" y="40">2x from main fabric</tspan>'
+        '<tspan x="170" dy="8">2x from lining</tspan><tspan x="170" dy="8">With good sides together</tspan></text>'
+        '</svg>')
+    got = {p.name: cut_of(p) for p in select_pieces(svg)}      # the pocket: a piece drawn over the front
+    assert got["front"] == [C(2, "main fabric", mirrored=True)]
+    assert got["pocket"] == [C(4)]
+    assert got["back"] == [C(2, "main fabric"), C(2, "lining")]

@@ -760,8 +760,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
             if got is not None and _label_score(got[0]):
                 labels.append(got)
             if got is not None:             # cut instructions, a line (a <tspan>) at a time
-                lines = [" ".join("".join(t.itertext()).split()) for t in el if _local(t.tag) == "tspan"]
-                cut = [c for line in (lines or [got[0]]) for c in cut_instructions(line)]
+                cut = [c for line in _text_lines(el) for c in cut_instructions(line)]
                 if cut:
                     cuts.append((cut, got[0], got[1]))
             return
@@ -963,6 +962,18 @@ def read_svg(path: str | Path, *, units: str | None = None,
     if cuts:                                # how many to cut, of what: the text drawn on the piece
         got = Pieces(_with_cut_instructions(got, cuts), got.failed, got.skipped)
     return got
+
+
+def _text_lines(el: ET.Element) -> list[str]:
+    """A ``<text>`` element's lines: a ``<tspan>`` placed on its own (``x``, ``y`` or ``dy``) starts
+    one (FreeSewing 2 writes a title's lines so), an inline one goes on the line it is in."""
+    lines = [[el.text or ""]]
+    for child in el:
+        if _local(child.tag) == "tspan" and any(child.get(k) for k in ("x", "y", "dy")):
+            lines.append([])
+        lines[-1].append("".join(child.itertext()))
+        lines[-1].append(child.tail or "")
+    return [t for t in (" ".join("".join(parts).split()) for parts in lines) if t]
 
 
 def _with_cut_instructions(pieces: list[Piece], cuts: list[tuple[list, str, np.ndarray]]) -> list[Piece]:
