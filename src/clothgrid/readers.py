@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import inspect
 import json
+from dataclasses import replace
 
 import numpy as np
 from pathlib import Path
@@ -33,7 +34,7 @@ from .errors import BoundaryError, InputError, PiecesError
 from .grid import Grid
 from .limits import check_input_file, load_json, read_json_file
 from .patterns import Piece, piece_boundary
-from .patterns.piece import Pieces, pattern_pieces
+from .patterns.piece import Pieces, pattern_pieces, split_pinched
 from .patterns.sampling import DEFAULT_REL_TOL
 from .units import unit_to_mm
 
@@ -187,7 +188,7 @@ def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | N
         return got
     if not isinstance(got, Pieces):             # a registered reader's plain list
         got = Pieces(got)
-    got = got.including(include, where=f"{path}: ")
+    got = _split_pinched(got.including(include, where=f"{path}: "))
     if not got:
         listed = "; ".join(f"{s.name}: {s.reason}" for s in got.skipped[:6])
         if got.failed:                          # the failures, and the outlines taken for annotations
@@ -203,6 +204,24 @@ def read_input(path: str | Path, *, units: str | None = None, rel_tol: float | N
         raise InputError(f"{path}: no pattern piece: every closed outline was taken for an "
                          f"annotation ({listed}); grid one with --include NAME")
     return got
+
+
+def _split_pinched(pieces: Pieces) -> Pieces:
+    """SVG and DXF pieces cut in two where their outline pinches
+    (:func:`clothgrid.patterns.piece.split_pinched`), the parts' names unique in the file."""
+    out: list[Piece] = []
+    taken = {x.name for x in (*pieces, *pieces.skipped, *pieces.failed)}
+    for p in pieces:
+        parts = split_pinched(p) if p.source in ("svg", "dxf", "aama-dxf") else [p]
+        if len(parts) > 1:
+            for k, q in enumerate(parts):
+                name, m = q.name, 2
+                while name in taken:
+                    name, m = f"{q.name}-{m}", m + 1
+                taken.add(name)
+                parts[k] = q if name == q.name else replace(q, name=name)
+        out.extend(parts)
+    return pieces if len(out) == len(pieces) else Pieces(out, pieces.failed, pieces.skipped)
 
 
 def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL,

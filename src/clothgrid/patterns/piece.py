@@ -258,6 +258,78 @@ class Pieces(list):
                       [s for s in self.skipped if s.name not in wanted])
 
 
+#: Two outline points closer than this (relative to the piece's size, and at least twice its sampling
+#: tolerance) that are not neighbours along it pinch the outline: it is cut there into two pieces
+#: (:func:`split_pinched`).
+PINCH_REL = 1e-5
+#: ... where each part is at least this fraction of the whole's area (a smaller one is a loop or a
+#: spike of the line, left as it is).
+PINCH_MIN_PART = 0.01
+
+
+def pinch_pairs(outline: np.ndarray, tol: float) -> np.ndarray:
+    """``(m, 2)`` outline indices ``i < j`` of points within ``tol`` of each other (each coordinate)
+    whose distance along the outline, both ways round, is over ``4 tol``: where the outline pinches
+    (two darts' tips drawn to one point). Near-linear: points meet only in shared cells of four
+    grids of cell ``2 tol`` offset by ``tol``."""
+    n = len(outline)
+    if n < 6 or not tol > 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    seg = np.hypot(*np.diff(np.vstack([outline, outline[:1]]), axis=0).T)
+    arc = np.concatenate([[0.0], np.cumsum(seg)])
+    per = arc[-1]
+    found = set()
+    for off in ((0.0, 0.0), (tol, 0.0), (0.0, tol), (tol, tol)):
+        cell = np.floor((outline - outline.min(axis=0) + off) / (2 * tol)).astype(np.int64)
+        order = np.lexsort((cell[:, 1], cell[:, 0]))
+        c = cell[order]
+        starts = np.flatnonzero(np.r_[True, (c[1:] != c[:-1]).any(axis=1)])
+        ends = np.r_[starts[1:], len(c)]
+        for a0, b0 in zip(starts[ends - starts > 1], ends[ends - starts > 1]):   # runs of one cell
+            run = order[a0:min(b0, a0 + 64)]
+            for x in range(len(run)):
+                for y in range(x + 1, len(run)):
+                    i, j = sorted((int(run[x]), int(run[y])))
+                    along = arc[j] - arc[i]
+                    if min(along, per - along) > 4 * tol and (np.abs(outline[i] - outline[j]) <= tol).all():
+                        found.add((i, j))
+    return np.array(sorted(found), dtype=np.int64).reshape(-1, 2)
+
+
+def split_pinched(piece: Piece) -> list[Piece]:
+    """``piece``, or the parts its outline makes where it pinches (:func:`pinch_pairs` at
+    :data:`PINCH_REL`): a drafting program's bodice block whose waist and shoulder darts are drawn to
+    one apex point is two lobes that meet there, and no grid of one block can pass through a point.
+    Each part is a piece named ``NAME-part1``, ``NAME-part2`` (cut again where it pinches too), with a
+    note; parts under :data:`PINCH_MIN_PART` of the area leave the piece as it is."""
+    o = piece.outline
+    n = len(o)
+    tol = max(PINCH_REL * piece.size, 2.0 * piece.tolerance)
+    pairs = pinch_pairs(o, tol)
+    for i, j in pairs:
+        idx = (np.arange(i, j), np.r_[np.arange(j, n), np.arange(0, i)])
+        areas = [abs(signed_area(o[k])) for k in idx]
+        if min(areas) < PINCH_MIN_PART * abs(piece.area):
+            continue
+        at = o[i]
+        parts = []
+        for k, rows in enumerate(idx):
+            where = {int(v): m for m, v in enumerate(rows)}
+            keep = lambda ind: np.array([where[int(v)] for v in ind if int(v) in where], dtype=np.int64)  # noqa: E731
+            name = f"{piece.name}-part{k + 1}"
+            meta = {key: v for key, v in piece.meta.items() if key not in ("aliases", "fold_line")}
+            parts.append(piece_from_polygon(
+                name, o[rows], vertices=keep(piece.vertices), turn_points=keep(piece.turn_points),
+                grain_line=piece.grain_line, units=piece.units, source=piece.source, tolerance=piece.tolerance,
+                notes=piece.notes + (f"piece {piece.name!r} was cut in two where its outline pinches, at "
+                                     f"({at[0]:.6g}, {at[1]:.6g}) mm (two of its points "
+                                     f"{float(np.hypot(*(o[i] - o[j]))):.2g} mm apart: darts drawn to one "
+                                     "point); a grid of one block cannot pass through a point",),
+                meta={**meta, "split_from": piece.name}))
+        return [q for part in parts for q in split_pinched(part)]
+    return [piece]
+
+
 _CUT_SAYS = re.compile(r"^\s*cut\s+(?P<n>\d+)\s*(?:x\b|times\b|pieces?\b)?(?P<rest>.*)$", re.IGNORECASE)
 _TIMES = re.compile(r"^\s*(?P<n>\d+)\s*x\s*(?P<rest>.*)$", re.IGNORECASE)
 _MIRRORED = re.compile(r"\b(mirrored|mirror|pairs?|reversed|flipped)\b", re.IGNORECASE)
