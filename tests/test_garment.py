@@ -836,3 +836,76 @@ def test_garment_grids_are_ranked_by_angle_with_the_grid_corner_cells_aside():
     assert G._cost({"a": made["good"]}) < G._cost({"a": made["poor"]})
     assert G._panel_cost(made["good"]) < G._panel_cost(made["poor"])
     assert G._cost(made) == (0, -angle["poor"])
+
+
+TWO_SQUARES = """<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" viewBox="0 0 300 200">{meta}
+<path name="A" id="A" d="M 10 110 L 110 110 L 110 10 L 10 10 Z"/>
+<path name="B" id="B" d="{b}"/></svg>"""
+# A counter-clockwise (y up): 0 (10, 90) 1 (110, 90) 2 (110, 190) 3 (10, 190)
+
+
+def _tube_report(path, stitches=None):
+    g = garment(path, stitches=stitches, edge_length="1cm")
+    rep = g.mesh_report()
+    return rep, g
+
+
+def test_turned_piece_sews_face_down_pieces_into_an_oriented_tube(tmp_path, capsys):
+    """A piece drawn face down (a nester lays a back out mirrored) is listed in "turned": it is sewn
+    along its outline run clockwise and its quads reversed, so two squares sewn on both sides make
+    one oriented tube (two boundary loops, Euler characteristic 0); "turned" naming a piece not
+    sewn, or not a list, is one error line."""
+    svg = tmp_path / "two.svg"
+    svg.write_text(TWO_SQUARES.format(meta="", b="M 150 110 L 250 110 L 250 10 L 150 10 Z"))
+    seams = [{"a": {"piece": "A", "range": [1, 2]}, "b": {"piece": "B", "range": [1, 2]}},
+             {"a": {"piece": "A", "range": [3, 0]}, "b": {"piece": "B", "range": [3, 0]}}]
+    st = tmp_path / "st.json"
+    st.write_text(json.dumps({"clothgrid_stitches": 1, "turned": ["B"], "seams": seams}))
+    rep, g = _tube_report(svg, st)
+    assert rep["oriented"] and rep["nonmanifold_edges"] == 0 and rep["euler"] == 0
+    assert sorted(len(x) for x in rep["boundary_loops"]) == [20, 20]
+    assert sum(p["folded"] for p in g.info["panels"]) == 0
+    # B's right side (its range [1, 2], run backwards) meets A's right side end to start: node for node
+    pairs = g.stitches[g.stitch_id == 0]
+    a, b = g.rest[pairs[:, 0]], g.rest[pairs[:, 1]]
+    np.testing.assert_allclose(a[:, 1], b[:, 1], atol=1e-9)         # same heights along the seam
+    for bad, words in (({"turned": ["Z"]}, "'turned': no sewn piece 'Z'"), ({"turned": "B"}, "must be a list")):
+        st.write_text(json.dumps({"clothgrid_stitches": 1, "seams": seams, **bad}))
+        assert main(["garment", str(svg), "--stitches", str(st), "-o", str(tmp_path / "x.npz"), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("clothgrid: error:") == 1
+
+
+def test_svg_metadata_seams_sew_without_a_stitches_file(tmp_path, capsys):
+    """An SVG that lists its seams in <metadata><seams> (Alienmiep's pattern-matching-nester exports
+    GarmentCode patterns so: each seam two parts, a part a path's name and two of its vertex indices,
+    joined a's end to b's start along the paths as drawn) is sewn without --stitches; a part drawn
+    clockwise is a piece laid face down (turned). Here B is drawn clockwise and its sides are listed
+    as its path runs: the tube comes out oriented, with the seams' ends where the file says."""
+    meta = ("<metadata><seams>"
+            "<seam><id>1</id><seampart><part>A</part><start>1</start><end>2</end></seampart>"
+            "<seampart><part>B</part><start>2</start><end>3</end></seampart></seam>"
+            "<seam><id>2</id><seampart><part>A</part><start>3</start><end>0</end></seampart>"
+            "<seampart><part>B</part><start>0</start><end>1</end></seampart></seam>"
+            "</seams></metadata>")
+    # B clockwise (y up): 0 (150, 90) 1 (150, 190) 2 (250, 190) 3 (250, 90); its sides 0 -> 1 (left, up),
+    # 2 -> 3 (right, down)
+    svg = tmp_path / "nested.svg"
+    svg.write_text(TWO_SQUARES.format(meta=meta, b="M 150 110 L 150 10 L 250 10 L 250 110 Z"))
+    out = tmp_path / "tube.npz"
+    assert main(["garment", str(svg), "-o", str(out), "--edge-length", "1cm", "--seams", "weld", "-q"]) == 0, \
+        capsys.readouterr().err
+    with np.load(out) as d:
+        r = {k: d[k] for k in d.files}
+    rep = mesh_report(r["welded_quads"], len(r["welded_points"]))
+    assert rep["oriented"] and rep["euler"] == 0 and sorted(len(x) for x in rep["boundary_loops"]) == [20, 20]
+    # seam 1: A's right side (up, 1 -> 2) ends where B's path side 2 -> 3 (down its right side) starts:
+    # heights match node for node
+    pairs = r["stitches"][r["stitch_id"] == 0]
+    np.testing.assert_allclose(r["rest"][pairs[:, 0], 1], r["rest"][pairs[:, 1], 1], atol=1e-9)
+    # without metadata seams or --stitches: one error line naming --stitches
+    plain = tmp_path / "plain.svg"
+    plain.write_text(TWO_SQUARES.format(meta="", b="M 150 110 L 150 10 L 250 10 L 250 110 Z"))
+    assert main(["garment", str(plain), "-o", str(tmp_path / "p.npz"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "--stitches" in err and err.count("clothgrid: error:") == 1

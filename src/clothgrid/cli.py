@@ -394,7 +394,8 @@ def _add_garment_parser(sub: Any) -> None:
                         "coordinates' unit instead of what the file says)")
     p.add_argument("--stitches", metavar="FILE",
                    help="the seams of an SVG or DXF pattern: a JSON file of piece outline ranges sewn "
-                        "together (docs/garment.md, examples/fs_cathrin_stitches.json)")
+                        "together (docs/garment.md, examples/fs_cathrin_stitches.json); an SVG that lists "
+                        "its seams in its <metadata> needs none")
     p.add_argument("--corners", action="append", metavar="PANEL=I,J,K,L",
                    help="grid corners of a panel as its vertex indices (bottom-left, bottom-right, "
                         "top-right, top-left); repeatable; the way out of a node-count conflict")

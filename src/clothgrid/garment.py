@@ -784,14 +784,12 @@ def garment(spec: str | Path | GarmentSpec, *, edge_length: float | str = "10mm"
     given: dict[str, Any] = {}
     if isinstance(spec, GarmentSpec):
         gs = spec
-    elif stitches is not None:
+    elif stitches is not None or Path(spec).suffix.lower() in (".svg", ".dxf"):
         from .garment_stitches import read_stitched_pattern
 
+        # without a stitches file, the seams an SVG lists in its <metadata> (else an InputError)
         sp = read_stitched_pattern(spec, stitches, edge_length=h, units=units)
         gs, given = sp.spec, dict(sp.corners)
-    elif Path(spec).suffix.lower() in (".svg", ".dxf"):
-        raise InputError(f"{spec}: SVG and DXF patterns carry no stitches: give them in a JSON file "
-                         "(--stitches FILE, stitches=...; docs/garment.md)")
     else:
         gs = read_garment_spec(spec, units=units)
     given.update(_parse_corners(corners))

@@ -22,7 +22,10 @@ sides of a seam are joined as GarmentCode joins a stitch: ``a``'s end meets
 of one piece (a dart) may share an end (the dart's tip). ``"unfold"`` (``true``, or a
 list of piece names) makes the pieces cut on the fold whole first
 (:func:`clothgrid.patterns.fold.unfold`); their ranges are then those of
-``clothgrid pieces FILE --unfold --candidates``. ``"copies"`` (``{NAME: {"of": PIECE,
+``clothgrid pieces FILE --unfold --candidates``. ``"turned"`` lists pieces drawn face down
+(their stitches read along the outline run clockwise, their quads reversed). Without a stitches
+file, an SVG that lists its seams in ``<metadata><seams>`` is sewn by them
+(:func:`clothgrid.patterns.svg` ``_embedded_stitches``). ``"copies"`` (``{NAME: {"of": PIECE,
 "mirrored": true}}``) adds a second piece cut from one of the pattern's, its mirror image by
 default (the other sleeve): outline point ``k`` of the piece is point ``(n - k) % n`` of its
 mirror image, so a range ``[I, J]`` on the piece is ``[(n - J) % n, (n - I) % n]`` on it.
@@ -159,6 +162,20 @@ def _copies(pieces: dict[str, Any], copies: Any, path: Path, resolve: Any) -> di
     return out
 
 
+def _turned(turned: Any, names: list[str], path: Path, resolve: Any) -> set[str]:
+    """The pieces the stitches file's ``"turned"`` lists: drawn face down (the mirror image of how
+    they are worn, as a nester lays out a back), so each is sewn along its outline run clockwise
+    and its grid's quads are reversed (as a GarmentCode panel whose loop runs clockwise)."""
+    if not isinstance(turned, list) or not all(isinstance(x, str) for x in turned):
+        raise InputError(f"{path}: 'turned' must be a list of piece names, not {turned!r}")
+    out = {resolve(x) for x in turned}
+    unknown = sorted(out - set(names))
+    if unknown:
+        raise InputError(f"{path}: 'turned': no sewn piece {', '.join(map(repr, unknown))} (the sewn pieces: "
+                         f"{', '.join(map(repr, names))})")
+    return out
+
+
 def _side(side: Any, pieces: dict[str, Any], what: str, resolve: Any = str) -> tuple[str, int, int]:
     if not isinstance(side, dict) or "piece" not in side or "range" not in side:
         raise InputError(f"{what} must be {{\"piece\": NAME, \"range\": [START, END]}}, not {side!r}")
@@ -208,7 +225,7 @@ def _inside(i: int, a: int, b: int, n: int) -> bool:
     return 0 < (i - a) % n < (b - a) % n
 
 
-def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_length: float,
+def read_stitched_pattern(pattern: str | Path, stitches: str | Path | None, *, edge_length: float,
                           units: str | None = None) -> StitchedPattern:
     """Read an SVG / DXF pattern and its stitches file as a garment spec (mm).
 
@@ -216,8 +233,10 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
     ----------
     pattern : path
         The ``.svg`` or ``.dxf`` pattern.
-    stitches : path
-        The JSON stitches file (module docstring; ``docs/garment.md``).
+    stitches : path or None
+        The JSON stitches file (module docstring; ``docs/garment.md``); None: the seams the SVG
+        lists in its own ``<metadata><seams>`` (Alienmiep's pattern-matching-nester exports), an
+        InputError where it lists none.
     edge_length : float
         Target grid edge length (mm): sharp vertices closer than half of it to
         another cut are not kept as nodes.
@@ -234,9 +253,18 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
     from .patterns.corners import turn_angles
     from .readers import read_pieces
 
-    pattern, stitches = Path(pattern), Path(stitches)
-    data = _load(stitches)
+    pattern = Path(pattern)
     got = read_pieces(pattern, units=units)
+    if stitches is None:                    # the seams the file itself lists (svg <metadata><seams>)
+        data = getattr(got, "stitches", None)
+        if not data:
+            raise InputError(f"{pattern}: SVG and DXF patterns carry no stitches (this one lists none "
+                             "in its <metadata>): give them in a JSON file (--stitches FILE, stitches=...; "
+                             "docs/garment.md)")
+        stitches = pattern
+    else:
+        stitches = Path(stitches)
+        data = _load(stitches)
     # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
     resolve = got.resolve
     pieces = _unfolded({p.name: p for p in got}, data.get("unfold", False), stitches, resolve)
@@ -261,6 +289,7 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
                              f"{', '.join(map(repr, pieces))})")
     names = [n for n in pieces if n in extra or any(n in (a[0], b[0]) for a, b, _ in seams)]
     place = _placement(data, names, stitches, resolve)
+    turned = _turned(data.get("turned", []), names, stitches, resolve)
 
     # ranges per piece; no two may overlap
     ranges: dict[str, list[tuple[int, int]]] = {n: [] for n in names}
@@ -304,25 +333,30 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path, *, edge_len
             cut = sorted(cuts | {(cut[0] + n // 2) % n})
         verts = outline[cut]
         edges = []
+        m = len(cut)
         for k, c in enumerate(cut):
-            d = cut[(k + 1) % len(cut)]
+            d = cut[(k + 1) % m]
             idx = np.arange(c, d + 1) if d > c else np.r_[np.arange(c, n), np.arange(0, d + 1)]
-            edges.append(SpecEdge(k, k, (k + 1) % len(cut), Polyline(outline[idx % n].copy())))
-        loop = tuple((k, False) for k in range(len(cut)))
+            if name in turned:      # drawn face down: its edges run clockwise, as the piece is sewn
+                edges.append(SpecEdge(k, (k + 1) % m, k, Polyline(outline[idx[::-1] % n].copy())))
+            else:
+                edges.append(SpecEdge(k, k, (k + 1) % m, Polyline(outline[idx % n].copy())))
+        loop = (((0, False),) + tuple((k, False) for k in range(m - 1, 0, -1)) if name in turned
+                else tuple((k, False) for k in range(m)))
         t, r = place.get(name, (np.zeros(3), np.zeros(3)))
         panels[name] = SpecPanel(name, verts, tuple(edges), loop, t, r)
         # the grid corners as (edge, fraction): at a cut, or inside a seam's edge
         cs = []
         for c in choice.corners:
             c = int(c)
-            if c in cuts:
-                cs.append((cut.index(c), 0.0))
+            if c in cuts:           # (turned: the start of the edge before it, which runs backwards)
+                cs.append(((cut.index(c) - 1) % m, 0.0) if name in turned else (cut.index(c), 0.0))
                 continue
             k = next(kk for kk, cc in enumerate(cut) if _inside(c, cc, cut[(kk + 1) % len(cut)], n))
-            pts = edges[k].curve.points
+            pts = edges[k].curve.points[::-1] if name in turned else edges[k].curve.points
             L = np.hypot(*np.diff(pts, axis=0).T)
-            m = (c - cut[k]) % n
-            cs.append((k, float(L[:m].sum() / L.sum())))
+            f = float(L[:(c - cut[k]) % n].sum() / L.sum())
+            cs.append((k, 1.0 - f if name in turned else f))
         corners[name] = cs
         # map the ranges to edge indices (in this piece's kept-point numbering)
         for (i0, j0), (i, j) in zip(ranges[name], rs):

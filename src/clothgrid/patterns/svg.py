@@ -747,6 +747,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
 
     ids = {k: e for e in root.iter() if (k := e.get("id"))}
     fold_paths = _fold_text_paths(root)       # paths whose text says "cut on fold" (FreeSewing 2)
+    embedded = _metadata_seams(root)          # <metadata><seams> (a nester's export): the parts' vertices
+    corners_of: dict[str, np.ndarray] = {}    # their paths' vertices (mm), by the part's name
     using: set[int] = set()             # the elements a <use> is drawing (a <use> of its own group: a cycle)
     drawn_uses = 0
 
@@ -847,6 +849,8 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             if len(sub) == 0:
                                 continue
                             prims = [_segment_prims(seg, m) for seg in sub]
+                            if embedded and el.get("name") and el.get("name") not in corners_of:
+                                corners_of[el.get("name")] = np.array([p.start for p in prims])
                             ends = np.array([p.start for p in prims] + [prims[-1].end])
                             size = float(np.hypot(*np.ptp(ends, axis=0)))
                             gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
@@ -961,7 +965,79 @@ def read_svg(path: str | Path, *, units: str | None = None,
         got = Pieces(attach_fold_lines(got, folds), got.failed, got.skipped)
     if cuts:                                # how many to cut, of what: the text drawn on the piece
         got = Pieces(_with_cut_instructions(got, cuts), got.failed, got.skipped)
+    if embedded:                            # the file's own seams, as a stitches file would give them
+        got.stitches = _embedded_stitches(embedded, corners_of, got, where)
     return got
+
+
+#: At most this many seams are read from a file's ``<metadata><seams>``
+MAX_EMBEDDED_SEAMS = 10_000
+
+
+def _metadata_seams(root: ET.Element) -> list[list[tuple[str, int, int]]]:
+    """The seams a file lists in ``<metadata><seams><seam><seampart><part>NAME</part><start>I</start>
+    <end>J</end></seampart>...`` (Alienmiep's pattern-matching-nester exports GarmentCode patterns so):
+    each seam its two parts, a part the ``name`` of a path and the indices of two of its vertices
+    (segment end points in path order). Malformed seams are left out."""
+    out: list[list[tuple[str, int, int]]] = []
+    for meta in root.iter():
+        if _local(meta.tag) != "metadata":
+            continue
+        for seam in meta.iter():
+            if _local(seam.tag) != "seam" or len(out) >= MAX_EMBEDDED_SEAMS:
+                continue
+            parts = []
+            for part in seam:
+                if _local(part.tag) != "seampart":
+                    continue
+                got = {_local(c.tag): (c.text or "").strip() for c in part}
+                try:
+                    parts.append((got["part"], int(got["start"]), int(got["end"])))
+                except (KeyError, ValueError):
+                    break
+            if len(parts) == 2 and all(p[0] for p in parts):
+                out.append(parts)
+    return out
+
+
+def _embedded_stitches(seams: list[list[tuple[str, int, int]]], corners_of: dict[str, np.ndarray],
+                       pieces: list[Piece], where: str) -> dict[str, Any] | None:
+    """The file's seams (:func:`_metadata_seams`) as the data of a stitches file
+    (:mod:`clothgrid.garment_stitches`), or None where a seam names a part that is no piece or a vertex
+    its path does not have.
+
+    A part's vertex ``k`` is the outline point at its path's ``k``-th vertex, and its range runs
+    counter-clockwise. The file joins a part's end to the other's start along the paths as drawn (its
+    seams' lengths and ends match so: the nester's skirt and trousers); a path drawn clockwise is a
+    piece laid face down (the nester's backs), listed in ``"turned"``, so that it is sewn along its
+    path's direction."""
+    by = {p.name: p for p in pieces}
+    turned: set[str] = set()
+    ccw_of: dict[str, tuple[bool, np.ndarray]] = {}
+    out = []
+    for k, parts in enumerate(seams):
+        sides = []
+        for name, i, j in parts:
+            piece, corners = by.get(name), corners_of.get(name)
+            if piece is None or corners is None or not (0 <= i < len(corners) and 0 <= j < len(corners)) or i == j:
+                return None
+            if name not in ccw_of:
+                o = piece.outline
+                tol = max(1e-6 * piece.size, 4 * piece.tolerance)
+                d = np.linalg.norm(o[None, :, :] - corners[:, None, :], axis=2)
+                every = d.argmin(axis=1)             # each path vertex's outline point
+                if not (d[np.arange(len(corners)), every] <= tol).all():
+                    return None
+                # counter-clockwise where the vertices come in the outline's order (rising, wrapping once)
+                ccw_of[name] = (int((np.diff(np.r_[every, every[:1]]) < 0).sum()) <= 1, every)
+            ccw, every = ccw_of[name]
+            if not ccw:
+                turned.add(name)
+            a, b = (int(every[i]), int(every[j])) if ccw else (int(every[j]), int(every[i]))
+            sides.append({"piece": name, "range": [a, b]})
+        out.append({"a": sides[0], "b": sides[1], "label": f"seam {k + 1} of the file"})
+    return {"clothgrid_stitches": 1, "seams": out, "turned": sorted(turned),
+            "about": f"{where}: the seams of its <metadata>"}
 
 
 def _text_lines(el: ET.Element) -> list[str]:
