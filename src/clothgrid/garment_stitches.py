@@ -258,9 +258,9 @@ def read_stitched_pattern(pattern: str | Path, stitches: str | Path | None, *, e
     if stitches is None:                    # the seams the file itself lists (svg <metadata><seams>)
         data = getattr(got, "stitches", None)
         if not data:
-            raise InputError(f"{pattern}: SVG and DXF patterns carry no stitches (this one lists none "
-                             "in its <metadata>): give them in a JSON file (--stitches FILE, stitches=...; "
-                             "docs/garment.md)")
+            raise InputError(f"{pattern}: SVG and DXF patterns carry no stitches (this one lists none in "
+                             "its <metadata> that names its pieces' vertices): give them in a JSON file "
+                             "(--stitches FILE, stitches=...; docs/garment.md)")
         stitches = pattern
     else:
         stitches = Path(stitches)
