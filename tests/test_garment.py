@@ -903,6 +903,12 @@ def test_svg_metadata_seams_sew_without_a_stitches_file(tmp_path, capsys):
     # heights match node for node
     pairs = r["stitches"][r["stitch_id"] == 0]
     np.testing.assert_allclose(r["rest"][pairs[:, 0], 1], r["rest"][pairs[:, 1], 1], atol=1e-9)
+    # `pieces` says so, and its JSON holds the stitches (B drawn face down)
+    assert main(["pieces", str(svg)]) == 0
+    assert "lists 2 seams in its <metadata>" in capsys.readouterr().out
+    assert main(["pieces", str(svg), "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)["stitches"]
+    assert listed["turned"] == ["B"] and len(listed["seams"]) == 2
     # without metadata seams or --stitches: one error line naming --stitches
     plain = tmp_path / "plain.svg"
     plain.write_text(TWO_SQUARES.format(meta="", b="M 150 110 L 150 10 L 250 10 L 250 110 Z"))

@@ -947,9 +947,11 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
         raise pipeline.no_piece_left(source, failed, "listed")
     skipped = pipeline.skipped_listing(pieces)
     code = EXIT_PARTIAL if failed else 0
+    stitches = getattr(pieces, "stitches", None)       # seams the file lists itself (svg metadata)
     if args.json:
         print(json.dumps({"file": str(source), "pieces": listing,
-                          "failed": [f.as_dict() for f in failed], "skipped": skipped}, indent=2))
+                          "failed": [f.as_dict() for f in failed], "skipped": skipped,
+                          "stitches": stitches}, indent=2))
         sys.stdout.flush()
         _say_failed(source, failed)
         return code
@@ -957,6 +959,10 @@ def _cmd_pieces(args: argparse.Namespace) -> int:
     print(f"{source}: {len(listing)} piece{'s' if len(listing) != 1 else ''}{bad} (coordinates in mm)"
           + (f", {len(skipped)} closed outline{'s' if len(skipped) != 1 else ''} skipped as "
              "annotations" if skipped else ""))
+    if stitches:
+        print(f"the file lists {len(stitches['seams'])} seams in its <metadata>: 'clothgrid garment "
+              f"{source}' sews them (no --stitches needed)"
+              + (f"; drawn face down: {', '.join(stitches['turned'])}" if stitches.get("turned") else ""))
     for e in listing:
         w, h = e["size_mm"]
         line = f", {e['line']} line" if e.get("line") in ("sew", "cut") else ""

@@ -373,7 +373,7 @@ def graded(pieces: list[Piece], size: str, source: Path | str) -> Pieces:
         raise InputError(f"{source}: --grade {size!r}: no piece of that size; its sizes are "
                          + ", ".join(map(repr, sizes)))
     skipped = [x for x in getattr(pieces, "skipped", ()) if key(x.meta.get("size", "")) == key(size)]
-    return Pieces(keep, getattr(pieces, "failed", ()), skipped)
+    return Pieces(keep, getattr(pieces, "failed", ()), skipped, getattr(pieces, "stitches", None))
 
 
 def unfolded_pieces(pieces: list[Piece], source: Path | str) -> Pieces:
@@ -391,7 +391,7 @@ def unfolded_pieces(pieces: list[Piece], source: Path | str) -> Pieces:
             kept.append(unfold(p))
         except InputError as exc:
             failed.append(piece_failure(p.name, exc, str(source), stage="unfold"))
-    return Pieces(kept, failed, getattr(pieces, "skipped", ()))
+    return Pieces(kept, failed, getattr(pieces, "skipped", ()), getattr(pieces, "stitches", None))
 
 
 def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, grade: str | None = None,
@@ -409,14 +409,15 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, gra
         pieces = unfolded_pieces(pieces, source)
     failed = list(getattr(pieces, "failed", ()))
     if not wanted:
-        return Pieces(pieces, failed, getattr(pieces, "skipped", ()))
+        return Pieces(pieces, failed, getattr(pieces, "skipped", ()), getattr(pieces, "stitches", None))
     # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
     resolve = Pieces(pieces, failed, getattr(pieces, "skipped", ())).resolve
     wanted = [resolve(w) for w in wanted]
     skipped = {s.name for s in getattr(pieces, "skipped", ())}
     named = [w for w in wanted if w in skipped]
     if named:                         # --piece NAME of a skipped outline grids it
-        pieces = Pieces(pieces, failed, getattr(pieces, "skipped", ())).including(named, where=f"{source}: ")
+        pieces = Pieces(pieces, failed, getattr(pieces, "skipped", ()),
+                        getattr(pieces, "stitches", None)).including(named, where=f"{source}: ")
     by_name = {p.name: p for p in pieces}
     bad = {f.name: f for f in failed}
     for w in wanted:
@@ -431,7 +432,7 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, gra
     for w in wanted:
         if by_name[w] not in out:
             out.append(by_name[w])
-    return Pieces(out, (), getattr(pieces, "skipped", ()))
+    return Pieces(out, (), getattr(pieces, "skipped", ()), getattr(pieces, "stitches", None))
 
 
 def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str = "gridded") -> Exception:

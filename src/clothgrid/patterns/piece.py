@@ -206,12 +206,16 @@ class Pieces(list):
         :func:`clothgrid.patterns.annotations.classify` (text, arrows, notches,
         drill holes, marks, seam-allowance outlines), in file order, with why;
         none is gridded unless named (:meth:`including`).
+    stitches : dict or None
+        The seams the file itself lists, as the data of a stitches file
+        (:mod:`clothgrid.garment_stitches`; an SVG's ``<metadata><seams>``), or None.
     """
 
-    def __init__(self, pieces: Any = (), failed: Any = (), skipped: Any = ()) -> None:
+    def __init__(self, pieces: Any = (), failed: Any = (), skipped: Any = (), stitches: Any = None) -> None:
         super().__init__(pieces)
         self.failed: list[PieceFailure] = list(failed)
         self.skipped: list[Skipped] = list(skipped)
+        self.stitches: dict[str, Any] | None = stitches
 
     def resolve(self, name: str) -> str:
         """``name`` as the name of one of these pieces, skipped outlines or failed pieces: itself where
@@ -254,8 +258,8 @@ class Pieces(list):
                 piece.meta.setdefault("line", {"seam allowance": "cut", "sew line": "sew"}
                                       .get(s.kind, "outline"))
                 added.append(piece)
-        return Pieces(list(self) + added, self.failed,
-                      [s for s in self.skipped if s.name not in wanted])
+        return Pieces(list(self) + added, self.failed, [s for s in self.skipped if s.name not in wanted],
+                      self.stitches)
 
 
 #: Two outline points closer than this (relative to the piece's size, and at least twice its sampling
