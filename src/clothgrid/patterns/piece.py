@@ -289,7 +289,11 @@ def pinch_pairs(outline: np.ndarray, tol: float) -> np.ndarray:
         c = cell[order]
         starts = np.flatnonzero(np.r_[True, (c[1:] != c[:-1]).any(axis=1)])
         ends = np.r_[starts[1:], len(c)]
-        for a0, b0 in zip(starts[ends - starts > 1], ends[ends - starts > 1]):   # runs of one cell
+        # runs of one cell whose points are not one stretch of the outline (a densely sampled curve
+        # puts neighbours in one cell: those runs are passed over without a look at their pairs)
+        span = np.maximum.reduceat(order, starts) - np.minimum.reduceat(order, starts)
+        look = (ends - starts > 1) & (span != ends - starts - 1)
+        for a0, b0 in zip(starts[look], ends[look]):
             run = order[a0:min(b0, a0 + 64)]
             for x in range(len(run)):
                 for y in range(x + 1, len(run)):
