@@ -91,3 +91,14 @@ def test_svg_text_lines_and_owner(tmp_path):
     assert got["front"] == [C(2, "main fabric", mirrored=True)]
     assert got["pocket"] == [C(4)]
     assert got["back"] == [C(2, "main fabric"), C(2, "lining")]
+
+
+def test_optitex_quantities():
+    """Optitex's graded Basic Tee (tests/data, MIT) writes Quantity and Material on its sample size:
+    one front and back of the self fabric, two sleeves, one neck binding of the contrast."""
+    pytest.importorskip("ezdxf")
+    src = Path(__file__).parent / "data" / "optitex" / "basic_tee_graded.dxf"
+    got = {p.name: cut_of(p) for p in select_pieces(src, units="cm", grade="Small")}
+    assert got == {"Front_Small": [C(1, "Self", mirrored=None)], "Back_Small": [C(1, "Self", mirrored=None)],
+                   "Right Sleeve_Small": [C(2, "Self", mirrored=None)],
+                   "Neck Binding_Small": [C(1, "Contrast 1", mirrored=None)]}
