@@ -54,19 +54,13 @@ def _runs(on: np.ndarray) -> list[tuple[int, int]]:
     n = len(on)
     if on.all():
         return [(0, n)]
-    start = int(np.argmin(on))                       # a False: no run wraps past it
-    out, k = [], 0
-    while k < n:
-        i = (start + k) % n
-        if on[i]:
-            m = 0
-            while k + m < n and on[(start + k + m) % n]:
-                m += 1
-            out.append((i, m))
-            k += m
-        else:
-            k += 1
-    return out
+    if not on.any():
+        return []
+    shift = int(np.argmin(on))                       # a False: no run wraps past it
+    r = np.roll(on, -shift).astype(np.int8)
+    edges = np.diff(np.r_[0, r, 0])
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [(int((a + shift) % n), int(b - a)) for a, b in zip(starts, ends)]
 
 
 def fold_edge(piece: Piece, fold: Any | None = None) -> tuple[int, int]:
@@ -245,16 +239,20 @@ def attach_fold_lines(pieces: Sequence[Piece], lines: Sequence[Any]) -> list[Pie
     piece whose outline it runs along (:func:`fold_edge`), the first such piece; a line along
     no piece's edge is dropped."""
     out = list(pieces)
+    boxes = [(p.outline.min(axis=0), p.outline.max(axis=0), _tolerance(p)) for p in out]
     for line in lines:
+        ends = np.asarray([line[0], line[-1]], dtype=np.float64)[:, :2]
         for k, p in enumerate(out):
-            if p.meta.get("fold_line") is not None:
+            lo, hi, tol = boxes[k]
+            # (the line may run past the outline's ends: a sew line's fold edge is the cut line's less
+            # the seam allowances at its ends; its box need only meet the piece's)
+            if p.meta.get("fold_line") is not None or (ends.max(axis=0) < lo - tol).any() or (
+                    ends.min(axis=0) > hi + tol).any():
                 continue
             try:
                 fold_edge(p, line)
             except InputError:
                 continue
-            ends = [[float(v) for v in np.asarray(line[0], dtype=np.float64)[:2]],
-                    [float(v) for v in np.asarray(line[-1], dtype=np.float64)[:2]]]
-            out[k] = replace(p, meta={**p.meta, "fold_line": ends})
+            out[k] = replace(p, meta={**p.meta, "fold_line": ends.tolist()})
             break
     return out
