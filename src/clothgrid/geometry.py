@@ -7,7 +7,7 @@ import numpy as np
 from . import limits
 from .errors import BoundaryError
 
-__all__ = ["PLANAR_TOL", "cross", "points_in_polygon", "box_holds", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
+__all__ = ["PLANAR_TOL", "cross", "points_in_polygon", "box_holds", "reflect", "boundary_loop", "signed_area", "vector_area", "best_fit_plane", "plane_axes", "plane_frame",
            "spike_points", "SPIKE_TURN_DEG", "untie_loops", "roll"]
 
 #: A point set is planar when no point is farther than this (relative to its size) from its plane.
@@ -341,6 +341,13 @@ def untie_loops(loop: np.ndarray, max_area: float, max_loops: int = 64) -> np.nd
         if removed > max_area or len(p) < 3:
             return None
     return None
+
+
+def reflect(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(..., 2)`` ``points`` mirrored across the line through ``a`` and ``b`` (distinct 2D points)."""
+    d = (b - a) / np.linalg.norm(b - a)
+    rel = np.asarray(points, dtype=np.float64) - a
+    return a + 2.0 * (rel @ d)[..., None] * d - rel
 
 
 def box_holds(lo: np.ndarray, hi: np.ndarray, inner_lo: np.ndarray, inner_hi: np.ndarray, tol: float = 0.0) -> bool:

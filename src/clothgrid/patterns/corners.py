@@ -40,7 +40,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import roll, turn_angles
+from ..geometry import reflect, roll, turn_angles
 from .piece import Piece
 
 __all__ = ["CornerCandidate", "CornerChoice", "turn_angles", "corner_candidates",
@@ -307,10 +307,8 @@ def mirror_partners(outline: np.ndarray, idx: Sequence[int], fold: Any, tol: flo
     ``idx`` whose mirror image is within ``tol`` of another index of ``idx`` (or itself, on the line),
     mapped to it."""
     a, b = (np.asarray(p, dtype=np.float64)[:2] for p in (fold[0], fold[-1]))
-    d = (b - a) / np.linalg.norm(b - a)
     pts = outline[np.asarray(idx, dtype=np.int64)]
-    rel = pts - a
-    img = a + 2.0 * np.outer(rel @ d, d) - rel
+    img = reflect(pts, a, b)
     dist = np.linalg.norm(img[:, None, :] - pts[None, :, :], axis=2)
     k = dist.argmin(axis=1)
     return {int(idx[i]): int(idx[k[i]]) for i in range(len(idx)) if dist[i, k[i]] <= tol}

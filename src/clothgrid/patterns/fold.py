@@ -23,6 +23,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import reflect, turn_angles
 from .piece import Piece, piece_from_polygon
 
 __all__ = ["FOLD_TOL_REL", "FOLD_TOL_MM", "fold_edge", "unfold", "unfolded", "mirrored", "attach_fold_lines"]
@@ -119,11 +120,6 @@ def _pt(p: np.ndarray) -> str:
     return f"({p[0]:.6g}, {p[1]:.6g})"
 
 
-def _turn_deg(prev: np.ndarray, at: np.ndarray, nxt: np.ndarray) -> float:
-    u, v = at - prev, nxt - at
-    return float(np.degrees(abs(np.arctan2(u[0] * v[1] - u[1] * v[0], u @ v))))
-
-
 def unfold(piece: Piece, fold: Any | None = None) -> Piece:
     """The whole piece of a half cut on the fold: ``piece``'s outline and its mirror image across the
     fold line (:func:`fold_edge`), counter-clockwise, starting at the far end of the fold edge.
@@ -153,8 +149,7 @@ def unfold(piece: Piece, fold: Any | None = None) -> Piece:
         half[k] = a + d * (rel @ d)
 
     def mirror(p: np.ndarray) -> np.ndarray:
-        rel = p - a
-        return a + 2.0 * np.outer(rel @ d, d) - rel if p.ndim == 2 else a + 2.0 * (rel @ d) * d - rel
+        return reflect(p, a, a + d)
 
     h = len(half)
     back = mirror(half[::-1])[1:-1]
@@ -169,11 +164,10 @@ def unfold(piece: Piece, fold: Any | None = None) -> Piece:
                 continue
             if k in (0, h - 1):                      # an end of the fold edge: once, if it still turns
                 if ends:
-                    j = k
-                    prev = back[-1] if j == 0 else half[j - 1]
-                    nxt = half[1] if j == 0 else back[0] if len(back) else half[0]
-                    if _turn_deg(prev, half[j], nxt) >= KEEP_TURN_DEG:
-                        out.append(j)
+                    prev = back[-1] if k == 0 else half[k - 1]
+                    nxt = half[1] if k == 0 else back[0] if len(back) else half[0]
+                    if abs(np.degrees(turn_angles(np.array([prev, half[k], nxt]))[1])) >= KEEP_TURN_DEG:
+                        out.append(k)
                 else:
                     out.append(k)
                 continue
