@@ -449,16 +449,11 @@ def _label_score(text: str) -> int:
     return 2 * sum(w in _PART_WORDS for w in words) + sum(w in _GARMENT_WORDS for w in words)
 
 
-def _text_label(el: ET.Element, m: np.ndarray, where: str) -> tuple[str, np.ndarray] | None:
-    """A ``<text>`` element's words (its ``<tspan>`` elements' too, spaces collapsed) and its anchor point
-    (its own ``x``, ``y``, else its first ``<tspan>``'s, transformed), or None where it has no words
-    naming a garment piece (:func:`_label_score`), more than 80 characters, or no readable place."""
-    got = _text_anchor(el, m, where)
-    return got if got is not None and _label_score(got[0]) else None
-
-
 def _text_anchor(el: ET.Element, m: np.ndarray, where: str) -> tuple[str, np.ndarray] | None:
-    """A ``<text>`` element's words and anchor point (:func:`_text_label`), whatever they say."""
+    """A ``<text>`` element's words (its ``<tspan>`` elements' too, spaces collapsed) and its anchor point
+    (its own ``x``, ``y``, else its first ``<tspan>``'s, transformed), whatever they say (a label
+    naming a piece: :func:`_label_score`; cut instructions), or None where it has no words, more
+    than 80 characters, or no readable place."""
     content = " ".join("".join(el.itertext()).split())
     if not content or len(content) > 80:
         return None
@@ -715,7 +710,6 @@ def read_svg(path: str | Path, *, units: str | None = None,
         head = f.read(8192)                  # the comments and root of the file: who wrote it
     view, unit, how = _viewport(root, where, units, head)
     root_size = _root_size(root, where)
-    from svgpathtools import parse_path
 
     pieces: list[Piece] = []
     unmade: list[tuple[PieceFailure, dict]] = []     # (why, meta): failed, or skipped if marked
@@ -832,20 +826,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             folds.append(ends)
                         return
                     if d:
-                        if not _PATH_CHARS.fullmatch(d):
-                            bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
-                            raise InputError(f"{where}: {label}: invalid path data (unexpected "
-                                             f"{bad!r})")
-                        if not d.lstrip().startswith(("M", "m")):
-                            raise InputError(f"{where}: {label}: invalid path data (it must begin "
-                                             f"with a moveto, M or m: {d.strip()[:20]!r})")
-                        try:
-                            with warnings.catch_warnings():
-                                warnings.simplefilter("ignore")
-                                parsed = parse_path(d)
-                        except Exception as exc:       # svgpathtools raises several types
-                            raise InputError(f"{where}: {label}: invalid path data ({exc})") from None
-                        for sub in parsed.continuous_subpaths():
+                        for sub in _parsed(d, f"{where}: {label}").continuous_subpaths():
                             if len(sub) == 0:
                                 continue
                             prims = [_segment_prims(seg, m) for seg in sub]
@@ -1089,18 +1070,31 @@ def _fold_text_paths(root: ET.Element) -> set[str]:
     return out
 
 
-def _fold_ends(d: str, m: np.ndarray) -> np.ndarray | None:
-    """The first and last points (mm) of a fold mark's path data ``d``, or None where it cannot be
-    read (a mark, not a piece: it is then ignored)."""
+def _parsed(d: str, label: str) -> Any:
+    """Path data ``d`` parsed (an svgpathtools ``Path``); InputError naming ``label`` where it is
+    invalid (a character no path command or number has, no leading moveto, what svgpathtools refuses)."""
     from svgpathtools import parse_path
 
-    if not _PATH_CHARS.fullmatch(d) or not d.lstrip().startswith(("M", "m")):
-        return None
+    if not _PATH_CHARS.fullmatch(d):
+        bad = re.sub(r"[MmZzLlHhVvCcSsQqTtAa0-9eE.,+\-\s]", "", d)[:10]
+        raise InputError(f"{label}: invalid path data (unexpected {bad!r})")
+    if not d.lstrip().startswith(("M", "m")):
+        raise InputError(f"{label}: invalid path data (it must begin with a moveto, M or m: "
+                         f"{d.strip()[:20]!r})")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            parsed = parse_path(d)
-    except Exception:                          # svgpathtools raises several types
+            return parse_path(d)
+    except Exception as exc:                   # svgpathtools raises several types
+        raise InputError(f"{label}: invalid path data ({exc})") from None
+
+
+def _fold_ends(d: str, m: np.ndarray) -> np.ndarray | None:
+    """The first and last points (mm) of a fold mark's path data ``d``, or None where it cannot be
+    read (a mark, not a piece: it is then ignored)."""
+    try:
+        parsed = _parsed(d, "fold mark")
+    except InputError:
         return None
     if len(parsed) == 0:
         return None
