@@ -44,7 +44,7 @@ from .batch_manifest import (MANIFEST, ManifestWriter, compact_manifest, file_sh
                              options_key, read_manifest, summarise)
 from .errors import InputError, MissingDependencyError, NotConvergedError
 from .pipeline import GridOptions, OutputOptions, check_outputs, read_jobs, report_entry, run_jobs, safe_name, \
-    write_results
+    size_key, write_results
 
 __all__ = ["batch", "BatchSummary", "FileTask", "find_inputs", "assign_stems", "grid_file", "warm_up", "WarmUp",
            "ProgressLine", "DEFAULT_TEMPLATE", "DEFAULT_RETRIES", "default_workers", "worker_threads"]
@@ -478,7 +478,7 @@ def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence
     if unfold:                                   # likewise: only where asked
         out["unfold"] = True
     if grade is not None:
-        out["grade"] = str(grade).strip().casefold()
+        out["grade"] = size_key(grade)
     return out
 
 

@@ -54,14 +54,14 @@ from .memory import KEPT_BYTES_PER_NODE
 from .grid import Grid
 from .patterns import (DEFAULT_EDGE_LENGTH_MM, MIN_TURN_DEG, CornerChoice, Piece, choose_corners,
                        nodes_for_edge_length, piece_boundary, piece_info)
-from .patterns.piece import PieceFailure, Pieces, piece_failure
+from .patterns.piece import MAX_CUT_COUNT, PieceFailure, Pieces, piece_failure
 from .units import parse_length, size_warning
 from .quality import TARGET_EDGE_SPREAD, TARGET_MIN_ANGLE_DEG, Quality, quality, sim_figures, targets_met
 from .readers import read_input, read_pieces
 
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
-           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "unfolded_pieces", "cut_of", "corner_choice",
+           "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "size_key", "unfolded_pieces", "cut_of", "corner_choice",
            "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
@@ -352,6 +352,11 @@ def _remove_folders(folders: Sequence[Path]) -> None:
 # --------------------------------------------------------------------------- reading
 
 
+def size_key(size: Any) -> str:
+    """A size as :func:`graded` matches it: case and surrounding spaces aside."""
+    return str(size).strip().casefold()
+
+
 def graded(pieces: list[Piece], size: str, source: Path | str) -> Pieces:
     """The pieces (and skipped outlines) of one size of a graded pattern: those whose ``meta["size"]``
     (AAMA's and flat exports' ``Size:`` text) is ``size`` (case and surrounding spaces aside).
@@ -361,19 +366,17 @@ def graded(pieces: list[Piece], size: str, source: Path | str) -> Pieces:
     InputError
         No piece of that size (the message lists the file's sizes), or a file without sizes.
     """
-    def key(x: Any) -> str:
-        return str(x).strip().casefold()
-
     sizes = list(dict.fromkeys(str(p.meta["size"]).strip() for p in pieces if p.meta.get("size")))
     if not sizes:
         raise InputError(f"{source}: --grade {size!r}: the file gives no sizes (no 'Size:' text on its "
                          "pieces): it is not graded")
-    keep = [p for p in pieces if key(p.meta.get("size", "")) == key(size)]
+    want = size_key(size)
+    keep = [p for p in pieces if size_key(p.meta.get("size", "")) == want]
     if not keep:
         raise InputError(f"{source}: --grade {size!r}: no piece of that size; its sizes are "
                          + ", ".join(map(repr, sizes)))
-    skipped = [x for x in getattr(pieces, "skipped", ()) if key(x.meta.get("size", "")) == key(size)]
-    return Pieces(keep, getattr(pieces, "failed", ()), skipped, getattr(pieces, "stitches", None))
+    skipped = [x for x in getattr(pieces, "skipped", ()) if size_key(x.meta.get("size", "")) == want]
+    return Pieces.like(pieces, keep, skipped=skipped)
 
 
 def unfolded_pieces(pieces: list[Piece], source: Path | str) -> Pieces:
@@ -391,7 +394,7 @@ def unfolded_pieces(pieces: list[Piece], source: Path | str) -> Pieces:
             kept.append(unfold(p))
         except InputError as exc:
             failed.append(piece_failure(p.name, exc, str(source), stage="unfold"))
-    return Pieces(kept, failed, getattr(pieces, "skipped", ()), getattr(pieces, "stitches", None))
+    return Pieces.like(pieces, kept, failed=failed)
 
 
 def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, grade: str | None = None,
@@ -409,15 +412,14 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, gra
         pieces = unfolded_pieces(pieces, source)
     failed = list(getattr(pieces, "failed", ()))
     if not wanted:
-        return Pieces(pieces, failed, getattr(pieces, "skipped", ()), getattr(pieces, "stitches", None))
+        return Pieces.like(pieces, pieces, failed=failed)
     # a name an earlier release gave (an alias: FreeSewing's "4", now "front") finds the piece
-    resolve = Pieces(pieces, failed, getattr(pieces, "skipped", ())).resolve
+    resolve = Pieces.like(pieces, pieces, failed=failed).resolve
     wanted = [resolve(w) for w in wanted]
     skipped = {s.name for s in getattr(pieces, "skipped", ())}
     named = [w for w in wanted if w in skipped]
     if named:                         # --piece NAME of a skipped outline grids it
-        pieces = Pieces(pieces, failed, getattr(pieces, "skipped", ()),
-                        getattr(pieces, "stitches", None)).including(named, where=f"{source}: ")
+        pieces = Pieces.like(pieces, pieces, failed=failed).including(named, where=f"{source}: ")
     by_name = {p.name: p for p in pieces}
     bad = {f.name: f for f in failed}
     for w in wanted:
@@ -432,7 +434,7 @@ def _select(pieces: list[Piece], wanted: Sequence[str] | None, source: Path, gra
     for w in wanted:
         if by_name[w] not in out:
             out.append(by_name[w])
-    return Pieces(out, (), getattr(pieces, "skipped", ()), getattr(pieces, "stitches", None))
+    return Pieces.like(pieces, out, failed=())
 
 
 def no_piece_left(source: Path | str, failed: Sequence[PieceFailure], what: str = "gridded") -> Exception:
@@ -1031,7 +1033,7 @@ def cut_of(piece: Piece) -> list[dict[str, Any]]:
         n = int(str(piece.meta.get("quantity", "")).strip())
     except ValueError:
         return []
-    if not 0 < n <= 1000:
+    if not 0 < n <= MAX_CUT_COUNT:
         return []
     return [{"count": n, "material": piece.meta.get("material"), "mirrored": None,
              "on_fold": piece.meta.get("fold_line") is not None}]

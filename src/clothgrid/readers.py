@@ -221,7 +221,7 @@ def _split_pinched(pieces: Pieces) -> Pieces:
                 taken.add(name)
                 parts[k] = q if name == q.name else replace(q, name=name)
         out.extend(parts)
-    return pieces if len(out) == len(pieces) else Pieces(out, pieces.failed, pieces.skipped, pieces.stitches)
+    return pieces if len(out) == len(pieces) else Pieces.like(pieces, out)
 
 
 def read_pieces(path: str | Path, *, units: str | None = None, rel_tol: float = DEFAULT_REL_TOL,

@@ -217,6 +217,15 @@ class Pieces(list):
         self.skipped: list[Skipped] = list(skipped)
         self.stitches: dict[str, Any] | None = stitches
 
+    @classmethod
+    def like(cls, source: Any, pieces: Any, failed: Any = None, skipped: Any = None) -> "Pieces":
+        """``pieces`` as a list that carries what ``source`` (a :class:`Pieces`, or a plain list that
+        carries nothing) holds besides its pieces: its ``failed`` and ``skipped`` unless given, and the
+        file's ``stitches``."""
+        return cls(pieces, getattr(source, "failed", ()) if failed is None else failed,
+                   getattr(source, "skipped", ()) if skipped is None else skipped,
+                   getattr(source, "stitches", None))
+
     def resolve(self, name: str) -> str:
         """``name`` as the name of one of these pieces, skipped outlines or failed pieces: itself where
         one is so named, else the name of the one piece or skipped outline that has it among its
@@ -258,8 +267,7 @@ class Pieces(list):
                 piece.meta.setdefault("line", {"seam allowance": "cut", "sew line": "sew"}
                                       .get(s.kind, "outline"))
                 added.append(piece)
-        return Pieces(list(self) + added, self.failed, [s for s in self.skipped if s.name not in wanted],
-                      self.stitches)
+        return Pieces.like(self, list(self) + added, skipped=[s for s in self.skipped if s.name not in wanted])
 
 
 #: Two outline points closer than this (relative to the piece's size, and at least twice its sampling
@@ -338,6 +346,9 @@ def split_pinched(piece: Piece) -> list[Piece]:
     return [piece]
 
 
+#: A cut count above this is no cut instruction (a number that happens to follow "Cut")
+MAX_CUT_COUNT = 1000
+
 _CUT_SAYS = re.compile(r"^\s*cut\s+(?P<n>\d+)\s*(?:x\b|times\b|pieces?\b)?(?P<rest>.*)$", re.IGNORECASE)
 _TIMES = re.compile(r"^\s*(?P<n>\d+)\s*x\s*(?P<rest>.*)$", re.IGNORECASE)
 _MIRRORED = re.compile(r"\b(mirrored|mirror|pairs?|reversed|flipped)\b", re.IGNORECASE)
@@ -367,7 +378,7 @@ def cut_instructions(text: str) -> list[dict[str, Any]]:
             parts.append((int(t["n"]), t["rest"]))
     out = []
     for n, rest in parts:
-        if not 0 < n <= 1000:
+        if not 0 < n <= MAX_CUT_COUNT:
             return []
         mirrored = bool(_MIRRORED.search(rest))
         material = _ON_FOLD.sub(" ", _MIRRORED.sub(" ", rest))

@@ -943,9 +943,9 @@ def read_svg(path: str | Path, *, units: str | None = None,
                      line=line, marked=marked)
     got = _exact(got, drafts) if drafts else got
     if folds:                               # a piece cut on the fold: its fold line (fold.unfold)
-        got = Pieces(attach_fold_lines(got, folds), got.failed, got.skipped)
+        got = Pieces.like(got, attach_fold_lines(got, folds))
     if cuts:                                # how many to cut, of what: the text drawn on the piece
-        got = Pieces(_with_cut_instructions(got, cuts), got.failed, got.skipped)
+        got = Pieces.like(got, _with_cut_instructions(got, cuts))
     if embedded:                            # the file's own seams, as a stitches file would give them
         got.stitches = _embedded_stitches(embedded, corners_of, got, where)
     return got
@@ -1138,7 +1138,7 @@ def _exact(got: Pieces, drafts: dict[int, Any]) -> Pieces:
             s = replace(s, piece=None, size=draft.extent, make=lambda d=draft: exact_of(d),
                         meta={k: v for k, v in s.meta.items() if k != "draft"})
         skipped.append(s)
-    return Pieces(pieces, got.failed, skipped)
+    return Pieces.like(got, pieces, skipped=skipped)
 
 
 @dataclass
