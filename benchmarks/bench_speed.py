@@ -19,7 +19,10 @@ For each size (the bundled T-shirt front, resampled to ``n x n``, ``tol = 2^-12`
 - the whole ``generate`` with ``functional="auto"`` and ``"foldfree"`` against the length solve
   (``foldfree`` only up to ``--foldfree-max``: it relaxes every interior node);
 - the whole command ``clothgrid generate BOUNDARY.json --nodes NxN -o grid.npz -q`` as a
-  subprocess (interpreter start included), default functional (auto) and ``--functional length``.
+  subprocess (interpreter start included), default functional (auto) and ``--functional length``,
+  against the floor of any command with a Numba kernel in its path, also in fresh interpreters:
+  ``import numpy`` alone, and NumPy and Numba with one cached parallel kernel called once
+  (Numba's import, its target context's first refresh and one cache load).
 
 Each row: seconds (best of ``--repeat``), ``x floor`` (seconds / floor) and a ratio to its
 baseline (the direct solve, or the length solve for the fold-free rows).
@@ -232,6 +235,32 @@ def cli_time(piece: Path, n: int, repeat: int, extra: list[str]) -> float:
         return best(lambda: subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL), repeat)[1]
 
 
+NUMBA_FLOOR = """
+import numba, numpy as np
+@numba.njit(cache=True, parallel=True)
+def total(a):
+    s = 0.0
+    for i in numba.prange(a.shape[0]):
+        s += a[i]
+    return s
+total(np.ones(8))
+"""
+
+
+def command_floor(repeat: int) -> tuple[float, float]:
+    """The start of any command that runs a Numba kernel, in fresh interpreters: ``import numpy``
+    alone, and NumPy and Numba with one cached parallel kernel called once (the kernel compiled and
+    cached by a first run): Numba's import, its target context's first refresh and one cache load.
+    Best of ``repeat`` each."""
+    with tempfile.TemporaryDirectory() as tmp:
+        script = Path(tmp) / "numba_floor.py"
+        script.write_text(NUMBA_FLOOR)
+        subprocess.run([sys.executable, str(script)], check=True)   # compile and cache
+        numpy_only = best(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), repeat)[1]
+        numba_one = best(lambda: subprocess.run([sys.executable, str(script)], check=True), repeat)[1]
+    return numpy_only, numba_one
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--piece", type=Path, default=PIECE)
@@ -308,10 +337,14 @@ def main() -> None:
                 f"{ff.get('moved', 0)} nodes moved, {ff.get('sweeps', 0)} sweeps)", t,
                 f"{t / t_len:.2f}x length; the step itself {(t - t_len) / t_len:.2f}x")
         if not args.no_cli:
+            numpy_only, numba_one = command_floor(max(args.repeat, 3))
+            row("command floor: fresh interpreter, `import numpy`", numpy_only, "")
+            row("command floor: fresh interpreter, NumPy and Numba, one cached parallel kernel", numba_one,
+                "1 (the command's floor with Numba in its path)")
             for extra, what in (([], "default (functional auto)"), (["--functional", "length"], "functional length")):
                 sec = cli_time(args.piece, n, args.repeat if n <= 512 or extra else 1, extra)
                 row(f"`clothgrid generate ... -o g.npz`, {what}, subprocess", sec,
-                    f"direct / this {direct / sec:.1f}x" if direct else "")
+                    f"{sec / numba_one:.2f}x the Numba floor" + (f"; direct / this {direct / sec:.1f}x" if direct else ""))
     for kind in args.memory_weights:
         for n in args.memory:
             memory_row(args.piece, n, kind)
