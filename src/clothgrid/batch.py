@@ -253,7 +253,7 @@ def _grid_garment(task: FileTask, entry: dict[str, Any], timings: dict[str, floa
     stage = "grid"
     try:
         g = garment(task.source, edge_length=task.options.edge_length or "10mm", units=task.units,
-                    weights=task.options.weights, functional=task.options.functional)
+                    weights=task.options.edge_weights(), functional=task.options.functional)
         timings["grid"] = time.perf_counter() - t0
         stage = "write"
         t1 = time.perf_counter()
@@ -462,6 +462,15 @@ def _normalised(options: GridOptions, output: OutputOptions, templates: Sequence
     version = getattr(sys.modules.get(__package__ or "clothgrid"), "__version__", "unknown")
 
     grid = asdict(options)
+    field = grid.pop("weight_field", None)       # a weight field's key only where one is given (resume)
+    grid.pop("weight_field_range", None)         # the field itself is read already
+    if field is not None:
+        import hashlib
+
+        import numpy as np
+
+        grid["weight_field"] = {"shape": list(field.shape),
+                                "sha256": hashlib.sha256(np.ascontiguousarray(field).tobytes()).hexdigest()}
     h = grid.get("edge_length")
     if isinstance(h, str):
         try:

@@ -477,6 +477,15 @@ def _add_grid_arguments(p: argparse.ArgumentParser) -> None:
                         "docs/patterns.md)")
     p.add_argument("--k", type=_k_factor, default=1.0, metavar="K",
                    help=f"the factor k of the v weights in eq. 2, {MIN_K:g} to {MAX_K:g} (default: 1)")
+    p.add_argument("--weight-field", metavar="FIELD",
+                   help="grade the grid: a positive field over each piece's (u, v) square that multiplies "
+                        "--weights edge by edge, finer where it is larger (an edge shortens about as one "
+                        "over its square root): a .npy array (mu, mv), index [i, j] with i along the "
+                        "bottom side, or a grayscale image (its top row along the top side) with "
+                        "--weight-field-range; any resolution, sampled bilinearly. With it --functional "
+                        "auto relaxes folded and poor cells only and leaves the grading (docs/usage.md)")
+    p.add_argument("--weight-field-range", type=_range, metavar="LO,HI",
+                   help="an image weight field's values at black and white, e.g. 1,10")
     p.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",
                    help="solver (default: auto)")
     p.add_argument("--backend", choices=BACKENDS, default="auto",
@@ -807,7 +816,8 @@ def _grid_options(args: argparse.Namespace) -> Any:
     return pipeline.GridOptions(
         nodes=args.nodes, edge_length=args.edge_length, init=args.init, weights=args.weights, k=args.k,
         solver=args.solver, backend=args.backend, tol=args.tol, stop=args.stop, max_iter=args.max_iter,
-        allow_unconverged=args.allow_unconverged, functional=args.functional)
+        allow_unconverged=args.allow_unconverged, functional=args.functional,
+        weight_field=args.weight_field, weight_field_range=args.weight_field_range)
 
 
 def _output_options(args: argparse.Namespace) -> Any:

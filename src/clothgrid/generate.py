@@ -18,7 +18,7 @@ from .memory import check_memory, estimate_bytes, format_bytes
 from .blas_threads import one_blas_thread
 from .pages import small_pages
 from .solvers import SOLVERS, Problem, choose_solver, solve
-from .weights import Weights, edge_contrast, make_weights
+from .weights import WeightField, Weights, edge_contrast, make_weights
 
 __all__ = ["generate", "parse_nodes", "check_size"]
 
@@ -70,7 +70,7 @@ def _check_options(init: str, solver: str, stop: str, tol: float, max_iter) -> N
 @small_pages()         # 4 KB pages: their first touch costs a fifth of huge pages' here (pages.small_pages)
 @one_blas_thread()     # Numba's threads are the parallel layer: OpenBLAS's spinning ones only slow them
 def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
-             weights: str | tuple[np.ndarray, np.ndarray] | Weights = "paper", k: float = 1.0,
+             weights: str | tuple[np.ndarray, np.ndarray] | WeightField | Weights = "paper", k: float = 1.0,
              solver: str = "auto", backend: str = "auto", tol: float = 2.0**-12, stop: str = "error",
              max_iter: int | None = None, allow_unconverged: bool = False,
              progress: Callable[[str], None] | None = None, functional: str = "length") -> Grid:
@@ -86,8 +86,12 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     init : {"tfi", "average", "zero"}
         Initial grid (eq. 4, the contour mean, or zeros). Only iterative
         solvers start from it; exact ones (direct, fdm) do not build it.
-    weights : {"paper", "uniform"} or (wu, wv) or Weights
-        Edge weights (:func:`clothgrid.weights.make_weights`).
+    weights : {"paper", "uniform"} or (wu, wv) or WeightField or Weights
+        Edge weights (:func:`clothgrid.weights.make_weights`). A
+        :class:`~clothgrid.weights.WeightField` grades the grid on purpose
+        (finer where it is larger): ``functional="auto"`` then only relaxes
+        folded and poor cells and leaves the edge lengths' spread as the
+        field made it (``info["evened"]["skipped"]``).
     k : float
         The paper's ``k`` for ``weights="paper"``.
     solver : {"auto", "direct", "fdm", "jacobi", "multigrid"}
@@ -221,7 +225,7 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     if functional == "length":
         grid.info["functional"] = "length"
         return grid
-    return _apply_functional(grid, functional, say, t0, flip)     # its grid's nodes checked finite there
+    return _apply_functional(grid, functional, say, t0, flip, even=not isinstance(weights, WeightField))     # its grid's nodes checked finite there
 
 
 def _check_finite(points: np.ndarray, who: str) -> None:
@@ -357,11 +361,15 @@ WHOLE_RETRY_MAX_NODES = 1 << 15
 WHOLE_RETRY_ROOM = 0.9
 
 
-def _even(X: np.ndarray, touched: list, say: Callable[[str], None]) -> dict:
-    """:func:`~clothgrid.evening.even_in_plane` of ``X``, with its progress line."""
-    from .evening import even_in_plane
+def _even(X: np.ndarray, touched: list, say: Callable[[str], None], even: bool = True) -> dict:
+    """:func:`~clothgrid.evening.even_in_plane` of ``X``, with its progress line; with ``even`` False
+    (graded weights: a :class:`~clothgrid.weights.WeightField`) only its figures, nothing moved."""
+    from .evening import SPREAD_OK, even_in_plane
 
-    ev = even_in_plane(X, touched=touched)
+    ev = even_in_plane(X, touched=touched, spread_ok=SPREAD_OK if even else math.inf)
+    if not even:
+        ev["skipped"] = "the weights are graded on purpose (a weight field)"
+        return ev
     kept = f"; kept, the sweeps reached {ev['rejected_spread']:.3g}" if "rejected_spread" in ev else ""
     say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
         f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
@@ -406,7 +414,7 @@ def outline_cap_deg(X: np.ndarray) -> float:
     return float(np.nanmin(np.minimum(half, 180.0 - half)))
 
 
-def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):
+def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say, even=True):
     """:data:`WHOLE_RETRY_DEG`: the local result ``(X, centre, basis, ff, moved, ev, touched)``, or,
     where its smallest angle is below that, every node relaxed and evened from the length grid ``R``
     (not changed), if that is better (a larger smallest angle, an edge spread no larger, no fold).
@@ -421,7 +429,7 @@ def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):
     t = time.perf_counter()
     X2, centre2, basis2, ff2, moved2 = relax_in_plane(R, dim=dim, whole=True, progress=say)
     touched2: list[np.ndarray] = []
-    ev2 = _even(X2, touched2, say)
+    ev2 = _even(X2, touched2, say, even)
     whole_deg = _smallest_deg(X2)
     better = bool(ff2.get("untangled")) and whole_deg > local_deg and ev2["spread_after"] <= ev["spread_after"]
     record = {"smallest_deg_local": local_deg, "smallest_deg_whole": whole_deg,
@@ -438,8 +446,10 @@ def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say):
     return X2, centre2, basis2, ff2, moved2, ev2, touched2
 
 
-def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool) -> Grid:
-    """Record the length grid's folds; for ``foldfree`` / poor ``auto`` relax it; then even its edges."""
+def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool,
+                      even: bool = True) -> Grid:
+    """Record the length grid's folds; for ``foldfree`` / poor ``auto`` relax it; then even its edges
+    (not where ``even`` is False: weights graded on purpose)."""
     from .quality import quality, quality_record
 
     q, record = quality_record(grid)
@@ -465,10 +475,10 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
     if X is None:
         X = np.ascontiguousarray(to_plane(R, centre, basis))
     touched: list[np.ndarray] = []
-    ev = _even(X, touched, say)
+    ev = _even(X, touched, say, even)
     if functional == "auto" and _local(ff, R) and R.shape[0] * R.shape[1] <= WHOLE_RETRY_MAX_NODES:
         X, centre, basis, ff, moved, ev, touched = _whole_if_better(R, grid.dim, X, centre, basis, ff, moved,
-                                                                    ev, touched, say)
+                                                                    ev, touched, say, even)
     if not relaxed and ev["moved"] == 0:     # nothing poor, nothing to even: the length grid as it is
         grid.info.update(relax=ff, evened=ev)
         grid._quality = q                    # measured once (pipeline.run_job reads it)

@@ -75,7 +75,11 @@ class GridOptions:
     edge length, :func:`~clothgrid.patterns.nodes_for_edge_length`: a number in the input's units, or text with a
     unit such as ``"5mm"`` for pattern files) sets the size; with neither, a
     boundary file keeps its own point counts and a pattern piece gets 10 mm
-    edges. The rest are :func:`clothgrid.generate`'s. Checked once, when made.
+    edges. ``weight_field`` (an array ``(mu, mv)``, or a ``.npy`` file or a
+    grayscale image with ``weight_field_range``, read with
+    :func:`clothgrid.fields.load_field`) scales ``weights`` edge by edge
+    (:class:`~clothgrid.weights.WeightField`: finer where it is larger). The
+    rest are :func:`clothgrid.generate`'s. Checked once, when made.
     """
 
     nodes: Any = None
@@ -90,6 +94,8 @@ class GridOptions:
     max_iter: int | None = None
     allow_unconverged: bool = False
     functional: str = "auto"
+    weight_field: Any = None
+    weight_field_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         from .generate import FUNCTIONALS, _check_options
@@ -101,10 +107,26 @@ class GridOptions:
         _check_options(self.init, self.solver, self.stop, self.tol, self.max_iter)
         if self.functional not in FUNCTIONALS:
             raise InputError(f"unknown functional {self.functional!r}: use one of {', '.join(FUNCTIONALS)}")
+        if self.weight_field is not None:
+            from .fields import load_field
+            from .weights import WeightField
+
+            field = load_field(self.weight_field, name="weight field", value_range=self.weight_field_range)
+            if not isinstance(field, np.ndarray):          # a number: the same factor on every edge
+                field = np.full((1, 1), field)
+            object.__setattr__(self, "weight_field", WeightField(field, base=self.weights).values)
+
+    def edge_weights(self) -> Any:
+        """What :func:`clothgrid.generate` takes as ``weights``: the name, or the weight field over it."""
+        if self.weight_field is None:
+            return self.weights
+        from .weights import WeightField
+
+        return WeightField(self.weight_field, base=self.weights)
 
     def generate_kwargs(self) -> dict[str, Any]:
         """The keyword arguments of :func:`clothgrid.generate` (all but the size)."""
-        return {"init": self.init, "weights": self.weights, "k": self.k, "solver": self.solver,
+        return {"init": self.init, "weights": self.edge_weights(), "k": self.k, "solver": self.solver,
                 "backend": self.backend, "tol": self.tol, "stop": self.stop, "max_iter": self.max_iter,
                 "allow_unconverged": self.allow_unconverged, "functional": self.functional}
 
@@ -641,7 +663,7 @@ def _check_size(job: Job, kept: int = 0, what: str = "") -> int:
     return the bytes its result keeps until it is written."""
     nodes = job.nodes if job.nodes is not None else job.boundary.shape
     o = job.options
-    check_size(nodes, solver=o.solver, backend=o.backend, weights=o.weights, stop=o.stop,
+    check_size(nodes, solver=o.solver, backend=o.backend, weights=o.edge_weights(), stop=o.stop,
                dim=job.boundary.dim, kept=kept, what=what)
     nu, nv = parse_nodes(nodes)
     return KEPT_BYTES_PER_NODE * nu * nv

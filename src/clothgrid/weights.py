@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["Weights", "paper_lengths", "make_weights", "interior_diagonal"]
+__all__ = ["Weights", "WeightField", "paper_lengths", "make_weights", "interior_diagonal", "sample_field"]
 
 
 class Weights:
@@ -29,7 +29,7 @@ class Weights:
     wv : numpy.ndarray
         ``(nu, nv-1)`` weights of the v-edges ``(i, j)-(i, j+1)``.
     kind : str
-        ``"paper"``, ``"uniform"`` or ``"custom"``.
+        ``"paper"``, ``"uniform"``, ``"field"`` (a :class:`WeightField`'s) or ``"custom"``.
     factors : tuple of numpy.ndarray or None
         ``(cu, dv, du, cv)`` with ``wu = cu[:, None] * dv[None, :]`` and
         ``wv = du[:, None] * cv[None, :]`` when the weights are separable.
@@ -115,15 +115,80 @@ def paper_lengths(n: int, k: float = 1.0) -> np.ndarray:
     return 0.01 + k * (0.5 * (n - 1) - i) ** 2 / n
 
 
+class WeightField:
+    """A positive field over a piece's parameter square that scales its edge weights.
+
+    The field's value at an edge's midpoint (in the grid's ``(u, v)``, both
+    in ``[0, 1]``) multiplies the ``base`` weight of that edge: every edge
+    gets its own weight (the paper's "four weights per node"), and the grid
+    is finer where the field is larger (an edge of weight ``w`` shortens about
+    as ``1 / sqrt(w)`` against its neighbours). Any resolution: the field is
+    sampled bilinearly, so one field serves every grid size.
+
+    Parameters
+    ----------
+    values : array_like
+        ``(mu, mv)`` positive finite values at the centres of an ``mu x mv``
+        raster over the square, indexed ``[i, j]``: ``i`` along u (the
+        bottom side, left to right), ``j`` along v (the left side, bottom to
+        top). :func:`clothgrid.fields.load_field` reads one from a ``.npy``
+        file or a grayscale image (its top row along the top side).
+    base : {"uniform", "paper"}
+        The weights it multiplies.
+    """
+
+    __slots__ = ("values", "base")
+
+    def __init__(self, values, base: str = "uniform"):
+        arr = np.asarray(values)
+        if arr.dtype.kind not in "fiu":
+            raise InputError(f"the weight field must hold numbers, not {arr.dtype}")
+        arr = np.ascontiguousarray(arr, dtype=np.float64)
+        if arr.ndim != 2 or min(arr.shape) < 1:
+            raise InputError(f"the weight field must be a 2D array (mu, mv), not of shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise InputError("the weight field holds NaN or infinite values")
+        if not np.all(arr > 0):
+            bad = np.argwhere(~(arr > 0))[0]
+            raise InputError(f"the weight field must be positive everywhere; [{bad[0]}, {bad[1]}] holds "
+                             f"{arr[tuple(bad)]!r}")
+        if base not in ("uniform", "paper"):
+            raise InputError(f"a weight field scales 'uniform' or 'paper' weights, not {base!r}")
+        self.values, self.base = arr, base
+
+    def __repr__(self) -> str:
+        return f"WeightField({self.values.shape[0]}x{self.values.shape[1]}, base={self.base!r})"
+
+    def contrast(self) -> float:
+        """Its largest value over its smallest."""
+        return float(self.values.max() / self.values.min())
+
+
+def sample_field(values: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear samples of a raster ``values`` ``(mu, mv)`` (values at its cells' centres over the
+    unit square) at ``u[:, None], v[None, :]`` (each in ``[0, 1]``; constant beyond the outer
+    centres): an ``(len(u), len(v))`` array."""
+    def axis(t: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        x = np.clip(np.asarray(t, dtype=np.float64) * m - 0.5, 0.0, m - 1.0)
+        i0 = np.minimum(np.floor(x).astype(np.intp), max(m - 2, 0))
+        return i0, np.minimum(i0 + 1, m - 1), x - i0
+
+    i0, i1, fu = axis(u, values.shape[0])
+    j0, j1, fv = axis(v, values.shape[1])
+    rows = values[i0] * (1.0 - fu)[:, None] + values[i1] * fu[:, None]
+    return rows[:, j0] * (1.0 - fv)[None, :] + rows[:, j1] * fv[None, :]
+
+
 def make_weights(spec, nu: int, nv: int, k: float = 1.0) -> Weights:
     """Build :class:`Weights` for an ``nu x nv`` grid.
 
     Parameters
     ----------
-    spec : {"paper", "uniform"} or tuple of array_like or Weights
-        ``"paper"`` (eq. 2 with parameter ``k``), ``"uniform"`` (all ones), or
+    spec : {"paper", "uniform"} or tuple of array_like or WeightField or Weights
+        ``"paper"`` (eq. 2 with parameter ``k``), ``"uniform"`` (all ones),
         ``(wu, wv)`` arbitrary positive per-edge weights of shapes
-        ``(nu-1, nv)`` and ``(nu, nv-1)`` (the paper's "four weights per node").
+        ``(nu-1, nv)`` and ``(nu, nv-1)`` (the paper's "four weights per node"),
+        or a :class:`WeightField` sampled at every edge's midpoint (kind ``"field"``).
     nu, nv : int
         Grid size.
     k : float
@@ -133,6 +198,12 @@ def make_weights(spec, nu: int, nv: int, k: float = 1.0) -> Weights:
         if spec.shape != (nu, nv):
             raise InputError(f"weights are for a {spec.shape[0]}x{spec.shape[1]} grid, not {nu}x{nv}")
         return spec
+    if isinstance(spec, WeightField):
+        base = make_weights(spec.base, nu, nv, k)
+        u, v = np.linspace(0.0, 1.0, nu), np.linspace(0.0, 1.0, nv)
+        um, vm = 0.5 * (u[:-1] + u[1:]), 0.5 * (v[:-1] + v[1:])
+        return Weights(wu=base.wu * sample_field(spec.values, um, v),
+                       wv=base.wv * sample_field(spec.values, u, vm), kind="field")
     if isinstance(spec, str):
         if spec == "paper":
             if not (np.isfinite(k) and k > 0):
