@@ -25,12 +25,12 @@ from .generate import generate
 from .grid import Grid
 from .quality import Quality, quality
 from .readers import load_boundary
-from .weights import Weights, make_weights
+from .weights import WeightField, Weights, make_weights
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Boundary", "Grid", "Quality", "Weights", "generate", "load_boundary", "make_weights", "quality",
+    "Boundary", "Grid", "Quality", "WeightField", "Weights", "generate", "load_boundary", "make_weights", "quality",
     "ClothgridError", "InputError", "BoundaryError", "SizeError", "PiecesError", "BackendUnavailableError", "NotConvergedError",
     "__version__", "batch",
 ]
