@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["load_field", "finite_number"]
+__all__ = ["load_field", "checked_field", "finite_number"]
 
 
 def finite_number(x: float, what: str) -> float:
@@ -88,12 +88,20 @@ def load_field(value: Any, *, name: str, shape: tuple[int, int] | None = None,
         else:
             arr = _read_image(path, name, value_range, range_option or f"--{name.replace(' ', '-')}-range")
     else:
-        arr = np.asarray(value)
+        arr = value
+    return checked_field(arr, name=name, shape=shape, positive=positive)
+
+
+def checked_field(value: Any, *, name: str, shape: tuple[int, int] | None = None,
+                  positive: bool = True) -> np.ndarray:
+    """``value`` as a C-contiguous float64 2D array of finite numbers (positive ones where
+    ``positive``; of ``shape`` where given), else InputError naming ``name``."""
+    arr = np.asarray(value)
     if arr.dtype.kind not in "fiu":
         raise InputError(f"{name} must hold numbers, not {arr.dtype}")
     arr = np.ascontiguousarray(arr, dtype=np.float64)
     if arr.ndim != 2 or min(arr.shape) < 1:
-        raise InputError(f"{name} must be a 2D array of cells (nx, ny), not of shape {arr.shape}")
+        raise InputError(f"{name} must be a 2D array (nx, ny), not of shape {arr.shape}")
     if shape is not None and arr.shape != tuple(shape):
         raise InputError(f"{name} has shape {arr.shape}, the cells are {tuple(shape)}")
     if not np.all(np.isfinite(arr)):

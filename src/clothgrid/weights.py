@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
+from .fields import checked_field
 
 __all__ = ["Weights", "WeightField", "paper_lengths", "make_weights", "interior_diagonal", "sample_field"]
 
@@ -140,28 +141,13 @@ class WeightField:
     __slots__ = ("values", "base")
 
     def __init__(self, values, base: str = "uniform"):
-        arr = np.asarray(values)
-        if arr.dtype.kind not in "fiu":
-            raise InputError(f"the weight field must hold numbers, not {arr.dtype}")
-        arr = np.ascontiguousarray(arr, dtype=np.float64)
-        if arr.ndim != 2 or min(arr.shape) < 1:
-            raise InputError(f"the weight field must be a 2D array (mu, mv), not of shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise InputError("the weight field holds NaN or infinite values")
-        if not np.all(arr > 0):
-            bad = np.argwhere(~(arr > 0))[0]
-            raise InputError(f"the weight field must be positive everywhere; [{bad[0]}, {bad[1]}] holds "
-                             f"{arr[tuple(bad)]!r}")
+        arr = checked_field(values, name="the weight field")
         if base not in ("uniform", "paper"):
             raise InputError(f"a weight field scales 'uniform' or 'paper' weights, not {base!r}")
         self.values, self.base = arr, base
 
     def __repr__(self) -> str:
         return f"WeightField({self.values.shape[0]}x{self.values.shape[1]}, base={self.base!r})"
-
-    def contrast(self) -> float:
-        """Its largest value over its smallest."""
-        return float(self.values.max() / self.values.min())
 
 
 def sample_field(values: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
