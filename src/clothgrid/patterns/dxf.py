@@ -56,7 +56,7 @@ from .annotations import LINES, classified, structure_hint
 from .fold import attach_fold_lines
 from .chains import GAP_MM, GAP_REL, chain_loops, join_outlines, joined_note, largest_gap
 from .piece import (Piece, PieceFailure, Pieces, outline_box, pattern_pieces, piece_failure,
-                    piece_from_primitives)
+                    piece_from_primitives, unique_name)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, bspline_to_beziers
 from ..units import UNITS, unit_to_mm
 
@@ -323,14 +323,6 @@ def _extent(prims_list: list[list[Primitive]]) -> float:
     return float(np.hypot(*np.ptp(allp, axis=0)))
 
 
-def _unique(name: str, used: dict[str, int]) -> str:
-    if name not in used:
-        used[name] = 1
-        return name
-    used[name] += 1
-    return _unique(f"{name}-{used[name]}", used)
-
-
 def _layer_curves(ents: list[Any], layer: str, ctx: _Ctx) -> tuple[list[list[Primitive]], list[list[Primitive]]]:
     """(open chains, closed entities) of the curves on ``layer``, each as its primitives."""
     chains, closed = [], []
@@ -410,7 +402,7 @@ def _read_aama(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: str
         size = t.get("size")
         if pname in dup and size:
             pname = f"{pname}_{size}"
-        pname = _unique(pname, used)
+        pname = unique_name(pname, used)
         try:
             chains, closed = _layer_curves(ents, "1", ctx)
             tol = 1e-6 * _extent(chains + closed)
@@ -673,7 +665,7 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
         layer = meta.get("layer")
         if layer is not None:
             meta.update(group=layer, look=layer, structure=structure_hint([layer]))
-        name = _unique(f"piece{k}", used)
+        name = unique_name(f"piece{k}", used)
         own = []
         outline = joined.get(k - 1)
         if outline is not None:

@@ -539,6 +539,16 @@ def _check_simple(pts: np.ndarray, label: str) -> None:
                      "outline (a bow-tie, a figure eight) cannot be gridded")
 
 
+def unique_name(name: str, used: dict[str, int]) -> str:
+    """``name``, or where ``used`` (the names given so far, each with how often it was asked for) has
+    it, ``name-2``, ``name-3``, ... (the first not given); the name returned is recorded in ``used``."""
+    if name not in used:
+        used[name] = 1
+        return name
+    used[name] += 1
+    return unique_name(f"{name}-{used[name]}", used)
+
+
 def _sorted_unique(a: np.ndarray) -> np.ndarray:
     """``np.unique`` of integers by sorting (NumPy 2's hashing ``unique`` takes a second on 10^6)."""
     a = np.sort(np.asarray(a, dtype=np.int64))

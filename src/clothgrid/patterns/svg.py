@@ -48,7 +48,7 @@ from .annotations import classified, marked_annotation, structure_hint
 from .chains import GAP_MM, GAP_REL, Joined, join_outlines, joined_note, largest_gap
 from .fold import attach_fold_lines
 from .piece import (Piece, PieceFailure, Pieces, Skipped, cut_instructions, outline_box, piece_failure,
-                    piece_from_points, piece_from_primitives)
+                    piece_from_points, piece_from_primitives, unique_name)
 from .sampling import DEFAULT_REL_TOL, Bezier, EllipseArc, Primitive, control_box
 from ..units import UNITS, unit_to_mm
 
@@ -727,11 +727,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
     unnamed: set[str] = set()                        # pieces named by a fallback (piece3, outline)
 
     def unique(name: str) -> str:
-        if name not in names:
-            names[name] = 1
-            return name
-        names[name] += 1
-        return unique(f"{name}-{names[name]}")
+        return unique_name(name, names)
 
     depth, count = _tree_size(root)
     if depth > MAX_NESTING:
