@@ -915,3 +915,31 @@ def test_svg_metadata_seams_sew_without_a_stitches_file(tmp_path, capsys):
     assert main(["garment", str(plain), "-o", str(tmp_path / "p.npz"), "-q"]) == 2
     err = capsys.readouterr().err
     assert "--stitches" in err and err.count("clothgrid: error:") == 1
+
+
+def test_garment_makes_missing_output_folders_and_removes_them_on_failure(tmp_path, capsys, monkeypatch):
+    """Like generate: ``-o new/sub/g.npz`` makes the folders; a write that fails is one error line
+    (exit 2) and removes what it wrote and the folders it made; a file in a folder's place is one
+    error line before any work."""
+    panels = {"A": _square("A", 0, [0, 0, 0], size=30.0), "B": _square("B", 0, [30, 0, 0], size=30.0)}
+    path = _write(tmp_path, panels, [[{"panel": "A", "edge": 1}, {"panel": "B", "edge": 3}]])
+    out = tmp_path / "new" / "sub" / "g.npz"
+    assert main(["garment", str(path), "-o", str(out), "--edge-length", "1cm", "-q"]) == 0 and out.exists()
+
+    import clothgrid.garment as G
+
+    def broken(g, o, **kw):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(G, "write_garment", broken)
+    out2 = tmp_path / "other" / "deep" / "g.npz"
+    capsys.readouterr()
+    assert main(["garment", str(path), "-o", str(out2), "--edge-length", "1cm", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("clothgrid: error:") == 1 and "cannot write" in err and "disk full" in err
+    assert not (tmp_path / "other").exists()
+    monkeypatch.undo()
+    (tmp_path / "afile").write_text("x")
+    assert main(["garment", str(path), "-o", str(tmp_path / "afile" / "g.npz"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("clothgrid: error:") == 1 and "is not a folder" in err

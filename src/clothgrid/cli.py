@@ -421,6 +421,7 @@ def _fixed_count(text: str) -> tuple[tuple[str, int], int]:
 
 
 def _cmd_garment(args: argparse.Namespace) -> int:
+    from . import pipeline
     from .garment import garment, write_garment
 
     outs = [Path(o) for o in args.output]
@@ -432,20 +433,24 @@ def _cmd_garment(args: argparse.Namespace) -> int:
             from .garment_usd import _pxr
 
             _pxr()                      # usd-core missing: say so before gridding
-        if not o.parent.is_dir():
-            raise InputError(f"output folder {str(o.parent)!r} does not exist (for {str(o)!r})")
+    pipeline.check_output_folders(outs)   # missing folders are made when writing, like generate's
     t0 = time.perf_counter()
     with _first_compile_said(_progress(args.quiet)):
         g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
                     fixed=dict(args.fix) if args.fix else None, stitches=args.stitches,
                     progress=_progress(args.quiet))
     written: list[Path] = []
+    made = pipeline.make_folders(outs)
     try:
         for o in outs:
-            written.append(write_garment(g, o, seams=args.seams, density=args.density))
+            try:
+                written.append(write_garment(g, o, seams=args.seams, density=args.density))
+            except OSError as exc:            # a full disk, a folder taken away: one line, as generate
+                raise InputError(f"cannot write {str(o)!r}: {exc.strerror or exc}") from exc
     except BaseException:
         for w in written:
             w.unlink(missing_ok=True)
+        pipeline.remove_folders(made)
         raise
     for line in g.info["warnings"]:
         _say(f"warning: {line}")

@@ -62,7 +62,7 @@ from .readers import read_input, read_pieces
 __all__ = ["GridOptions", "OutputOptions", "Job", "Jobs", "Result", "PieceFailure", "read_jobs", "run_job",
            "run_jobs", "no_piece_left", "write_result",
            "write_results", "generate_piece", "runners_up", "piece_listing", "skipped_listing", "select_pieces", "graded", "size_key", "unfolded_pieces", "cut_of", "corner_choice",
-           "check_outputs", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
+           "check_outputs", "check_output_folders", "make_folders", "remove_folders", "output_names", "safe_name", "PLOT_SUFFIXES", "report_entry", "write_report"]
 
 PLOT_SUFFIXES = (".png",)
 
@@ -328,7 +328,15 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
             raise InputError(f"--plot {str(plot)!r}: the plot must be a {'/'.join(PLOT_SUFFIXES)} file")
         if plot_path in paths:
             raise InputError(f"{str(plot)!r} is given both as an output and as the plot")
-    for path in paths + ([plot_path] if plot_path is not None else []):
+    check_output_folders(paths + ([plot_path] if plot_path is not None else []))
+    return paths, plot_path
+
+
+def check_output_folders(paths: Sequence[Path]) -> None:
+    """Fail fast (InputError) where an output cannot be written: the nearest existing folder above
+    it is not a folder or not writable, or the output is a folder. Missing folders are fine: they
+    are made when writing (:func:`make_folders`) and removed again if the run fails."""
+    for path in paths:
         missing = _missing_folders(path)   # made when writing
         folder = missing[-1].parent if missing else path.parent
         if not folder.is_dir():
@@ -337,7 +345,6 @@ def check_outputs(outputs: Sequence[str | Path], plot: str | Path | None) -> tup
             raise InputError(f"output folder {str(folder)!r} is not writable (for {str(path)!r})")
         if path.is_dir():
             raise InputError(f"output {str(path)!r} is a folder")
-    return paths, plot_path
 
 
 def _missing_folders(path: Path) -> list[Path]:
@@ -350,7 +357,7 @@ def _missing_folders(path: Path) -> list[Path]:
     return missing
 
 
-def _make_folders(paths: Sequence[Path]) -> list[Path]:
+def make_folders(paths: Sequence[Path]) -> list[Path]:
     """Create the missing parent folders of ``paths``; return those created, deepest first."""
     made: list[Path] = []
     for path in paths:
@@ -363,7 +370,8 @@ def _make_folders(paths: Sequence[Path]) -> list[Path]:
     return made[::-1]
 
 
-def _remove_folders(folders: Sequence[Path]) -> None:
+def remove_folders(folders: Sequence[Path]) -> None:
+    """Remove ``folders`` (deepest first) where they are still empty: those :func:`make_folders` made."""
     for f in folders:            # deepest first; only what is still empty
         try:
             f.rmdir()
@@ -850,7 +858,7 @@ def write_report(path: str | Path, source: str | Path, results: Sequence[Result]
     }
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    made = _make_folders([path])           # like the outputs' folders
+    made = make_folders([path])           # like the outputs' folders
     try:
         tmp.write_text(json.dumps(data, indent=1, allow_nan=False, default=float) + "\n")
         os.replace(tmp, path)
@@ -859,7 +867,7 @@ def write_report(path: str | Path, source: str | Path, results: Sequence[Result]
             tmp.unlink(missing_ok=True)
         except OSError:                     # e.g. a "folder" of the path is a file
             pass
-        _remove_folders(made)
+        remove_folders(made)
         raise InputError(f"cannot write the report {str(path)!r}: {exc.strerror or exc}") from exc
     return path
 
@@ -920,7 +928,7 @@ def write_result(result: Result, options: OutputOptions = OutputOptions()) -> li
     written: list[Path] = []
     made: list[Path] = []
     try:
-        made = _make_folders(job.outputs + ([job.plot] if job.plot is not None else []))
+        made = make_folders(job.outputs + ([job.plot] if job.plot is not None else []))
         for path in job.outputs:
             written.append(Path(writers.save(result.grid, path, **options.for_writer(path.suffix))))
         if job.plot is not None:
@@ -930,7 +938,7 @@ def write_result(result: Result, options: OutputOptions = OutputOptions()) -> li
     except BaseException as exc:
         for path in written:
             path.unlink(missing_ok=True)
-        _remove_folders(made)
+        remove_folders(made)
         if isinstance(exc, OSError):
             name = getattr(exc, "filename", None) or "output"
             raise InputError(f"cannot write {name}: {exc.strerror or exc}") from exc
@@ -951,7 +959,7 @@ def write_results(results: Sequence[Result], options: OutputOptions = OutputOpti
     except BaseException:
         for p in written:
             p.unlink(missing_ok=True)
-        _remove_folders(folders)
+        remove_folders(folders)
         raise
     return written
 
