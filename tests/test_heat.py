@@ -374,7 +374,7 @@ def test_cli_writes_temperature_x_y(tmp_path, capsys):
 
 
 def test_cli_transient(tmp_path):
-    out = tmp_path / "t.npz"
+    out = tmp_path / "new" / "sub" / "t.npz"          # missing folders are made, as generate's
     assert main(["heat", "--conductivity", "0.05", "--cells", "20x4", "--size", "0.01x0.002", "--left", "34",
                  "--right", "h=10,T=20", "--capacity", "1.5e5", "--dt", "5", "--steps", "6", "--save-every", "2",
                  "--scheme", "backward-euler", "-o", str(out), "-q"]) == 0

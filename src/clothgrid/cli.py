@@ -316,15 +316,14 @@ def _cmd_heat(args: argparse.Namespace) -> int:
     # spinning made each parallel kernel of the heat multigrid cost ~15 ms (a 256^2 solve 3.6 s instead of
     # 0.1 s); read by libgomp when Numba first runs a parallel kernel, so set before any (docs/heat.md)
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    from . import heat
+    from . import heat, pipeline
 
     outs = [Path(o) for o in args.output]
     for o in outs:   # before any work: a bad name or folder fails at once
         if o.suffix.lower() not in heat.HEAT_OUTPUTS:
             raise InputError(f"unknown heat output format {o.suffix or o.name!r}: use "
                              f"{', '.join(heat.HEAT_OUTPUTS)}")
-        if not o.parent.is_dir():
-            raise InputError(f"output folder {str(o.parent)!r} does not exist")
+    pipeline.check_output_folders(outs)   # missing folders are made when writing
     if (args.dt is None) != (args.steps is None):
         raise InputError("a transient run needs both --dt and --steps")
     problem = heat.HeatProblem(
@@ -356,14 +355,7 @@ def _cmd_heat(args: argparse.Namespace) -> int:
           f"(tol {info['tol']:.1e}){bound}, {info['seconds']:.3f} s")
     print("heat in (W per metre depth): " + ", ".join(f"{k} {v:.6g}" for k, v in flows.items())
           + f"; sum {sum(flows.values()):.3g}")
-    written: list[Path] = []
-    try:
-        for o in outs:
-            written.append(res.save(o))
-    except BaseException:
-        for w in written:
-            w.unlink(missing_ok=True)
-        raise
+    written = _write_all(outs, res.save)
     if progress:
         progress(f"wrote {', '.join(map(str, written))}")
     return 0
@@ -420,6 +412,28 @@ def _fixed_count(text: str) -> tuple[tuple[str, int], int]:
     return (name, e), k
 
 
+def _write_all(outs: list[Path], write: Callable[[Path], Path]) -> list[Path]:
+    """Write every output with ``write`` (each atomic), making missing folders first: all or none.
+    On a failure the outputs written and the folders made are removed; an OSError (a full disk, a
+    folder taken away) is one ``cannot write`` line (InputError), as ``generate``'s."""
+    from . import pipeline
+
+    written: list[Path] = []
+    made = pipeline.make_folders(outs)
+    try:
+        for o in outs:
+            try:
+                written.append(write(o))
+            except OSError as exc:
+                raise InputError(f"cannot write {str(o)!r}: {exc.strerror or exc}") from exc
+    except BaseException:
+        for w in written:
+            w.unlink(missing_ok=True)
+        pipeline.remove_folders(made)
+        raise
+    return written
+
+
 def _cmd_garment(args: argparse.Namespace) -> int:
     from . import pipeline
     from .garment import garment, write_garment
@@ -439,19 +453,7 @@ def _cmd_garment(args: argparse.Namespace) -> int:
         g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
                     fixed=dict(args.fix) if args.fix else None, stitches=args.stitches,
                     progress=_progress(args.quiet))
-    written: list[Path] = []
-    made = pipeline.make_folders(outs)
-    try:
-        for o in outs:
-            try:
-                written.append(write_garment(g, o, seams=args.seams, density=args.density))
-            except OSError as exc:            # a full disk, a folder taken away: one line, as generate
-                raise InputError(f"cannot write {str(o)!r}: {exc.strerror or exc}") from exc
-    except BaseException:
-        for w in written:
-            w.unlink(missing_ok=True)
-        pipeline.remove_folders(made)
-        raise
+    written = _write_all(outs, lambda o: write_garment(g, o, seams=args.seams, density=args.density))
     for line in g.info["warnings"]:
         _say(f"warning: {line}")
     s = g.info["seconds"]
