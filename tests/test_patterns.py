@@ -449,6 +449,56 @@ def test_plain_dxf_drawn_by_hand_with_gaps_and_construction_lines(tmp_path):
     assert any("joined from 6 lines and curves" in n and "around 1 inner line" in n for n in piece.notes)
 
 
+@pytest.mark.parametrize("shape", ["rectangle", "pentagon"])
+def test_dxf_lines_that_cross_near_their_ends_make_the_outline(tmp_path, rng, shape):
+    """A piece drafted with corner lines that overshoot (cross a few mm past each other, in random
+    order and directions): cut at the crossings, the ends past them left out, the outline exact.
+    Lines crossing in their middles (a drill hole's cross, a grid) make nothing."""
+    import ezdxf
+
+    if shape == "rectangle":
+        corners = np.array([[0, 0], [300, 0], [300, 500], [0, 500]], dtype=float)
+    else:
+        corners = np.array([[0, 0], [260, -20], [330, 240], [150, 420], [-40, 260]], dtype=float)
+    corners = corners + rng.uniform(-50, 50, size=2)
+    n = len(corners)
+    doc = ezdxf.new("R2010")
+    doc.units = 4
+    msp = doc.modelspace()
+    order = rng.permutation(n)
+    for k in order:
+        a, b = corners[k], corners[(k + 1) % n]
+        d = (b - a) / np.linalg.norm(b - a)
+        a2, b2 = a - d * rng.uniform(0, 12), b + d * rng.uniform(0.5, 12)   # at least one end overshoots
+        if rng.random() < 0.5:
+            a2, b2 = b2, a2
+        msp.add_line(tuple(a2), tuple(b2))
+    c = corners.mean(axis=0)
+    msp.add_line(tuple(c - [20, 0]), tuple(c + [20, 0]))        # a cross in the middle: not an outline
+    msp.add_line(tuple(c - [0, 20]), tuple(c + [0, 20]))
+    doc.saveas(tmp_path / "cross.dxf")
+    (piece,) = read_pieces(tmp_path / "cross.dxf")
+    x, y = corners[:, 0], corners[:, 1]
+    area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    assert piece.area == pytest.approx(area, rel=1e-9)
+    # every corner is an outline point, and every outline point a corner
+    pts = piece.outline
+    assert len(pts) == n
+    assert max(np.hypot(*(pts - q).T).min() for q in corners) < 1e-9
+    assert any("cross near their ends" in note for note in piece.notes)
+    # the same lines crossing in their middles are no piece
+    doc = ezdxf.new("R2010")
+    doc.units = 4
+    msp = doc.modelspace()
+    for k in range(n):
+        a, b = corners[k], corners[(k + 1) % n]
+        d = b - a
+        msp.add_line(tuple(a - 0.5 * d), tuple(b + 0.5 * d))
+    doc.saveas(tmp_path / "grid.dxf")
+    with pytest.raises(InputError, match="no closed polyline"):
+        read_pieces(tmp_path / "grid.dxf")
+
+
 def test_plain_dxf_pieces_and_accuracy(tmp_path):
     from ezdxf.math import bulge_to_arc
 

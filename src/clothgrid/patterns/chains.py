@@ -288,9 +288,112 @@ class Joined(NamedTuple):
     members: list[int]        # the chains it runs along, in order
     inner: list[int]          # the chains inside it
     bridged: bool             # made only with ends up to ``gap`` apart (the second pass, or a chain closed on itself)
+    crossed: int = 0          # straight lines that cross near their ends, cut at the crossings (:func:`_noded`)
 
 
-def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0) -> list[Joined]:
+#: Straight lines left over that cross near their ends (a corner drafted with overshooting lines) are
+#: cut where they cross: a crossing counts where it lies within this share of each line's length of
+#: one of its ends (and within :data:`CROSS_REACH_MM`): lines of a grid or a table that cross in
+#: their middles are left alone.
+CROSS_REACH = 0.2
+#: ... and within this many millimetres (the drawing's units scaled by the caller's ``mm``)
+CROSS_REACH_MM = 20.0
+
+
+def _noded(pieces: list[list[Primitive]], rest: list[int], tol: float, reach: float
+           ) -> tuple[list[list[Primitive]], list[int], np.ndarray] | None:
+    """The chains ``rest`` of ``pieces`` as one-primitive chains, their straight lines (Béziers of
+    two control points) cut where two cross near an end of each (within ``reach`` and
+    :data:`CROSS_REACH` of each line's length; ``tol`` of slack at the lines' ends): ``(chains, the
+    index in pieces each came from, the crossing points (k, 2))``, or None where no two lines cross so."""
+    prims: list[Primitive] = []
+    origin: list[int] = []
+    for k in rest:
+        for p in pieces[k]:
+            prims.append(p)
+            origin.append(k)
+    lines = np.array([i for i, p in enumerate(prims)
+                      if isinstance(p, Bezier) and len(p.ctrl) == 2 and p.weights is None], dtype=np.int64)
+    if not len(lines):
+        return None
+    from ..geometry import candidate_pairs
+
+    a = np.array([prims[i].start for i in lines])
+    b = np.array([prims[i].end for i in lines])
+    length = np.hypot(*(b - a).T)
+    lo, hi = np.minimum(a, b) - tol, np.maximum(a, b) + tol
+    cuts: dict[int, list[tuple[float, np.ndarray]]] = {}   # line: (parameter, the point) where it is cut
+    snaps: dict[tuple[int, bool], np.ndarray] = {}     # (line, its end (True) or start): the crossing
+    points: list[np.ndarray] = []
+    # a curve's end on a line near the line's end (an overshoot past where a curve begins): the line is
+    # cut at that end itself
+    ends = np.array([p.start if s == 0 else p.end for k in rest for s, p in ((0, pieces[k][0]), (1, pieces[k][-1]))
+                     if not (isinstance(p, Bezier) and len(p.ctrl) == 2 and p.weights is None)]).reshape(-1, 2)
+    if len(ends):
+        nl = len(lines)
+        box_lo = np.concatenate([lo, ends - tol])
+        box_hi = np.concatenate([hi, ends + tol])
+        for i, e in candidate_pairs(box_lo, box_hi):
+            pick = (i < nl) & (e >= nl)
+            i, e = i[pick], e[pick] - nl
+            r = b[i] - a[i]
+            t = np.einsum("ij,ij->i", ends[e] - a[i], r) / np.maximum(length[i] ** 2, np.finfo(float).tiny)
+            dist = np.hypot(*(a[i] + t[:, None] * r - ends[e]).T)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ti = tol / length[i]
+                ri = np.minimum(CROSS_REACH, reach / length[i])
+            hit = np.flatnonzero((dist <= tol) & (t > ti) & (t < 1 - ti) & (np.minimum(t, 1 - t) <= ri))
+            for h in hit:
+                cuts.setdefault(int(i[h]), []).append((float(t[h]), ends[e[h]]))
+                points.append(ends[e[h]])
+    for i, j in candidate_pairs(lo, hi) if len(lines) >= 2 else ():
+        r, s = b[i] - a[i], b[j] - a[j]
+        qp = a[j] - a[i]
+        den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
+        ok = np.abs(den) > 1e-12 * length[i] * length[j]
+        den = np.where(ok, den, 1.0)
+        t = (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / den
+        u = (qp[:, 0] * r[:, 1] - qp[:, 1] * r[:, 0]) / den
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ti, ui = tol / length[i], tol / length[j]
+            ri = np.minimum(CROSS_REACH, reach / length[i])
+            rj = np.minimum(CROSS_REACH, reach / length[j])
+        on = ok & (t >= -ti) & (t <= 1 + ti) & (u >= -ui) & (u <= 1 + ui)
+        t_in, u_in = (t > ti) & (t < 1 - ti), (u > ui) & (u < 1 - ui)
+        near = (np.minimum(t, 1 - t) <= ri) & (np.minimum(u, 1 - u) <= rj)
+        hit = np.flatnonzero(on & (t_in | u_in) & near)
+        for h in hit:
+            x = a[i[h]] + t[h] * r[h]
+            for line, par, inside in ((int(i[h]), float(t[h]), t_in[h]), (int(j[h]), float(u[h]), u_in[h])):
+                if inside:
+                    cuts.setdefault(line, []).append((par, x))
+                else:                      # an end within tol of the crossing: moved onto it
+                    snaps[(line, par > 0.5)] = x
+            points.append(x)
+    if not points:
+        return None
+    out: list[list[Primitive]] = []
+    came: list[int] = []
+    cut_of = {int(lines[m]): ts for m, ts in cuts.items()}
+    snap_of = {(int(lines[m]), end): x for (m, end), x in snaps.items()}
+    for idx, p in enumerate(prims):
+        ts = cut_of.get(idx, [])
+        s0, s1 = snap_of.get((idx, False)), snap_of.get((idx, True))
+        if not ts and s0 is None and s1 is None:
+            out.append([p])
+            came.append(origin[idx])
+            continue
+        pts = [p.start if s0 is None else s0, *(x for _, x in sorted(ts, key=lambda c: c[0])),
+               p.end if s1 is None else s1]
+        for q0, q1 in zip(pts, pts[1:]):
+            if np.hypot(*(q1 - q0)) > 0:
+                out.append([Bezier(np.array([q0, q1]))])
+                came.append(origin[idx])
+    return out, came, np.array(points)
+
+
+def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0, mm: float | None = None
+                  ) -> list[Joined]:
     """Closed outlines of open chains (each non-empty, finite ends) that meet end to end, a
     :class:`Joined` each.
 
@@ -303,7 +406,11 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0) -
     sleeve's lower part, which its elbow line closes exactly, in the whole sleeve), and is dropped
     where it takes only part of one, or none of the chains left over. Last, a chain left whose own
     end is within ``gap`` (and 1 % of its size) of its start is an outline of its own: drawn by hand,
-    it stops short of where it began.
+    it stops short of where it began. Where ``mm`` (the drawing's units in millimetres) is given,
+    the straight lines of the chains still left that cross near their ends (a corner drafted with
+    overshooting lines: :data:`CROSS_REACH`, :data:`CROSS_REACH_MM`) are cut at the crossings and
+    joined again; the parts past the crossings, which meet nothing, are left out
+    (``Joined.crossed``).
     """
     found = [Joined(*f, False) for f in _joined_at(pieces, tol)] if len(pieces) >= 2 else []
     owner = {k: i for i, f in enumerate(found) for k in f.members + f.inner}   # chain -> outline
@@ -324,12 +431,31 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0) -
         found = [f for f, a in zip(found, alive) if a]
     if gap > tol:                             # a chain left whose own ends are that close: drawn closed
         found += [Joined(c, [k], [], True) for k, c in enumerate(pieces) if k not in owner and _nearly_closed(c, gap)]
+    taken = {k for f in found for k in f.members + f.inner}
+    rest = [k for k in range(len(pieces)) if k not in taken]
+    if mm is not None and len(rest) >= 1:     # lines that cross near their ends: cut at the crossings
+        noded = _noded(pieces, rest, max(tol, gap), CROSS_REACH_MM / mm)
+        if noded is not None:
+            sub, came, cut_at = noded
+            for prims, mem, inner in _joined_at(sub, tol) if len(sub) >= 2 else []:
+                members = list(dict.fromkeys(came[m] for m in mem))
+                inside = [k for k in dict.fromkeys(came[m] for m in inner) if k not in members]
+                starts = np.array([p.start for p in prims])
+                crossed = sum(bool((np.hypot(*(starts - c).T) <= tol).any()) for c in cut_at)
+                found.append(Joined(prims, members, inside, False, crossed))
     return found
 
 
 def joined_note(outline: Joined, gap: float, noun: tuple[str, str], names: str = "", inner_names: str = "") -> str:
     """The note on a piece made of a :class:`Joined` outline: how many chains (``noun``: one, many;
     ``names``, ``inner_names`` listed where given), across what gaps (``gap``, its largest, in mm)."""
+    if outline.crossed:
+        k = len(outline.inner)
+        around = f"; around {k} inner line{'s' if k != 1 else ''}" if k else ""
+        listed = f" ({names})" if names else ""
+        return (f"joined from {len(outline.members)} {noun[1] if len(outline.members) != 1 else noun[0]}{listed} "
+                f"whose lines cross near their ends ({outline.crossed} crossing"
+                f"{'s' if outline.crossed != 1 else ''}): cut there, the ends past the crossings left out{around}")
     if len(outline.members) == 1:
         return f"an {noun[0]} whose ends are {gap:.3g} mm apart, taken as closed"
     listed = f" ({names})" if names else ""

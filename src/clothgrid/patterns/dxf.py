@@ -642,9 +642,11 @@ def _read_plain(doc: Any, ctx: _Ctx, units: str | None, rel_tol: float, line: st
                               lambda: max((_extent([p]) for p, _ in closed), default=_extent(chains)))
     extent = _extent([p for p, _ in closed] + chains)
     # lines and curves that meet end to end (ends within 1e-6 of the drawing; a second pass up to
-    # GAP_MM apart where some are left: a drawing made by hand), around construction lines
+    # GAP_MM apart where some are left: a drawing made by hand), around construction lines; last,
+    # straight lines that cross near their ends (corners drafted with overshoots), cut where they cross
     chains = [c for c in chains if np.isfinite(c[0].start).all() and np.isfinite(c[-1].end).all()]
-    found = join_outlines(chains, 1e-6 * extent, min(GAP_MM / scale, GAP_REL * extent)) if extent > 0 else []
+    found = (join_outlines(chains, 1e-6 * extent, min(GAP_MM / scale, GAP_REL * extent), mm=scale)
+             if extent > 0 else [])
     loops = [f.prims for f in found]
     left_open = len(chains) - len({k for f in found for k in f.members + f.inner})
     if not closed and not loops:

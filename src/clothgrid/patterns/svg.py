@@ -1193,7 +1193,8 @@ def _joined(opened: list[_Open]) -> list["_Outline"]:
         extent = float(np.hypot(box[1][0] - box[0][0], box[1][1] - box[0][1])) if box else 0.0
         if not np.isfinite(extent) or not extent > 0:
             continue
-        found = join_outlines([o.prims for o in paths], max(1e-6 * extent, JOIN_MM), min(GAP_MM, GAP_REL * extent))
+        found = join_outlines([o.prims for o in paths], max(1e-6 * extent, JOIN_MM), min(GAP_MM, GAP_REL * extent),
+                              mm=1.0)
         out += [_joined_outline(group, paths, f) for f in found]
     return out
 
