@@ -151,3 +151,23 @@ def test_batch_resume_key_names_a_field_only_where_given():
     assert a["grid"]["weight_field"]["shape"] == [2, 2]
     assert a["grid"]["weight_field"]["sha256"] != b["grid"]["weight_field"]["sha256"]
     json.dumps(a)                                                 # plain JSON values
+
+
+def test_a_field_file_too_large_is_refused_from_its_header(tmp_path, monkeypatch):
+    """.npy and image fields are sized from their headers (a memory map; Pillow's header) and refused
+    over limits.MAX_FIELD_VALUES before their values are read; under it they load."""
+    import matplotlib.pyplot as plt
+
+    from clothgrid import limits
+    from clothgrid.fields import load_field
+
+    monkeypatch.setattr(limits, "MAX_FIELD_VALUES", 300)
+    np.save(tmp_path / "big.npy", np.ones((20, 20)))
+    plt.imsave(tmp_path / "big.png", np.zeros((20, 20)), cmap="gray")
+    for f in ("big.npy", "big.png"):
+        with pytest.raises(InputError, match=r"holds 400 values, more than the limit of 300"):
+            load_field(tmp_path / f, name="weight field", value_range=(1, 2))
+    np.save(tmp_path / "ok.npy", np.full((10, 10), 2.0))
+    plt.imsave(tmp_path / "ok.png", np.ones((10, 12)), cmap="gray")
+    assert load_field(tmp_path / "ok.npy", name="w").shape == (10, 10)
+    assert load_field(tmp_path / "ok.png", name="w", value_range=(1, 3)).shape == (12, 10)

@@ -79,8 +79,13 @@ def load_field(value: Any, *, name: str, shape: tuple[int, int] | None = None,
         if not path.is_file():
             raise InputError(f"{name}: no such file {str(path)!r}")
         if path.suffix.lower() == ".npy":
-            try:
-                arr = np.load(path, allow_pickle=False)
+            try:      # the header first (a memory map reads no data): a size that cannot fit is refused
+                mapped = np.load(path, mmap_mode="r", allow_pickle=False)
+                _check_count(int(np.prod(mapped.shape, dtype=np.int64)), name, path)
+                arr = np.array(mapped)
+                del mapped
+            except InputError:
+                raise
             except OSError as exc:
                 raise InputError(f"{name}: cannot read {str(path)!r}: {exc}") from None
             except ValueError:
@@ -112,15 +117,29 @@ def checked_field(value: Any, *, name: str, shape: tuple[int, int] | None = None
     return arr
 
 
+def _check_count(count: int, name: str, path: Path) -> None:
+    from .limits import MAX_FIELD_VALUES
+
+    if count > MAX_FIELD_VALUES:
+        raise InputError(f"{name}: {str(path)!r} holds {count:,} values, more than the limit of "
+                         f"{MAX_FIELD_VALUES:,} for a field")
+
+
 def _read_image(path: Path, name: str, value_range: tuple[float, float] | None, option: str) -> np.ndarray:
     if value_range is None:
         raise InputError(f"{name}: an image needs the values of black and white: give {option} LO,HI")
     lo, hi = (finite_number(v, f"{name}'s range") for v in value_range)
     import matplotlib.image as mpimg
+    from PIL import Image
 
     try:
+        with Image.open(path) as probe:          # the header only: its size before any pixel is decoded
+            w, h = probe.size
+        _check_count(w * h, name, path)
         img = np.asarray(mpimg.imread(path), dtype=np.float64)
-    except (OSError, ValueError, SyntaxError) as exc:
+    except InputError:
+        raise
+    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
         raise InputError(f"{name}: cannot read the image {str(path)!r}: {exc}") from None
     if path.suffix.lower() not in (".png",) and img.max(initial=0) > 1:
         img = img / 255.0

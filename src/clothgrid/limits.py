@@ -19,7 +19,7 @@ from typing import Any
 from .errors import InputError
 
 __all__ = ["MAX_FILE_BYTES", "MAX_NESTING", "MAX_INT_DIGITS", "MAX_COORDINATE", "MAX_OUTLINE_POINTS",
-           "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_SEGMENT_PAIRS", "MAX_NODES_PER_SIDE", "MAX_BULGE", "MAX_K", "MIN_K", "check_input_file",
+           "MAX_ENTITIES", "MAX_DXF_RECORDS", "MAX_SEGMENT_PAIRS", "MAX_NODES_PER_SIDE", "MAX_BULGE", "MAX_K", "MIN_K", "MAX_FIELD_VALUES", "check_input_file",
            "load_json", "check_coordinates"]
 
 #: largest input file read (bytes)
@@ -52,6 +52,10 @@ MAX_BULGE = 1e6
 #: the range of the factor ``k`` of the paper's v weights (eq. 2): beyond it the squared
 #: weights overflow or underflow
 MIN_K, MAX_K = 1e-6, 1e6
+#: Values in a 2D field read from a file (a ``.npy`` array or an image: a weight field, a heat
+#: problem's conductivity, source or capacity): 2^26, 512 MiB as float64; checked from the file's
+#: header before it is read.
+MAX_FIELD_VALUES = 2**26
 
 
 def check_input_file(path: Path, kind: str = "input") -> None:
