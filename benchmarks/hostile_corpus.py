@@ -215,6 +215,22 @@ def cases() -> list[Case]:
         '<rect x="10" y="10" width="50" height="60"/>')), d, "--corners-near", "inf,0;1,0;1,1;0,1"))
     add("opt-corners-huge", lambda d: gen(wtext(d, "p.svg", svg_doc(
         '<rect x="10" y="10" width="50" height="60"/>')), d, "--corners", "0,1,2," + "9" * 30))
+    # weight fields
+    def npy_header(d, shape="(100000, 100000)"):     # a header that claims 80 GB, and no data
+        head = "{'descr': '<f8', 'fortran_order': False, 'shape': %s, }" % shape
+        head += " " * (118 - len(head)) + "\n"
+        return wtext(d, "w.npy", b"\x93NUMPY\x01\x00" + len(head).to_bytes(2, "little") + head.encode())
+
+    add("field-npy-huge-header", lambda d: gen(sq(d), d, "--weight-field", str(npy_header(d))))
+    add("field-npy-truncated", lambda d: gen(sq(d), d, "--weight-field", str(npy_header(d, "(50, 50)"))))
+    add("field-npy-text", lambda d: gen(sq(d), d, "--weight-field", str(wtext(d, "w.npy", "1 2 3"))))
+    add("field-npy-object", lambda d: gen(sq(d), d, "--weight-field", str(wtext(
+        d, "w.npy", b"\x93NUMPY\x01\x00v\x00{'descr': '|O', 'fortran_order': False, 'shape': (2, 2), }"
+        + b" " * 47 + b"\n" + b"\x80\x04N."))))
+    add("field-png-garbage", lambda d: gen(sq(d), d, "--weight-field", str(wtext(d, "w.png", b"\x89PNG\r\n\x1a\nxx")),
+                                           "--weight-field-range", "1,2"))
+    add("field-negative", lambda d: gen(sq(d), d, "--weight-field", "-1"))
+    add("field-nan", lambda d: gen(sq(d), d, "--weight-field", "nan"))
 
     # special files
     def devzero(d):

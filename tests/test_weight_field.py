@@ -126,7 +126,7 @@ def test_cli_weight_field_npy_and_image(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("content, words", [
-    (b"not an array", "not a NumPy .npy array"),
+    (b"not an array", "not a complete NumPy .npy array"),
     (None, "no such file"),
 ])
 def test_cli_bad_weight_field_exit_2(tmp_path, capsys, content, words):

@@ -89,7 +89,7 @@ def load_field(value: Any, *, name: str, shape: tuple[int, int] | None = None,
             except OSError as exc:
                 raise InputError(f"{name}: cannot read {str(path)!r}: {exc}") from None
             except ValueError:
-                raise InputError(f"{name}: {str(path)!r} is not a NumPy .npy array of numbers") from None
+                raise InputError(f"{name}: {str(path)!r} is not a complete NumPy .npy array of numbers") from None
         else:
             arr = _read_image(path, name, value_range, range_option or f"--{name.replace(' ', '-')}-range")
     else:
