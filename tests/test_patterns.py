@@ -1669,3 +1669,29 @@ def test_an_outline_that_pinches_is_cut_in_two(tmp_path):
     piece = piece_from_polygon("s", lobed)
     assert len(pinch_pairs(piece.outline, 1e-3)) == 1
     assert [p.name for p in split_pinched(piece)] == ["s"]
+
+
+def test_svg_sew_line_left_open_along_a_fold_is_closed_there(tmp_path):
+    """TauMeta/tmtp draws the sew line of a piece cut on the fold as an open path whose ends sit on the
+    cut line's straight edge (no seam allowance there): it is closed along that edge and gridded as
+    the sew line, its cut line skipped as the seam allowance around it. An open path whose missing
+    side does not run along the cut line stays open."""
+    cut = "M 0,0 L 215,0 L 215,315 L 0,315 Z"                          # 15 mm allowance, none at x = 0
+    sew = "M 0,15 L 200,15 C 210,100 190,200 200,300 L 0,300"           # open along x = 0
+    body = (f'<g id="Back"><path id="Back-A-cuttingline" class="cuttingline" d="{cut}"/>'
+            f'<path id="Back-A-seamline" class="seamline" d="{sew}"/></g>')
+    path = _svg(tmp_path, body)
+    got = read_pieces(path)
+    (piece,) = got
+    assert piece.name == "Back-A"
+    ends = np.array(piece.meta["closed_along"])
+    assert np.ptp(ends[:, 0]) < 1e-9 and abs(np.ptp(ends[:, 1])) == pytest.approx(285.0)
+    assert 200 * 285 * 0.95 < piece.area < 210 * 285
+    assert any("closed along the straight edge of cut line" in n for n in piece.notes)
+    assert [s.name for s in got.skipped] == ["Back-A-cuttingline"]
+    # the missing side bulges away from the cut line's edge: nothing to close along
+    sew2 = "M 5,15 L 200,15 L 200,300 L 5,300"
+    body2 = (f'<g id="Back"><path id="Back-A-cuttingline" class="cuttingline" d="M 0,0 L 215,0 L 215,315 '
+             f'L 0,315 C -40,200 -40,100 0,0 Z"/><path id="Back-A-seamline" class="seamline" d="{sew2}"/></g>')
+    (only,) = read_pieces(_svg(tmp_path, body2))
+    assert "closed_along" not in only.meta and only.name.endswith("cuttingline")

@@ -298,6 +298,9 @@ class Joined(NamedTuple):
 CROSS_REACH = 0.2
 #: ... and within this many millimetres (the drawing's units scaled by the caller's ``mm``)
 CROSS_REACH_MM = 20.0
+#: Chains left over beyond this many (lettering or hatching drawn as lines) are not cut at their
+#: crossings: a piece drafted with overshooting lines has tens to hundreds.
+NODED_MAX_CHAINS = 5000
 
 
 def _noded(pieces: list[list[Primitive]], rest: list[int], tol: float, reach: float
@@ -433,7 +436,7 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0, m
         found += [Joined(c, [k], [], True) for k, c in enumerate(pieces) if k not in owner and _nearly_closed(c, gap)]
     taken = {k for f in found for k in f.members + f.inner}
     rest = [k for k in range(len(pieces)) if k not in taken]
-    if mm is not None and len(rest) >= 1:     # lines that cross near their ends: cut at the crossings
+    if mm is not None and 1 <= len(rest) <= NODED_MAX_CHAINS:     # lines that cross near their ends: cut there
         noded = _noded(pieces, rest, max(tol, gap), CROSS_REACH_MM / mm)
         if noded is not None:
             sub, came, cut_at = noded

@@ -832,7 +832,11 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             size = float(np.hypot(*np.ptp(ends, axis=0)))
                             gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
                             if not size > 0 or gap > 1e-9 * size:      # counted once joined
-                                opened.append(_Open(prims, base, el, around, text, group, nameless=nameless))
+                                opened.append(_Open(prims, base, el, around, text, group, nameless=nameless,
+                                                    meta={"element": tag, "id": el.get("id"),
+                                                          "class": el.get("class"), "group": group or None,
+                                                          "structure": hint, "look": _look(el),
+                                                          "part": group or None, **named}))
                                 continue
                             if _drawn_line(prims, size):       # M a L b z: a line, drawn closed
                                 # a failed piece, unless it joins open paths into an outline
@@ -920,6 +924,30 @@ def read_svg(path: str | Path, *, units: str | None = None,
             unnamed.add(final)
         elif final != name:
             wanted[len(pieces) - 1] = name
+    boxes = _Boxes(pieces)
+    for o in opened:       # a sew line left open along a cut line's straight edge (cut on the fold)
+        if o.joined or o.line or o.meta is None:
+            continue
+        got_closed = _closed_along_cut(o, boxes)
+        if got_closed is None:
+            continue
+        prims, cut, ends = got_closed
+        base = o.base
+        hint = o.meta.get("structure") or {}
+        if hint.get("hint") == "sew" and (short := _without_word(base, hint["why"])) != base:
+            base = short
+        name = unique(base)
+        note = (f"an open path closed along the straight edge of cut line {cut.name!r} from "
+                f"{ends[0][0]:.6g},{ends[0][1]:.6g} to {ends[1][0]:.6g},{ends[1][1]:.6g} mm, where the cut "
+                "line has no seam allowance (a fold or a finished edge)")
+        try:
+            piece = piece_from_primitives(name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit,
+                                          source="svg", notes=(f"units: {how}", note),
+                                          meta={**o.meta, "closed_along": [list(map(float, e)) for e in ends]})
+        except InputError:
+            continue
+        o.joined = True
+        pieces.append(piece)
     used = {id(o.failure) for o in opened if o.joined and o.failure is not None}
     freed = {u[0].name for u in unmade if id(u) in used}
     unmade = [u for u in unmade if id(u) not in used]     # lines drawn closed that close an outline
@@ -1151,6 +1179,67 @@ class _Open:
     joined: bool = False
     failure: tuple | None = None              # that piece's failure, dropped if joined
     nameless: bool = False                    # base is the element's fallback name (no id, label, group)
+    meta: dict | None = None                  # what a piece made of it alone records (_closed_along_cut)
+
+
+#: An open path is closed along a closed outline's straight edge (:func:`_closed_along_cut`) where its
+#: ends and that edge lie within this share of the outline's size of the outline (and
+#: :data:`ALONG_CUT_MM`), and the edge is at least :data:`ALONG_CUT_MIN` of its size long.
+ALONG_CUT_REL = 1e-3
+ALONG_CUT_MM = 0.5
+ALONG_CUT_MIN = 0.1
+
+
+class _Boxes:
+    """The pieces' sizes and boxes (widened by the tolerance :func:`_closed_along_cut` allows), once."""
+
+    def __init__(self, pieces: list[Piece]):
+        self.pieces = list(pieces)
+        if self.pieces:
+            lo = np.array([p.outline.min(axis=0) for p in self.pieces])
+            hi = np.array([p.outline.max(axis=0) for p in self.pieces])
+        else:
+            lo = hi = np.zeros((0, 2))
+        self.size = np.hypot(*(hi - lo).T)
+        self.tol = np.maximum(ALONG_CUT_REL * self.size, np.minimum(ALONG_CUT_MM, 1e-2 * self.size))
+        self.lo, self.hi = lo - self.tol[:, None], hi + self.tol[:, None]
+
+    def around(self, box: tuple[np.ndarray, np.ndarray], chord: float) -> np.ndarray:
+        """The pieces whose widened box holds ``box`` and whose size is at most ``chord`` over
+        :data:`ALONG_CUT_MIN`."""
+        ok = ((self.lo <= box[0]).all(axis=1) & (self.hi >= box[1]).all(axis=1)
+              & (chord >= ALONG_CUT_MIN * self.size))
+        return np.flatnonzero(ok)
+
+
+def _closed_along_cut(o: "_Open", boxes: _Boxes) -> tuple[list[Primitive], Piece, np.ndarray] | None:
+    """``o``'s primitives closed by the straight line from its end back to its start, where that line
+    runs along the outline of one of ``pieces`` (its ends and points along it on that outline, within
+    :data:`ALONG_CUT_REL` of its size or :data:`ALONG_CUT_MM`) and the path lies inside it: a sew line
+    drawn open where the piece is cut on the fold or along a finished edge (TauMeta/tmtp's seam lines
+    of pieces cut on the fold), the cut line having no seam allowance there. Returns ``(the closed
+    primitives, the piece, the line's two ends)``, or None."""
+    from ..geometry import points_in_polygon
+    from .annotations import outline_distance
+    from .sampling import sample_loop
+
+    e0, e1 = o.prims[0].start, o.prims[-1].end
+    chord = float(np.hypot(*(e1 - e0)))
+    if not np.isfinite(chord) or chord <= 0:
+        return None
+    closing = Bezier(np.array([e1, e0]))
+    loop = list(o.prims) + [closing]
+    for k in boxes.around(control_box(loop), chord):
+        p, size, tol = boxes.pieces[k], float(boxes.size[k]), float(boxes.tol[k])
+        along = e0 + np.linspace(0.0, 1.0, 33)[:, None] * (e1 - e0)
+        if outline_distance(along, p.outline).max() > tol:
+            continue
+        pts, _ = sample_loop(loop, 1e-3 * size)
+        off = outline_distance(pts, p.outline) > tol
+        if off.any() and not points_in_polygon(pts[off], p.outline).all():
+            continue
+        return loop, p, np.array([e0, e1])
+    return None
 
 
 def _drawn_line(prims: list[Primitive], size: float) -> bool:
