@@ -310,3 +310,18 @@ def test_imports_run_one_way():
         if _under(mod, "clothgrid.backends"):
             up = sorted(t for t in targets if _under(t, "clothgrid.solvers"))
             assert not up, f"{mod} imports {up}"
+
+
+def test_the_package_says_it_is_typed():
+    """PEP 561: the py.typed marker ships in the package (and is listed as package data), so type
+    checkers read the public API's annotations."""
+    import importlib.resources
+
+    import clothgrid
+
+    assert importlib.resources.files(clothgrid).joinpath("py.typed").is_file()
+    root = Path(clothgrid.__file__).resolve().parents[2]
+    if (root / "pyproject.toml").is_file():            # an editable or source install
+        data = (root / "pyproject.toml").read_text()
+        section = data.split("[tool.setuptools.package-data]", 1)[1].split("[", 1)[0]
+        assert '"py.typed"' in section
