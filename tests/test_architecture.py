@@ -323,5 +323,5 @@ def test_the_package_says_it_is_typed():
     root = Path(clothgrid.__file__).resolve().parents[2]
     if (root / "pyproject.toml").is_file():            # an editable or source install
         data = (root / "pyproject.toml").read_text()
-        section = data.split("[tool.setuptools.package-data]", 1)[1].split("[", 1)[0]
-        assert '"py.typed"' in section
+        line = data.split("[tool.setuptools.package-data]", 1)[1].strip().splitlines()[0]
+        assert line.startswith("clothgrid =") and '"py.typed"' in line
