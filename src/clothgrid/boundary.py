@@ -443,7 +443,7 @@ class Boundary:
             if length <= LENGTH_TOL * size:
                 raise BoundaryError(f"the {s} side has zero length ({len(p)} points, total "
                                     f"length {length:.3g}, piece size {size:.3g})")
-        b = cls(**side, dim=d, name=name)
+        b = cls(side["bottom"], side["right"], side["top"], side["left"], dim=d, name=name)
         b._check_simple(tol)
         return b
 
@@ -539,7 +539,8 @@ class Boundary:
     def side_lengths(self) -> tuple[float, float, float, float]:
         """Arc lengths of the bottom, right, top and left sides."""
         sides = (self.bottom, self.right, self.top, self.left)
-        return tuple(float(_arc_length(p)[-1]) for p in sides)
+        b, r, t, l = (float(_arc_length(p)[-1]) for p in sides)
+        return b, r, t, l
 
     def outline(self) -> np.ndarray:
         """The closed outline without repetition, ``(N, 3)``.
@@ -650,7 +651,7 @@ class Boundary:
         new = {s: (getattr(self, s) if len(getattr(self, s)) == n and not self.sampled
                    else resample_polyline(getattr(self, s), n, sharp_vertices(getattr(self, s))))
                for s, n in want.items()}
-        return Boundary(**new, dim=self.dim, name=self.name)
+        return Boundary(new["bottom"], new["right"], new["top"], new["left"], dim=self.dim, name=self.name)
 
     def __repr__(self) -> str:
         counts = " ".join(f"{s}={len(getattr(self, s))}" for s in SIDES)

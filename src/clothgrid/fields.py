@@ -19,7 +19,7 @@ from .errors import InputError
 __all__ = ["load_field", "checked_field", "finite_number"]
 
 
-def finite_number(x: float, what: str) -> float:
+def finite_number(x: Any, what: str) -> float:
     """``x`` as a finite float, else InputError naming ``what``."""
     try:
         v = float(x)

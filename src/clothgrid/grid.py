@@ -112,6 +112,7 @@ class Grid:
         self._uv = uv
         self._quads = quads
         self._flip = flip
+        self._quality: Any = None     # generate's measure of these points, where it made one (a Quality)
 
     @classmethod
     def from_points(cls, points: np.ndarray, *, info: dict | None = None, dim: int = 3,
@@ -156,6 +157,7 @@ class Grid:
         for i0 in range(0, rows, step):
             i1 = min(rows, i0 + step)
             if buf is None:
+                assert self._quads is not None
                 yield self._quads[i0 * per:i1 * per]
             else:
                 yield _quad_rows_into(buf[:(i1 - i0) * per], nv, i0, i1, self._flip)

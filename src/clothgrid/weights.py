@@ -54,6 +54,7 @@ class Weights:
     @property
     def wu(self) -> np.ndarray:
         if self._wu is None:
+            assert self.factors is not None           # (the constructor's rule)
             cu, dv, _, _ = self.factors
             self._wu = np.outer(cu, dv)
         return self._wu
@@ -61,6 +62,7 @@ class Weights:
     @property
     def wv(self) -> np.ndarray:
         if self._wv is None:
+            assert self.factors is not None
             _, _, du, cv = self.factors
             self._wv = np.outer(du, cv)
         return self._wv
@@ -70,7 +72,7 @@ class Weights:
         """``(nu, nv)`` of the grid the weights belong to."""
         if self.factors is not None:
             return len(self.factors[2]), len(self.factors[1])
-        return self._wv.shape[0], self._wu.shape[1]
+        return self.wv.shape[0], self.wu.shape[1]
 
     @property
     def unit_stencil(self) -> bool:
