@@ -39,9 +39,12 @@ from __future__ import annotations
 
 import math
 import os
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from .errors import SizeError
+
+if TYPE_CHECKING:                  # annotations only: this module imports no NumPy when loaded
+    import numpy as np
 
 __all__ = ["available_bytes", "system_available_bytes", "limit_headroom", "Headroom", "estimate_bytes", "check_memory",
            "format_bytes", "discard", "release", "Arena", "FIT_FRACTION", "KEPT_BYTES_PER_NODE", "multigrid_bytes",

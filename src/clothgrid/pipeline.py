@@ -283,7 +283,7 @@ def _existing_parent(path: Path) -> Path:
     return folder
 
 
-def output_names(paths: Sequence[str], names: Sequence[str]) -> list[list[str]]:
+def output_names(paths: Sequence[str | Path], names: Sequence[str]) -> list[list[str]]:
     """Per piece, the output paths: as given for one piece, else ``stem_<piece>.ext`` or ``{piece}``."""
     safe = [safe_name(n) for n in names]
     if len(set(safe)) != len(safe):
