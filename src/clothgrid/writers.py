@@ -23,14 +23,14 @@ import os
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Iterator
+from typing import Any, BinaryIO, Callable, Iterator, Protocol, cast
 
 import numpy as np
 
 from .errors import InputError
 from .pages import small_pages
 from . import cloth as sim
-from .cloth import GridLike
+from .cloth import GridLike as _ClothGrid
 
 __all__ = [
     "WRITERS",
@@ -50,6 +50,17 @@ __all__ = [
 ]
 
 #: A writer gets the grid and a binary file open for writing.
+class GridLike(_ClothGrid, Protocol):
+    """What the writers read of a grid (:class:`clothgrid.Grid` is one): the cloth functions' grid,
+    and its pattern coordinates and whether it is flat."""
+
+    @property
+    def pattern_uv(self) -> Any: ...
+
+    @property
+    def planar(self) -> bool: ...
+
+
 Writer = Callable[[GridLike, BinaryIO], None]
 
 # Read once at import (os.umask can only be read by setting it, which is not thread-safe).
@@ -96,7 +107,7 @@ def atomic_write(path: str | Path) -> Iterator[BinaryIO]:
                                      delete=False)
     try:
         with fh:
-            yield fh
+            yield cast(BinaryIO, fh)
             fh.flush()
             os.fsync(fh.fileno())
         os.chmod(fh.name, 0o666 & ~_UMASK)
@@ -154,7 +165,7 @@ def savez(fh: BinaryIO, **arrays: Any) -> None:
                 written = 0
                 for block in (a.blocks() if streamed else (a,)):
                     block = np.ascontiguousarray(block, dtype=a.dtype)
-                    member.write(memoryview(block.reshape(-1)).cast("B"))
+                    member.write(memoryview(block.reshape(-1)).cast("B"))  # type: ignore[arg-type]  # an ndarray is a buffer
                     written += block.nbytes
                 expected = int(np.prod(a.shape, dtype=np.int64)) * a.dtype.itemsize
                 if written != expected:
