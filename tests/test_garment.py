@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from clothgrid.cli import main
+import clothgrid
 from clothgrid.garment import euler_xyz_to_R, garment
 from clothgrid.garment_counts import CountConflict, CountProblem, solve_counts
 from clothgrid.garment_seams import edge_polyline, fractions_of, mesh_report
@@ -943,3 +944,23 @@ def test_garment_makes_missing_output_folders_and_removes_them_on_failure(tmp_pa
     assert main(["garment", str(path), "-o", str(tmp_path / "afile" / "g.npz"), "-q"]) == 2
     err = capsys.readouterr().err
     assert err.count("clothgrid: error:") == 1 and "is not a folder" in err
+
+
+def test_a_weight_field_grades_the_panels_and_keeps_every_seam(tmp_path, capsys):
+    """garment --weight-field: the interior nodes move with the field, the stitched nodes (on the
+    panels' outlines, placed by the node counts) do not, so the seams match as before."""
+    spec = str(SPECS[0])
+    plain = garment(spec, edge_length="2cm")
+    field = np.ones((4, 4))
+    field[:2] = 20.0                                              # much finer on the small-u half
+    graded = garment(spec, edge_length="2cm", weights=clothgrid.WeightField(field))
+    np.testing.assert_array_equal(plain.stitches, graded.stitches)
+    stitched = np.unique(plain.stitches)
+    np.testing.assert_allclose(graded.rest[stitched], plain.rest[stitched], atol=1e-9)
+    assert np.abs(graded.rest - plain.rest).max() > 1.0          # mm: the interior was graded
+    np.save(tmp_path / "f.npy", field)
+    out = tmp_path / "g.npz"
+    assert main(["garment", spec, "-o", str(out), "--edge-length", "2cm", "--weight-field",
+                 str(tmp_path / "f.npy"), "-q"]) == 0 and out.exists()
+    assert main(["garment", spec, "-o", str(tmp_path / "h.npz"), "--weight-field", "0", "-q"]) == 2
+    assert "must be positive" in capsys.readouterr().err and not (tmp_path / "h.npz").exists()

@@ -395,6 +395,11 @@ def _add_garment_parser(sub: Any) -> None:
                    help="fix the node intervals of a spec edge (panel name, edge index in the spec) to N; "
                         "repeatable; the other way to loosen or steer the node counts")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
+    p.add_argument("--weight-field", metavar="FIELD",
+                   help="grade every panel's grid by a field over its (u, v) square, as generate's "
+                        "--weight-field (the seams' nodes stay where the node counts put them)")
+    p.add_argument("--weight-field-range", type=_range, metavar="LO,HI",
+                   help="an image weight field's values at black and white")
     p.set_defaults(func=_cmd_garment)
 
 
@@ -448,11 +453,15 @@ def _cmd_garment(args: argparse.Namespace) -> int:
 
             _pxr()                      # usd-core missing: say so before gridding
     pipeline.check_output_folders(outs)   # missing folders are made when writing, like generate's
+    extra: dict[str, Any] = {}
+    if args.weight_field is not None:     # read (and refused) before any work
+        extra["weights"] = pipeline.GridOptions(weight_field=args.weight_field,
+                                                weight_field_range=args.weight_field_range).edge_weights()
     t0 = time.perf_counter()
     with _first_compile_said(_progress(args.quiet)):
         g = garment(args.input, edge_length=args.edge_length, units=args.units, corners=args.corners,
                     fixed=dict(args.fix) if args.fix else None, stitches=args.stitches,
-                    progress=_progress(args.quiet))
+                    progress=_progress(args.quiet), **extra)
     written = _write_all(outs, lambda o: write_garment(g, o, seams=args.seams, density=args.density))
     for line in g.info["warnings"]:
         _say(f"warning: {line}")
