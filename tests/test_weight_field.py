@@ -87,15 +87,23 @@ def test_the_grid_is_finer_where_the_field_is_larger():
     assert 0.8 < pl / pr < 1.25                                 # the uniform grid is not graded
 
 
-def test_auto_leaves_the_grading_alone():
-    """functional auto with a field: no edge evening (it would undo the grading), folds still relaxed."""
+def test_auto_evens_only_what_the_field_does_not_explain():
+    """functional auto with a field: folds relaxed; the evening's bands widened by the square root of
+    the field's contrast, so a 30:1 grading is kept, while a constant field (uniform weights, scaled)
+    is evened as uniform weights are."""
     bnd = clothgrid.load_boundary(TSHIRT)
-    field = np.ones((3, 3))
-    field[1, 2] = 30.0                                           # very fine under the neckline
-    g = clothgrid.generate(bnd, 65, weights=WeightField(field), functional="auto")
-    assert g.info["evened"]["skipped"]
-    assert g.info["evened"]["moved"] == 0
+    field = np.array([[10.0, 10.0], [1.0, 1.0]])                # 10:1, finer on the small-u half
+    g = clothgrid.generate(bnd, 64, weights=WeightField(field), functional="auto")
+    assert g.info["evened"]["widened"] == pytest.approx(np.sqrt(10.0))
     assert g.info["folded"] == 0 < g.info["folded_before"]
+    length = clothgrid.generate(bnd, 64, weights=WeightField(field), functional="length")
+    du = lambda p: np.linalg.norm(np.diff(p, axis=0), axis=-1)   # noqa: E731
+    graded = lambda p: du(p)[:16].mean() / du(p)[-16:].mean()    # noqa: E731
+    assert graded(length.points) < 0.5 and graded(g.points) < 1.1 * graded(length.points)
+    plain = clothgrid.generate(bnd, 65, weights="uniform", functional="auto")
+    flat = clothgrid.generate(bnd, 65, weights=WeightField(np.full((1, 1), 3.0)), functional="auto")
+    assert "widened" not in flat.info["evened"] and flat.info["evened"]["moved"] > 0
+    assert flat.info["evened"]["spread_after"] == pytest.approx(plain.info["evened"]["spread_after"], rel=0.05)
 
 
 def test_cli_weight_field_npy_and_image(tmp_path, capsys):

@@ -499,7 +499,7 @@ def _add_grid_arguments(p: argparse.ArgumentParser) -> None:
                         "over its square root): a .npy array (mu, mv), index [i, j] with i along the "
                         "bottom side, or a grayscale image (its top row along the top side) with "
                         "--weight-field-range; any resolution, sampled bilinearly. With it --functional "
-                        "auto relaxes folded and poor cells only and leaves the grading (README: Command line)")
+                        "auto evens only the edges further out than the field explains (README: Command line)")
     p.add_argument("--weight-field-range", type=_range, metavar="LO,HI",
                    help="an image weight field's values at black and white, e.g. 1,10")
     p.add_argument("--solver", choices=("auto", *SOLVERS), default="auto",

@@ -89,9 +89,9 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     weights : {"paper", "uniform"} or (wu, wv) or WeightField or Weights
         Edge weights (:func:`clothgrid.weights.make_weights`). A
         :class:`~clothgrid.weights.WeightField` grades the grid on purpose
-        (finer where it is larger): ``functional="auto"`` then only relaxes
-        folded and poor cells and leaves the edge lengths' spread as the
-        field made it (``info["evened"]["skipped"]``).
+        (finer where it is larger): ``functional="auto"`` then evens only the
+        edges further out than the field explains, its bands widened by the
+        square root of the field's contrast (``info["evened"]["widened"]``).
     k : float
         The paper's ``k`` for ``weights="paper"``.
     solver : {"auto", "direct", "fdm", "jacobi", "multigrid"}
@@ -225,7 +225,9 @@ def generate(boundary: Boundary, nodes=None, *, init: str = "tfi",
     if functional == "length":
         grid.info["functional"] = "length"
         return grid
-    return _apply_functional(grid, functional, say, t0, flip, even=not isinstance(weights, WeightField))     # its grid's nodes checked finite there
+    widen = (math.sqrt(float(weights.values.max() / weights.values.min())) if isinstance(weights, WeightField)
+             else 1.0)
+    return _apply_functional(grid, functional, say, t0, flip, widen=widen)     # its grid's nodes checked finite there
 
 
 def _check_finite(points: np.ndarray, who: str) -> None:
@@ -361,15 +363,19 @@ WHOLE_RETRY_MAX_NODES = 1 << 15
 WHOLE_RETRY_ROOM = 0.9
 
 
-def _even(X: np.ndarray, touched: list, say: Callable[[str], None], even: bool = True) -> dict:
-    """:func:`~clothgrid.evening.even_in_plane` of ``X``, with its progress line; with ``even`` False
-    (graded weights: a :class:`~clothgrid.weights.WeightField`) only its figures, nothing moved."""
-    from .evening import SPREAD_OK, even_in_plane
+def _even(X: np.ndarray, touched: list, say: Callable[[str], None], widen: float = 1.0) -> dict:
+    """:func:`~clothgrid.evening.even_in_plane` of ``X``, with its progress line. ``widen`` > 1 (a
+    :class:`~clothgrid.weights.WeightField`'s grading: the square root of its contrast) widens its
+    bands and the spread it leaves alone by that factor: only edges further out than the field
+    explains are evened."""
+    from .evening import BAND, SPREAD_OK, WIDE_BAND, even_in_plane
 
-    ev = even_in_plane(X, touched=touched, spread_ok=SPREAD_OK if even else math.inf)
-    if not even:
-        ev["skipped"] = "the weights are graded on purpose (a weight field)"
-        return ev
+    if widen > 1.0:
+        ev = even_in_plane(X, touched=touched, band=BAND * widen, wide_band=WIDE_BAND * widen,
+                           spread_ok=SPREAD_OK * widen)
+        ev["widened"] = widen
+    else:
+        ev = even_in_plane(X, touched=touched)
     kept = f"; kept, the sweeps reached {ev['rejected_spread']:.3g}" if "rejected_spread" in ev else ""
     say(f"edge spread: {ev['spread_before']:.3g} -> {ev['spread_after']:.3g} "
         f"({ev['active']} nodes near outlying edges, {ev['sweeps']} sweeps, {ev['seconds']:.3f} s{kept})")
@@ -414,7 +420,7 @@ def outline_cap_deg(X: np.ndarray) -> float:
     return float(np.nanmin(np.minimum(half, 180.0 - half)))
 
 
-def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say, even=True):
+def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say, widen=1.0):
     """:data:`WHOLE_RETRY_DEG`: the local result ``(X, centre, basis, ff, moved, ev, touched)``, or,
     where its smallest angle is below that, every node relaxed and evened from the length grid ``R``
     (not changed), if that is better (a larger smallest angle, an edge spread no larger, no fold).
@@ -429,7 +435,7 @@ def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say, even
     t = time.perf_counter()
     X2, centre2, basis2, ff2, moved2 = relax_in_plane(R, dim=dim, whole=True, progress=say)
     touched2: list[np.ndarray] = []
-    ev2 = _even(X2, touched2, say, even)
+    ev2 = _even(X2, touched2, say, widen)
     whole_deg = _smallest_deg(X2)
     better = bool(ff2.get("untangled")) and whole_deg > local_deg and ev2["spread_after"] <= ev["spread_after"]
     record = {"smallest_deg_local": local_deg, "smallest_deg_whole": whole_deg,
@@ -447,9 +453,9 @@ def _whole_if_better(R, dim, X, centre, basis, ff, moved, ev, touched, say, even
 
 
 def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t0: float, flip: bool,
-                      even: bool = True) -> Grid:
+                      widen: float = 1.0) -> Grid:
     """Record the length grid's folds; for ``foldfree`` / poor ``auto`` relax it; then even its edges
-    (not where ``even`` is False: weights graded on purpose)."""
+    (with bands ``widen`` times as wide: a weight field's grading, :func:`_even`)."""
     from .quality import quality, quality_record
 
     q, record = quality_record(grid)
@@ -475,10 +481,10 @@ def _apply_functional(grid: Grid, functional: str, say: Callable[[str], None], t
     if X is None:
         X = np.ascontiguousarray(to_plane(R, centre, basis))
     touched: list[np.ndarray] = []
-    ev = _even(X, touched, say, even)
+    ev = _even(X, touched, say, widen)
     if functional == "auto" and _local(ff, R) and R.shape[0] * R.shape[1] <= WHOLE_RETRY_MAX_NODES:
         X, centre, basis, ff, moved, ev, touched = _whole_if_better(R, grid.dim, X, centre, basis, ff, moved,
-                                                                    ev, touched, say, even)
+                                                                    ev, touched, say, widen)
     if not relaxed and ev["moved"] == 0:     # nothing poor, nothing to even: the length grid as it is
         grid.info.update(relax=ff, evened=ev)
         grid._quality = q                    # measured once (pipeline.run_job reads it)
