@@ -1606,6 +1606,10 @@ def test_a_piece_size_that_suggests_wrong_units_is_warned_about(capsys, tmp_path
     assert code == 0 and (err.count("warning:") == 1) == warned, err
     if warned:
         assert "--units" in err and "mm across" in err
+        # the unit that makes the piece the most typical size is suggested, with the size it gives
+        # (no unit among mm, cm, in, m makes a piece read in mm smaller: none is suggested then)
+        assert ("--units cm would make it 400 mm" in err) == (side_mm == 40.0), err
+        assert ("would make it" in err) == (side_mm == 40.0), err
     code, _, err = run(capsys, "generate", src, "-o", tmp_path / "{piece}.npz", "--nodes", "5", "-q")
     assert code == 0 and (err.count("warning:") == 1) == warned, err
     code, _, err = run(capsys, "pieces", src, "--units", "mm")

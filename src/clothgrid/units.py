@@ -147,6 +147,8 @@ def length_scale(unit: str) -> float:
 #: coordinates in centimetres reads as pieces of 15-73 mm; millimetres read as inches make a
 #: 600 mm piece 15 m.
 PLAUSIBLE_PIECE_MM = (100.0, 10_000.0)
+#: ... and the size the warning's suggested unit brings it nearest to (mm)
+TYPICAL_PIECE_MM = 600.0
 
 
 def size_warning(size: float, read_in: str, what: str = "piece") -> str | None:
@@ -156,5 +158,16 @@ def size_warning(size: float, read_in: str, what: str = "piece") -> str | None:
     if lo <= size <= hi:
         return None
     why = f"a garment {what} is rarely under {lo:g} mm" if size < lo else f"that is large for a garment {what}"
+    hint = ""
+    try:
+        own = unit_to_mm(read_in)
+    except Exception:                  # a unit the file names that we do not know: no suggestion
+        own = None
+    if own and size > 0:               # the unit that makes it the most typical size (TYPICAL_PIECE_MM)
+        fits = [(abs(math.log(size * unit_to_mm(u) / own / TYPICAL_PIECE_MM)), u) for u in ("mm", "cm", "in", "m")
+                if unit_to_mm(u) != own and lo <= size * unit_to_mm(u) / own <= hi]
+        if fits:
+            unit = min(fits)[1]
+            hint = f" (--units {unit} would make it {size * unit_to_mm(unit) / own:.4g} mm)"
     return (f"the largest {what} is {size:.3g} mm across, read in the file's units ({read_in}): "
-            f"{why}; if the file is in other units, give them with --units (mm, cm, in, ...)")
+            f"{why}; if the file is in other units, give them with --units (mm, cm, in, ...){hint}")
