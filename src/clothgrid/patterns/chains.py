@@ -303,6 +303,11 @@ CROSS_REACH_MM = 20.0
 NODED_MAX_CHAINS = 5000
 
 
+def _straight(p: Primitive) -> bool:
+    """Whether ``p`` is a straight line parametrised linearly (a Bézier of two unweighted points)."""
+    return isinstance(p, Bezier) and len(p.ctrl) == 2 and p.weights is None
+
+
 def _noded(pieces: list[list[Primitive]], rest: list[int], tol: float, reach: float
            ) -> tuple[list[list[Primitive]], list[int], np.ndarray] | None:
     """The chains ``rest`` of ``pieces`` as one-primitive chains, their straight lines (Béziers of
@@ -315,8 +320,7 @@ def _noded(pieces: list[list[Primitive]], rest: list[int], tol: float, reach: fl
         for p in pieces[k]:
             prims.append(p)
             origin.append(k)
-    lines = np.array([i for i, p in enumerate(prims)
-                      if isinstance(p, Bezier) and len(p.ctrl) == 2 and p.weights is None], dtype=np.int64)
+    lines = np.array([i for i, p in enumerate(prims) if _straight(p)], dtype=np.int64)
     if not len(lines):
         return None
     from ..geometry import candidate_pairs
@@ -331,7 +335,7 @@ def _noded(pieces: list[list[Primitive]], rest: list[int], tol: float, reach: fl
     # a curve's end on a line near the line's end (an overshoot past where a curve begins): the line is
     # cut at that end itself
     ends = np.array([p.start if s == 0 else p.end for k in rest for s, p in ((0, pieces[k][0]), (1, pieces[k][-1]))
-                     if not (isinstance(p, Bezier) and len(p.ctrl) == 2 and p.weights is None)]).reshape(-1, 2)
+                     if not _straight(p)]).reshape(-1, 2)
     if len(ends):
         nl = len(lines)
         box_lo = np.concatenate([lo, ends - tol])
@@ -452,21 +456,19 @@ def join_outlines(pieces: list[list[Primitive]], tol: float, gap: float = 0.0, m
 def joined_note(outline: Joined, gap: float, noun: tuple[str, str], names: str = "", inner_names: str = "") -> str:
     """The note on a piece made of a :class:`Joined` outline: how many chains (``noun``: one, many;
     ``names``, ``inner_names`` listed where given), across what gaps (``gap``, its largest, in mm)."""
-    if outline.crossed:
-        k = len(outline.inner)
-        around = f"; around {k} inner line{'s' if k != 1 else ''}" if k else ""
-        listed = f" ({names})" if names else ""
-        return (f"joined from {len(outline.members)} {noun[1] if len(outline.members) != 1 else noun[0]}{listed} "
-                f"whose lines cross near their ends ({outline.crossed} crossing"
-                f"{'s' if outline.crossed != 1 else ''}): cut there, the ends past the crossings left out{around}")
-    if len(outline.members) == 1:
+    if len(outline.members) == 1 and not outline.crossed:
         return f"an {noun[0]} whose ends are {gap:.3g} mm apart, taken as closed"
     listed = f" ({names})" if names else ""
-    bridged = f", across gaps of up to {gap:.3g} mm" if outline.bridged else ""
     k = len(outline.inner)
     around = (f"; around {k} inner line{'s' if k != 1 else ''}" + (f" ({inner_names})" if inner_names else "")
               if k else "")
-    return f"joined from {len(outline.members)} {noun[1]}{listed} that meet end to end{bridged}{around}"
+    if outline.crossed:
+        how = (f"whose lines cross near their ends ({outline.crossed} crossing{'s' if outline.crossed != 1 else ''}):"
+               " cut there, the ends past the crossings left out")
+    else:
+        how = "that meet end to end" + (f", across gaps of up to {gap:.3g} mm" if outline.bridged else "")
+    many = noun[1] if len(outline.members) != 1 else noun[0]
+    return f"joined from {len(outline.members)} {many}{listed} {how}{around}"
 
 
 def _nearly_closed(chain: list[Primitive], gap: float) -> bool:

@@ -833,10 +833,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                             gap = float(np.linalg.norm(prims[-1].end - prims[0].start))
                             if not size > 0 or gap > 1e-9 * size:      # counted once joined
                                 opened.append(_Open(prims, base, el, around, text, group, nameless=nameless,
-                                                    meta={"element": tag, "id": el.get("id"),
-                                                          "class": el.get("class"), "group": group or None,
-                                                          "structure": hint, "look": _look(el),
-                                                          "part": group or None, **named}))
+                                                    meta=element_meta(tag, el, group, hint, use, named)))
                                 continue
                             if _drawn_line(prims, size):       # M a L b z: a line, drawn closed
                                 # a failed piece, unless it joins open paths into an outline
@@ -856,9 +853,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
                 name = unique(base if len(loops) == 1 else f"{base}-{k + 1}")
                 if nameless:
                     unnamed.add(name)
-                meta = {"element": tag, "id": el.get("id"), "class": el.get("class"),
-                        "group": group or None, "structure": hint, "look": _look(el),
-                        "part": group or None, **({"use": use} if use else {}), **named}
+                meta = element_meta(tag, el, group, hint, use, named)
                 make = piece_from_points if isinstance(prims, np.ndarray) else piece_from_primitives
                 if hint.get("annotation"):      # skipped whatever its shape: made only if included
                     box = outline_box(prims) if isinstance(prims, np.ndarray) else control_box(prims)
@@ -932,9 +927,10 @@ def read_svg(path: str | Path, *, units: str | None = None,
         if got_closed is None:
             continue
         prims, cut, ends = got_closed
-        base = o.base
-        hint = o.meta.get("structure") or {}
+        base, meta = o.base, dict(o.meta)
+        hint = meta.get("structure") or {}
         if hint.get("hint") == "sew" and (short := _without_word(base, hint["why"])) != base:
+            meta["aliases"] = meta.get("aliases", []) + [base]     # as a closed sew line's (visit)
             base = short
         name = unique(base)
         note = (f"an open path closed along the straight edge of cut line {cut.name!r} from "
@@ -943,7 +939,7 @@ def read_svg(path: str | Path, *, units: str | None = None,
         try:
             piece = piece_from_primitives(name, prims, rel_tol=rel_tol, where=f"{where}: ", units=unit,
                                           source="svg", notes=(f"units: {how}", note),
-                                          meta={**o.meta, "closed_along": [list(map(float, e)) for e in ends]})
+                                          meta={**meta, "closed_along": [list(map(float, e)) for e in ends]})
         except InputError:
             continue
         o.joined = True
@@ -1240,6 +1236,13 @@ def _closed_along_cut(o: "_Open", boxes: _Boxes) -> tuple[list[Primitive], Piece
             continue
         return loop, p, np.array([e0, e1])
     return None
+
+
+def element_meta(tag: str, el: ET.Element, group: str, hint: dict, use: str | None, named: dict) -> dict:
+    """What a piece made of element ``el`` records of it (closed, or an open path closed later)."""
+    return {"element": tag, "id": el.get("id"), "class": el.get("class"), "group": group or None,
+            "structure": hint, "look": _look(el), "part": group or None, **({"use": use} if use else {}),
+            **named}
 
 
 def _drawn_line(prims: list[Primitive], size: float) -> bool:
